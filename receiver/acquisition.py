@@ -1,0 +1,105 @@
+"""Acquisition: FFT parallel code-phase search, non-coherent integration, fine Doppler refinement.
+
+Detection statistic: the peak of the (non-coherently summed) correlation power divided by the mean
+power over the whole search grid of that PRN.  Under noise only each cell is Gamma(K, 1/K) distributed
+(K non-coherent sums of exponential cells, normalised to mean 1), so the threshold for a given
+probability of false alarm over the whole grid ``pfa`` is ``gamma.isf(pfa / n_cells, K, scale=1/K)``.
+The reported ``metric`` is the peak-to-mean ratio divided by that threshold: ``metric >= 1`` means
+detected.  Use ``acquisition.threshold`` to scale it (default 1.0).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft as sfft
+from scipy.stats import gamma
+
+from .signals import CA_CHIP_RATE, CA_CODE_LEN, ca_code, sample_code
+
+
+@dataclass
+class AcqResult:
+    prn: int
+    detected: bool
+    doppler_hz: float          # carrier Doppler (fine if detected)
+    code_phase_chips: float    # code phase of the signal at the first sample of the searched block
+    sample_index: int          # file index of that first sample
+    metric: float              # peak-to-mean / threshold (>= 1: detected)
+    peak_to_mean: float
+    cn0_dbhz_est: float
+
+
+def _threshold(pfa: float, n_cells: int, k: int) -> float:
+    return float(gamma.isf(pfa / n_cells, k, scale=1.0 / k))
+
+
+def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns, coherent_ms: int = 4,
+           noncoherent: int = 10, doppler_max_hz: float = 10000.0, doppler_step_hz: float | None = None,
+           pfa: float = 1e-3, threshold: float = 1.0, fine: bool = True) -> list[AcqResult]:
+    """Search `prns` in `samples` (complex64, first sample = file index start_index)."""
+    n = int(round(coherent_ms * 1e-3 * fs))
+    need = n * noncoherent
+    if len(samples) < need:
+        raise ValueError(f"acquisition needs {need} samples, got {len(samples)}")
+    step = doppler_step_hz or 1.0 / (2.0 * coherent_ms * 1e-3)
+    dopplers = np.arange(-doppler_max_hz, doppler_max_hz + step / 2, step)
+    t = np.arange(n) / fs
+    # spectra of the Doppler-wiped blocks: (noncoherent, n_dopp, n)
+    blocks = samples[:need].reshape(noncoherent, n).astype(np.complex64)
+    wipe = np.exp(-2j * np.pi * np.outer(if_hz + dopplers, t)).astype(np.complex64)
+    spectra = [sfft.fft(blocks[k][None, :] * wipe, axis=1, workers=-1) for k in range(noncoherent)]
+    out = []
+    n_cells = len(dopplers) * n
+    thr = _threshold(pfa, n_cells, noncoherent)
+    for prn in prns:
+        code = sample_code(ca_code(prn), CA_CHIP_RATE, fs, n).astype(np.complex64)
+        cf = np.conj(sfft.fft(code))
+        power = np.zeros((len(dopplers), n), np.float32)
+        for k in range(noncoherent):
+            corr = sfft.ifft(spectra[k] * cf[None, :], axis=1, workers=-1)
+            power += corr.real ** 2 + corr.imag ** 2
+        mean = float(power.mean())
+        di, si = np.unravel_index(int(np.argmax(power)), power.shape)
+        ptm = float(power[di, si]) / mean
+        metric = ptm / thr / threshold
+        # the code starts at sample si: the signal's code phase at sample 0 is -si samples
+        code_phase = (-si * CA_CHIP_RATE / fs) % CA_CODE_LEN
+        dop = float(dopplers[di])
+        # peak-to-mean - 1 ~ coherent SNR = C/N0 * T_coh (before straddle losses)
+        cn0 = 10 * np.log10(max(ptm - 1.0, 1e-3) / (coherent_ms * 1e-3))
+        res = AcqResult(prn, metric >= 1.0, dop, float(code_phase), start_index, float(metric), ptm,
+                        float(cn0))
+        if res.detected and fine:
+            res.doppler_hz = refine_doppler(samples, fs, if_hz, prn, res.code_phase_chips, dop, step)
+        out.append(res)
+    return out
+
+
+def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_phase_chips: float,
+                   coarse_hz: float, bin_hz: float, block_ms: int = 10, n_blocks: int = 4) -> float:
+    """Fine Doppler: wipe the code off `n_blocks` x `block_ms` blocks, zero-padded FFTs summed
+    non-coherently around the coarse bin, peak interpolated.  Accuracy ~ a few Hz at 40 dB-Hz."""
+    n = int(round(block_ms * 1e-3 * fs))
+    total = min(n * n_blocks, len(samples))
+    n_blocks = max(1, total // n)
+    code = sample_code(ca_code(prn), CA_CHIP_RATE, fs, n * n_blocks, code_phase_chips)
+    t = np.arange(n * n_blocks) / fs
+    x = samples[:n * n_blocks] * code * np.exp(-2j * np.pi * (if_hz + coarse_hz) * t)
+    nfft = 1 << int(np.ceil(np.log2(n * 8)))
+    spec = np.zeros(nfft)
+    for k in range(n_blocks):
+        s = np.fft.fft(x[k * n:(k + 1) * n], nfft)
+        spec += np.abs(s) ** 2
+    freqs = np.fft.fftfreq(nfft, 1.0 / fs)
+    sel = np.abs(freqs) <= 1.5 * bin_hz
+    idx = np.flatnonzero(sel)
+    i = idx[np.argmax(spec[idx])]
+    # parabolic interpolation
+    if 0 < i < nfft - 1:
+        a, b, c = spec[i - 1], spec[i], spec[(i + 1) % nfft]
+        den = a - 2 * b + c
+        d = 0.5 * (a - c) / den if den != 0 else 0.0
+    else:
+        d = 0.0
+    return float(coarse_hz + freqs[i] + d * fs / nfft)

@@ -1,0 +1,93 @@
+"""Command-line interface: ``gnssrx run | acquire | simulate | eval | leo ...``.
+
+Bad user input (config keys/values, missing or malformed files) raises UserError anywhere below; it is
+reported here as one line on stderr with exit code 2 and no traceback.
+"""
+from __future__ import annotations
+
+import sys
+
+import click
+
+from . import __version__
+from .errors import UserError
+
+
+class _Group(click.Group):
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except UserError as exc:
+            click.echo(f"gnssrx: error: {exc}", err=True)
+            ctx.exit(2)
+
+
+@click.group(cls=_Group)
+@click.version_option(__version__, prog_name="gnssrx")
+def main():
+    """gnssrx - GNSS software receiver for recorded IF samples."""
+
+
+def _load(config, input_path, sets, output=None):
+    from .config import load_receiver_config
+    overrides = list(sets)
+    if input_path:
+        overrides.append(("input.path", input_path))
+    if output:
+        overrides.append(("output.path", output))
+    return load_receiver_config(config, overrides)
+
+
+@main.command()
+@click.argument("config", type=str)
+@click.option("--input", "input_path", type=str, help="IF file (overrides input.path)")
+@click.option("--output", "-o", type=str, help="HDF5 output (overrides output.path)")
+@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a config key")
+@click.option("--quiet", "-q", is_flag=True, help="no progress bar or summary")
+def run(config, input_path, output, sets, quiet):
+    """Run the receiver on a recorded IF file and write one HDF5 file."""
+    from .pipeline import run as run_pipeline
+    cfg = _load(config, input_path, sets, output)
+    summary = run_pipeline(cfg, quiet=quiet)
+    if not quiet:
+        click.echo(summary.text())
+
+
+@main.command()
+@click.argument("config", type=str)
+@click.option("--input", "input_path", type=str, help="IF file (overrides input.path)")
+@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a config key")
+def acquire(config, input_path, sets):
+    """Acquire all configured PRNs and print a table."""
+    from .pipeline import acquire as do_acquire, open_input
+    cfg = _load(config, input_path, sets)
+    reader = open_input(cfg)
+    start = reader.first + int(round(cfg.acquisition.start_s * reader.fs))
+    res = do_acquire(cfg, reader, start, cfg.acquisition.prns)
+    click.echo(f"{'PRN':>4} {'detected':>8} {'doppler_hz':>11} {'code_phase':>11} {'metric':>7} "
+               f"{'C/N0~':>6}")
+    for r in res:
+        click.echo(f"{r.prn:4d} {('yes' if r.detected else 'no'):>8} {r.doppler_hz:11.1f} "
+                   f"{r.code_phase_chips:11.2f} {r.metric:7.2f} {r.cn0_dbhz_est:6.1f}")
+    click.echo(f"detected: {' '.join(str(r.prn) for r in res if r.detected) or 'none'}")
+
+
+def _register_optional():
+    """Commands that live in their own packages (registered when present)."""
+    try:
+        from .sim.cli import simulate, evaluate_cmd
+        main.add_command(simulate)
+        main.add_command(evaluate_cmd)
+    except ImportError:
+        pass
+    try:
+        from .leo.cli import leo
+        main.add_command(leo)
+    except ImportError:
+        pass
+
+
+_register_optional()
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

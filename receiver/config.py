@@ -1,0 +1,303 @@
+"""Typed, validated YAML configuration.
+
+A schema is a nested dict whose leaves are :class:`P` (parameter specs with a default, a type, a
+documentation string and optional limits).  :func:`build` merges a user's YAML (and ``--set`` overrides)
+over the defaults and returns a :class:`Section` tree with attribute access.  Unknown keys, wrong types and
+out-of-range values raise :class:`receiver.errors.UserError` naming the dotted key.
+
+The receiver's own schema is :data:`RECEIVER_SCHEMA`; other commands (simulator scenarios, LEO, batch)
+define their own schemas with the same machinery.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+
+from .errors import UserError
+
+_REQUIRED = object()
+
+
+@dataclass
+class P:
+    """One parameter: default value, type name, doc string and limits.
+
+    kind: float | int | bool | str | list_int | list_float | list | dict | any
+    """
+    default: Any
+    kind: str
+    doc: str
+    choices: tuple | None = None
+    lo: float | None = None
+    hi: float | None = None
+    nullable: bool = False
+    required: bool = False
+    extra: dict = field(default_factory=dict)
+
+
+class Section:
+    """Attribute-access view of one config level."""
+
+    def __init__(self, values: dict):
+        self.__dict__["_values"] = values
+
+    def __getattr__(self, name):
+        try:
+            return self._values[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __setattr__(self, name, value):
+        raise AttributeError("config sections are read-only")
+
+    def __getitem__(self, name):
+        return self._values[name]
+
+    def __contains__(self, name):
+        return name in self._values
+
+    def get(self, dotted: str):
+        node = self
+        for part in dotted.split("."):
+            node = node[part]
+        return node
+
+    def to_dict(self) -> dict:
+        return {k: (v.to_dict() if isinstance(v, Section) else copy.deepcopy(v))
+                for k, v in self._values.items()}
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    def __repr__(self):
+        return f"Section({self.to_dict()!r})"
+
+
+def _check(key: str, spec: P, value):
+    if value is None:
+        if spec.nullable:
+            return None
+        raise UserError(f"config key '{key}' must not be empty")
+    k = spec.kind
+    try:
+        if k == "float":
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError
+            value = float(value)
+            if not math.isfinite(value):
+                raise ValueError
+        elif k == "int":
+            if isinstance(value, bool) or not (isinstance(value, int) or
+                                               (isinstance(value, float) and value.is_integer())):
+                raise TypeError
+            value = int(value)
+        elif k == "bool":
+            if not isinstance(value, bool):
+                raise TypeError
+        elif k == "str":
+            if not isinstance(value, str):
+                raise TypeError
+        elif k in ("list_int", "list_float"):
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                value = [value]
+            if not isinstance(value, list):
+                raise TypeError
+            sub = P(None, k[5:], spec.doc)
+            value = [_check(f"{key}[{i}]", sub, v) for i, v in enumerate(value)]
+        elif k == "list":
+            if not isinstance(value, list):
+                raise TypeError
+        elif k == "dict":
+            if not isinstance(value, dict):
+                raise TypeError
+        elif k != "any":
+            raise AssertionError(f"unknown kind {k}")
+    except (TypeError, ValueError):
+        raise UserError(f"config key '{key}' must be of type {k}, got {value!r}") from None
+    if spec.choices is not None and value not in spec.choices:
+        raise UserError(f"config key '{key}' must be one of {', '.join(map(str, spec.choices))}; "
+                        f"got {value!r}")
+    for v in (value if isinstance(value, list) and k.startswith("list_") else [value]):
+        if spec.lo is not None and v < spec.lo:
+            raise UserError(f"config key '{key}' must be >= {spec.lo}, got {v!r}")
+        if spec.hi is not None and v > spec.hi:
+            raise UserError(f"config key '{key}' must be <= {spec.hi}, got {v!r}")
+    return value
+
+
+def _merge(schema: dict, user: dict, prefix: str) -> dict:
+    if not isinstance(user, dict):
+        raise UserError(f"config section '{prefix.rstrip('.') or '<top>'}' must be a mapping")
+    unknown = [k for k in user if k not in schema]
+    if unknown:
+        raise UserError(f"unknown config key '{prefix}{unknown[0]}'")
+    out = {}
+    for name, spec in schema.items():
+        key = prefix + name
+        if isinstance(spec, dict):
+            out[name] = Section(_merge(spec, user.get(name) or {}, key + "."))
+        else:
+            if name in user:
+                out[name] = _check(key, spec, user[name])
+            elif spec.required:
+                raise UserError(f"config key '{key}' is required")
+            else:
+                out[name] = copy.deepcopy(spec.default)
+    return out
+
+
+def parse_override(item: str) -> tuple[str, Any]:
+    """Parse one ``--set dotted.key=value`` (value parsed as YAML)."""
+    if "=" not in item:
+        raise UserError(f"--set expects dotted.key=value, got '{item}'")
+    key, text = item.split("=", 1)
+    try:
+        value = yaml.safe_load(text) if text.strip() else None
+    except yaml.YAMLError:
+        value = text
+    return key.strip(), value
+
+
+def apply_overrides(raw: dict, overrides) -> dict:
+    raw = copy.deepcopy(raw)
+    for item in overrides or ():
+        key, value = parse_override(item) if isinstance(item, str) else item
+        node = raw
+        parts = key.split(".")
+        for part in parts[:-1]:
+            nxt = node.get(part)
+            if nxt is None:
+                nxt = node[part] = {}
+            if not isinstance(nxt, dict):
+                raise UserError(f"--set {key}: '{part}' is not a section")
+            node = nxt
+        node[parts[-1]] = value
+    return raw
+
+
+def read_yaml(path) -> dict:
+    """Read a YAML mapping; errors become one-line UserErrors."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise UserError(f"config file not found: {path}")
+    try:
+        with open(path) as fh:
+            raw = yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark else ""
+        raise UserError(f"config file {path} is not valid YAML{where}") from None
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
+        raise UserError(f"config file {path} must hold a YAML mapping")
+    return raw
+
+
+def build(schema: dict, raw: dict | None = None, overrides=None) -> Section:
+    """Validate raw (already parsed YAML) plus overrides against schema."""
+    return Section(_merge(schema, apply_overrides(raw or {}, overrides), ""))
+
+
+def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, str]]:
+    """(key, kind, default, doc) rows, for the README config reference."""
+    rows = []
+    for name, spec in schema.items():
+        if isinstance(spec, dict):
+            rows += defaults_doc(spec, prefix + name + ".")
+        else:
+            kind = spec.kind + (f" ({'|'.join(map(str, spec.choices))})" if spec.choices else "")
+            rows.append((prefix + name, kind, spec.default, spec.doc))
+    return rows
+
+
+# --------------------------------------------------------------------------------------------------
+# The receiver's schema
+# --------------------------------------------------------------------------------------------------
+INPUT_FORMATS = ("int8_iq", "int16_iq", "complex64", "int8_real", "int16_real")
+CARRIER_VARIANTS = ("pll",)
+
+RECEIVER_SCHEMA = {
+    "input": {
+        "path": P(None, "str", "IF sample file (relative paths are taken from the current directory; "
+                              "`--input` overrides)", nullable=True),
+        "format": P("int8_iq", "str", "sample format", choices=INPUT_FORMATS),
+        "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
+        "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
+        "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
+        "skip_s": P(0.0, "float", "seconds skipped at the start of the file", lo=0.0),
+        "duration_s": P(None, "float", "seconds processed (empty: to the end of the file)",
+                        nullable=True, lo=0.0),
+        "start_gps_week": P(None, "int", "GPS week of the first sample (only for assisted mode / "
+                                         "time-tagging before the first decoded TOW)", nullable=True),
+        "start_gps_tow_s": P(None, "float", "approximate GPS time of week of the first sample",
+                             nullable=True),
+    },
+    "signal": P("gps_l1ca", "str", "signal to acquire and track", choices=("gps_l1ca",)),
+    "acquisition": {
+        "prns": P(list(range(1, 33)), "list_int", "PRNs searched", lo=1, hi=32),
+        "coherent_ms": P(4, "int", "coherent integration per non-coherent step (ms)", lo=1, hi=10),
+        "noncoherent": P(10, "int", "number of non-coherent sums", lo=1, hi=100),
+        "doppler_max_hz": P(10000.0, "float", "Doppler search half-range", lo=0.0),
+        "doppler_step_hz": P(None, "float", "Doppler bin width (empty: 1/(2 T_coh))", nullable=True,
+                             lo=1.0),
+        "pfa": P(1e-3, "float", "false-alarm probability over one PRN's search grid", lo=1e-12, hi=0.5),
+        "threshold": P(1.0, "float", "extra factor on the pfa-derived detection threshold (see README)",
+                       lo=0.1),
+        "start_s": P(0.0, "float", "time into the processed span where acquisition starts", lo=0.0),
+    },
+    "tracking": {
+        "max_channels": P(12, "int", "maximum number of tracking channels", lo=1, hi=64),
+        "integration_ms": P(1, "int", "coherent integration after bit sync (1, 2, 4, 5, 10, 20 ms)",
+                            choices=(1, 2, 4, 5, 10, 20)),
+        "pull_in_ms": P(300, "int", "duration of FLL-assisted pull-in (ms)", lo=0),
+        "fll_bw_hz": P(10.0, "float", "FLL noise bandwidth during pull-in", lo=0.1),
+        "pll_bw_hz": P(25.0, "float", "PLL noise bandwidth", lo=0.1),
+        "pll_order": P(3, "int", "PLL order", choices=(2, 3)),
+        "dll_bw_hz": P(2.0, "float", "DLL noise bandwidth (carrier aided)", lo=0.01),
+        "dll_order": P(2, "int", "DLL order (2 absorbs a code/carrier rate mismatch)", choices=(1, 2)),
+        "dll_bw_pull_in_hz": P(4.0, "float", "DLL noise bandwidth during pull-in", lo=0.01),
+        "early_late_chips": P(0.5, "float", "early-late spacing (total, chips)", lo=0.05, hi=1.5),
+        "cn0_window_ms": P(200, "int", "window for the C/N0 estimator (ms)", lo=20),
+        "cn0_estimator": P("snv", "str", "C/N0 estimator: snv (signal-to-noise variance of the locked "
+                                         "prompt; M2M4 before lock) or m2m4", choices=("snv", "m2m4")),
+        "lock_cn0_min_dbhz": P(25.0, "float", "C/N0 below which lock is declared lost", lo=0.0),
+        "lock_ratio_min": P(1.5, "float", "PLL lock detector: lock while low-passed |I| exceeds this "
+                                          "times low-passed |Q|", lo=1.0),
+        "lost_ms": P(1000, "int", "time below the lock thresholds before a channel is dropped", lo=10),
+        "reacquire_s": P(5.0, "float", "interval between re-acquisition attempts for missing PRNs",
+                         lo=0.1),
+        "carrier": {
+            "variant": P("pll", "str", "carrier loop variant", choices=CARRIER_VARIANTS),
+        },
+    },
+    "navigation": {
+        "enabled": P(True, "bool", "decode LNAV and compute fixes"),
+        "rate_hz": P(10.0, "float", "observable / fix rate", lo=0.1, hi=1000.0),
+        "ephemeris": P(None, "str", "RINEX 2/3 GPS navigation file for assisted mode", nullable=True),
+        "troposphere": P("saastamoinen", "str", "troposphere model", choices=("saastamoinen", "none")),
+        "ionosphere": P("klobuchar", "str", "ionosphere model", choices=("klobuchar", "none")),
+        "elevation_mask_deg": P(5.0, "float", "elevation mask", lo=-90.0, hi=90.0),
+        "weighting": P("elevation", "str", "WLS weights", choices=("elevation", "cn0", "none")),
+        "residual_threshold_m": P(30.0, "float", "drop the worst satellite when a residual exceeds this",
+                                  lo=0.0),
+        "filter": P("wls", "str", "navigation filter", choices=("wls",)),
+        "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
+                         lo=0.0),
+    },
+    "output": {
+        "path": P(None, "str", "HDF5 output (empty: <input stem>.h5 in the current directory; "
+                               "`--output` overrides)", nullable=True),
+        "report": P(False, "bool", "write a PNG report beside the HDF5 file"),
+    },
+}
+
+
+def load_receiver_config(path=None, overrides=None) -> Section:
+    raw = read_yaml(path) if path is not None else {}
+    return build(RECEIVER_SCHEMA, raw, overrides)

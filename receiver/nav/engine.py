@@ -1,0 +1,333 @@
+"""Navigation engine: channel-epoch records -> LNAV bits -> transmit times -> observables -> fixes.
+
+The engine is fed the records of every channel chunk by chunk (``add_records``) and produces fixes and
+observables for all navigation epochs that every active channel has passed (``update``).
+
+Time keeping
+------------
+* Transmit time of a record's first sample: frame sync ties bit ``b`` of a channel to GPS TOW, so the code
+  period ``bit_offset + 20 b`` started at that TOW; a record then transmits
+  ``tow_ref + (code_period - cp_ref) * 1 ms + code_phase_chips / 1.023 MHz`` (satellite clock).
+* Receiver clock: sample counter.  Before the first fix, ``rx_tow = tow0 + (s - s0) / fs`` with tow0
+  guessed from a 75 ms travel time; the first fix corrects tow0 by the estimated clock bias.  After the
+  first fix the navigation epochs are placed (at fractional sample positions) where the predicted GPS time is
+  a multiple of 1/rate, so fixes and observables fall on round GPS times.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from ..geodesy import ecef2lla
+from ..output import FIX_DTYPE, OBS_DTYPE
+from ..record import STATE_BIT_SYNC
+from ..signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
+from .lnav import LnavDecoder, SubframeEvent
+from .pvt import NavSolver, Observation
+
+BIT_MS = 20
+
+
+class ChannelNav:
+    """Per-channel bit assembly, frame sync and transmit-time bookkeeping."""
+
+    def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float):
+        self.prn = prn
+        self.decoder = LnavDecoder(prn, week_hint=week_hint)
+        self.if_hz = if_hz
+        self.fs = fs
+        self.bit_offset = -1
+        self.cur_bit = None
+        self.cur_sum = 0.0
+        self.cur_ms = 0
+        self.cp_ref = None          # code period at the start of a subframe with known TOW
+        self.tow_ref = None
+        self.polarity = 0
+        self.recent = deque()       # recent records (for interpolation at navigation epochs)
+        self.last_sample = -1
+        self.lock_start_s = None
+        self.locked = False
+        self.hatch = None           # carrier-smoothing state
+        self.cn0 = 0.0
+
+    def add(self, recs: np.ndarray, bit_offset: int):
+        if len(recs) == 0:
+            return
+        self.recent.append(recs)
+        while len(self.recent) > 3:
+            self.recent.popleft()
+        self.last_sample = int(recs["sample_index"][-1])
+        self.cn0 = float(recs["cn0_dbhz"][-1])
+        locked = bool(recs["pll_lock"][-1])
+        if locked and not self.locked:
+            self.lock_start_s = float(recs["time_s"][-1])
+        self.locked = locked
+        if bit_offset < 0:
+            return
+        self.bit_offset = bit_offset
+        sync = recs["state"] == STATE_BIT_SYNC
+        if not sync.any():
+            return
+        r = recs[sync]
+        bits_idx = (r["code_period"] - bit_offset) // BIT_MS
+        # collect complete bits: sum prompt_i over the integration epochs of each bit
+        out_bits, first = [], None
+        for b, pi, ms in zip(bits_idx, r["prompt_i"], r["integration_ms"]):
+            b = int(b)
+            if self.cur_bit is None or b != self.cur_bit:
+                if self.cur_bit is not None and self.cur_ms == BIT_MS:
+                    if first is None:
+                        first = self.cur_bit
+                    if self.cur_bit == first + len(out_bits):
+                        out_bits.append(self.cur_sum)
+                    else:                   # gap: flush what we have
+                        self._feed(out_bits, first)
+                        out_bits, first = [self.cur_sum], self.cur_bit
+                self.cur_bit, self.cur_sum, self.cur_ms = b, 0.0, 0
+            self.cur_sum += float(pi)
+            self.cur_ms += int(ms)
+        if out_bits:
+            self._feed(out_bits, first)
+
+    def _feed(self, bits, first):
+        if not bits:
+            return
+        for ev in self.decoder.feed(np.asarray(bits), first):
+            if isinstance(ev, SubframeEvent):
+                self.cp_ref = self.bit_offset + BIT_MS * ev.bit_index
+                self.tow_ref = ev.tow_s
+                self.polarity = ev.polarity
+
+    @property
+    def has_time(self) -> bool:
+        return self.tow_ref is not None
+
+    @property
+    def tx_offset(self) -> float:
+        """GPS TOW of code period 0 (transmit time = tx_offset + relative transmit time)."""
+        return self.tow_ref - self.cp_ref * 1e-3
+
+    def measure(self, s: float):
+        """(relative transmit time s, NCO Doppler Hz, carrier phase cycles) at fractional sample s.
+
+        The relative transmit time counts from the start of code period 0 of this channel; it needs no
+        frame sync, so pseudoranges can be carrier-smoothed from the start of tracking."""
+        for recs in reversed(self.recent):
+            si = recs["sample_index"]
+            if len(si) == 0 or si[0] > s:
+                continue
+            k = int(np.searchsorted(si, s, side="right")) - 1
+            if k >= len(si) - 1 and s - si[-1] > 0.03 * self.fs:
+                return None
+            r = recs[k]
+            dt = (s - float(r["sample_index"])) / self.fs
+            txrel = (int(r["code_period"]) * 1e-3 + float(r["code_phase_chips"]) / CA_CHIP_RATE
+                     + dt * float(r["code_rate_hz"]) / CA_CHIP_RATE)
+            dop = float(r["doppler_hz"])
+            phase = float(r["carrier_phase_cycles"]) + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
+            if self.polarity < 0:
+                phase += 0.5
+            return txrel, dop, phase
+        return None
+
+    def smooth(self, s: float, txrel: float, phase: float, window_epochs: int) -> float:
+        """Carrier smoothing of the code measurement; returns the smoothed relative transmit time.
+
+        The code-minus-carrier z = c (s/fs - txrel) + lambda * phase is constant for an ideal front end
+        but drifts linearly when code and carrier see different clock rates (an oscillator error applied
+        to the carrier only) and, slowly, with ionospheric divergence.  z is therefore fitted by a straight
+        line with exponential forgetting (memory ``window_epochs``); the smoothed code is the fitted z minus
+        the carrier.  A jump of the code against the fit (cycle slip) restarts the filter.
+        """
+        if window_epochs <= 1:
+            return txrel
+        t = s / self.fs
+        z = C_LIGHT * (t - txrel) + LAMBDA_L1 * phase
+        h = self.hatch
+        if h is None or not self.locked:
+            h = self.hatch = {"z0": z, "t0": t, "S": np.zeros(5), "n": 0}
+        zr, tr = z - h["z0"], t - h["t0"]
+        S = h["S"]
+        if h["n"] >= 20:
+            a, b = self._fit(S)
+            if abs(zr - (a + b * tr)) > 20.0:            # slip: restart
+                self.hatch = None
+                return self.smooth(s, txrel, phase, window_epochs)
+        S *= 1.0 - 1.0 / window_epochs
+        S += (1.0, tr, tr * tr, zr, tr * zr)
+        h["n"] += 1
+        if h["n"] < 3:
+            return txrel
+        a, b = self._fit(S)
+        ys = h["z0"] + a + b * tr - LAMBDA_L1 * phase
+        return t - ys / C_LIGHT
+
+    @staticmethod
+    def _fit(S):
+        s0, s1, s2, sz, stz = S
+        det = s0 * s2 - s1 * s1
+        if det <= 1e-12 * max(s0 * s2, 1e-30):
+            return sz / s0, 0.0
+        b = (s0 * stz - s1 * sz) / det
+        return (sz - b * s1) / s0, b
+
+
+class NavigationEngine:
+    def __init__(self, nav_cfg, fs: float, if_hz: float, first_sample: int, ephemerides=None,
+                 iono_utc=None, week_hint: int | None = None):
+        self.cfg = nav_cfg
+        self.fs = fs
+        self.if_hz = if_hz
+        self.solver = NavSolver(nav_cfg)
+        self.channels: dict[int, ChannelNav] = {}
+        self.assisted = ephemerides is not None
+        self.rinex_ephs = ephemerides or {}
+        self.iono_utc = iono_utc
+        self.week_hint = week_hint
+        self.week = week_hint
+        self.rate = nav_cfg.rate_hz
+        self.next_s = float(first_sample + int(round(fs / self.rate)))
+        self.tow0 = None            # rx_tow at sample s0
+        self.s0 = None
+        self.last_fix = None        # (sample, Fix)
+        self.epoch = 0
+        self.x0 = None
+        self.n_attempts = 0
+
+    def channel(self, prn: int) -> ChannelNav:
+        if prn not in self.channels:
+            self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs)
+        return self.channels[prn]
+
+    def add_records(self, prn: int, recs, bit_offset: int):
+        self.channel(prn).add(recs, bit_offset)
+
+    def drop(self, prn: int):
+        self.channels.pop(prn, None)
+
+    # ------------------------------------------------------------------------------------------
+    def _ephemerides(self, t):
+        from .ephemeris import select
+        out = {}
+        for prn, ch in self.channels.items():
+            if self.assisted and prn in self.rinex_ephs:
+                e = select(self.rinex_ephs[prn], t)
+                if e is not None:
+                    out[prn] = e
+            elif ch.decoder.ephemeris is not None:
+                out[prn] = ch.decoder.ephemeris
+        return out
+
+    def _iono(self):
+        if self.iono_utc is not None:
+            return self.iono_utc
+        for ch in self.channels.values():
+            if ch.decoder.iono_utc is not None:
+                return ch.decoder.iono_utc
+        return None
+
+    def _week(self):
+        for ch in self.channels.values():
+            if ch.decoder.week is not None:
+                return ch.decoder.week
+        return self.week_hint
+
+    def update(self, up_to_sample: int):
+        """Fixes and observables for all navigation epochs before up_to_sample (all channels passed)."""
+        fixes, obs = [], []
+        active = [ch for ch in self.channels.values() if ch.last_sample >= 0]
+        if not active:
+            return np.zeros(0, FIX_DTYPE), np.zeros(0, OBS_DTYPE)
+        horizon = min(up_to_sample, min(ch.last_sample for ch in active))
+        while self.next_s <= horizon:
+            s = self.next_s
+            f, o = self._epoch(s)
+            if f is not None:
+                fixes.append(f)
+            obs.extend(o)
+            self._advance()
+        fa = np.zeros(len(fixes), FIX_DTYPE)
+        for i, f in enumerate(fixes):
+            fa[i] = f
+        oa = np.zeros(len(obs), OBS_DTYPE)
+        for i, o in enumerate(obs):
+            oa[i] = o
+        return fa, oa
+
+    def _advance(self):
+        step = 1.0 / self.rate
+        if self.last_fix is None:
+            self.next_s += self.fs * step
+            return
+        s_fix, fix = self.last_fix
+        # next round GPS time after the current epoch, mapped to a sample with the estimated drift
+        t_now = fix.gps_tow + (self.next_s - s_fix) / self.fs * (1 - fix.clock_drift_mps / C_LIGHT)
+        t_next = (math.floor(t_now * self.rate + 1e-6) + 1) / self.rate
+        scale = self.fs / (1 - fix.clock_drift_mps / C_LIGHT)
+        self.next_s = s_fix + (t_next - fix.gps_tow) * scale
+
+    def _epoch(self, s: float):
+        meas = {}
+        dt = 1.0 / self.rate
+        window = int(round(self.cfg.smoothing_s * self.rate))
+        for prn, ch in self.channels.items():
+            if not ch.locked:
+                ch.hatch = None
+                continue
+            m = ch.measure(s)
+            if m is None:
+                ch.hatch = None
+                continue
+            txrel = ch.smooth(s, m[0], m[2], window)
+            if not ch.has_time:
+                continue
+            prev = ch.measure(s - dt * self.fs)
+            dop = (m[2] - prev[2]) / dt if prev is not None else m[1]
+            meas[prn] = ((ch.tx_offset + txrel, dop, m[2]), ch)
+        if len(meas) < 4:
+            return None, []
+        if self.tow0 is None:
+            self.tow0 = max(m[0] for m, _ in meas.values()) + 0.075
+            self.s0 = s
+        rx_tow = self.tow0 + (s - self.s0) / self.fs
+        week = self._week()
+        ephs = self._ephemerides(rx_tow)
+        observations = [Observation(prn=prn, tx_tow=m[0], doppler_hz=m[1], cn0_dbhz=ch.cn0,
+                                    carrier_phase_cycles=m[2])
+                        for prn, (m, ch) in sorted(meas.items()) if prn in ephs]
+        fix = None
+        if len(observations) >= 4 and week is not None:
+            fix = self.solver.fix(week, rx_tow, observations, ephs, self._iono(), x0=self.x0)
+        if fix is None:
+            return None, []
+        if self.last_fix is None:
+            # first fix: take the clock bias out of the receiver time and solve again
+            self.tow0 -= fix.clock_bias_m / C_LIGHT
+            rx_tow = self.tow0 + (s - self.s0) / self.fs
+            fix = self.solver.fix(week, rx_tow, observations, ephs, self._iono(), x0=fix.ecef)
+            if fix is None:
+                return None, []
+        self.x0 = fix.ecef
+        self.last_fix = (s, fix)
+        lat, lon, h = ecef2lla(fix.ecef)
+        t_s = s / self.fs
+        row = (fix.gps_week, fix.gps_tow, t_s, fix.ecef, fix.velocity_ecef, fix.clock_bias_m,
+               fix.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop, 0,
+               float(lat), float(lon), float(h))
+        used = set(fix.prns)
+        el = dict(zip(fix.prns, fix.elevations_deg))
+        az = dict(zip(fix.prns, fix.azimuths_deg))
+        res = dict(zip(fix.prns, fix.residuals_m))
+        obs_rows = []
+        for o in observations:
+            ch = meas[o.prn][1]
+            pr = (rx_tow - o.tx_tow) * C_LIGHT
+            obs_rows.append((self.epoch, fix.gps_week, fix.gps_tow, t_s, o.prn, pr,
+                             -o.doppler_hz * LAMBDA_L1, o.doppler_hz, o.carrier_phase_cycles, o.cn0_dbhz,
+                             t_s - (ch.lock_start_s if ch.lock_start_s is not None else t_s),
+                             1 if ch.polarity != 0 else 0, 1 if o.prn in used else 0,
+                             el.get(o.prn, np.nan), az.get(o.prn, np.nan), res.get(o.prn, np.nan)))
+        self.epoch += 1
+        return row, obs_rows

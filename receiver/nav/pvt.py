@@ -1,0 +1,291 @@
+"""Single-point positioning: iterative weighted least squares on L1 C/A pseudoranges,
+velocity and clock drift from Doppler.
+
+Measurement model (all in metres):
+    rho_raw = c (rx_tow - tx_tow)                       raw pseudorange
+    rho_raw + c dt_sv - I - T = |R(tau) r_sv - x| + b   (dt_sv includes relativity and -TGD)
+where r_sv is the satellite position at the true transmit time tx_tow - dt_sv, R(tau) the
+Earth-rotation (Sagnac) correction over the travel time tau, I and T the ionospheric and
+tropospheric delays and b the receiver clock bias (c times the receiver clock error).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geodesy import azel, ecef2lla, enu_matrix
+from ..signals import C_LIGHT, LAMBDA_L1
+from .atmosphere import klobuchar_delay_s, saastamoinen_m
+from .ephemeris import earth_rotation, sat_state, select, wrap_week_seconds
+
+
+@dataclass
+class Observation:
+    """One satellite's measurements at a receiver epoch.
+
+    tx_tow: transmit GPS time of week read from the satellite's signal (s), so that the raw
+    pseudorange is c (rx_tow - tx_tow).  doppler_hz: measured carrier frequency minus nominal
+    (positive when the satellite approaches); NaN when unknown.
+    """
+    prn: int
+    tx_tow: float
+    doppler_hz: float = float("nan")
+    cn0_dbhz: float = float("nan")
+    carrier_phase_cycles: float = float("nan")
+
+
+@dataclass
+class Fix:
+    """A navigation solution.  Per-satellite arrays follow ``prns`` (satellites used)."""
+    gps_week: int
+    gps_tow: float                      # true GPS time of the fix: rx_tow - clock_bias_m / c
+    ecef: np.ndarray
+    velocity_ecef: np.ndarray           # NaN when fewer than 4 Doppler measurements
+    clock_bias_m: float
+    clock_drift_mps: float
+    n_sats: int
+    prns: list
+    pdop: float
+    hdop: float
+    vdop: float
+    gdop: float
+    residuals_m: np.ndarray
+    elevations_deg: np.ndarray
+    azimuths_deg: np.ndarray
+    pseudoranges_m: np.ndarray          # corrected: raw + c dt_sv - iono - tropo
+    pseudorange_rates_mps: np.ndarray   # corrected: -doppler * lambda + c ddt_sv
+    raw_pseudoranges_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    iono_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tropo_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    velocity_residuals_mps: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rejected_prns: list = field(default_factory=list)   # dropped by the residual check
+    rx_tow: float = float("nan")
+    iterations: int = 0
+
+    @property
+    def lla(self):
+        """(lat_deg, lon_deg, h_m)."""
+        lat, lon, h = ecef2lla(self.ecef)
+        return float(lat), float(lon), float(h)
+
+
+class _Sats:
+    """Arrays of the satellites of one epoch (positions in the transmit-time ECEF frame)."""
+
+    def __init__(self, prn, rho, pos, vel, clk, drift, cn0, doppler):
+        self.prn = np.asarray(prn, dtype=int)
+        self.rho = np.asarray(rho, float)
+        self.pos = np.asarray(pos, float).reshape(-1, 3)
+        self.vel = np.asarray(vel, float).reshape(-1, 3)
+        self.clk = np.asarray(clk, float)
+        self.drift = np.asarray(drift, float)
+        self.cn0 = np.asarray(cn0, float)
+        self.doppler = np.asarray(doppler, float)
+
+    def __len__(self):
+        return len(self.prn)
+
+
+class NavSolver:
+    """Iterative WLS position/clock and Doppler velocity/drift.
+
+    nav_cfg: the receiver config ``navigation`` section (or any object with the attributes
+    elevation_mask_deg, weighting ('elevation'|'cn0'|'none'), troposphere ('saastamoinen'|
+    'none'), ionosphere ('klobuchar'|'none'), residual_threshold_m); missing ones default.
+
+    Weights: elevation -> sin^2(el); cn0 -> 10^(cn0/10); none -> 1; all scaled so the largest
+    weight is 1.  Residual check: the normalised residual of satellite i is
+    sqrt(w_i) r_i / sqrt(1 - h_ii) (h_ii: diagonal of the weighted hat matrix), i.e. a metre
+    value referred to a weight-1 satellite; while more than 5 satellites are used and the
+    largest exceeds residual_threshold_m, that satellite is dropped and the fix recomputed.
+    Iono (Klobuchar, needs ``iono_utc``) and tropo corrections and the elevation mask are
+    applied once a position is known (after a first uncorrected solution from the Earth's
+    centre, or from ``x0``).
+    """
+
+    MAX_ITER = 20
+    CONVERGED_M = 1e-4
+
+    def __init__(self, nav_cfg=None):
+        g = lambda name, default: getattr(nav_cfg, name, default) if nav_cfg is not None else default  # noqa: E731
+        self.elevation_mask_deg = float(g("elevation_mask_deg", 5.0))
+        self.weighting = str(g("weighting", "elevation"))
+        self.troposphere = str(g("troposphere", "saastamoinen"))
+        self.ionosphere = str(g("ionosphere", "klobuchar"))
+        self.residual_threshold_m = float(g("residual_threshold_m", 30.0))
+        if self.weighting not in ("elevation", "cn0", "none"):
+            raise ValueError(f"unknown weighting {self.weighting!r}")
+
+    # -------------------------------------------------------------------------------------
+    def _prepare(self, rx_tow, observations, ephemerides, week):
+        rows = []
+        for ob in observations:
+            eph = ephemerides.get(ob.prn) if ephemerides else None
+            if isinstance(eph, (list, tuple)):
+                eph = select(eph, rx_tow, week)
+            if eph is None or eph.health != 0 or not np.isfinite(ob.tx_tow):
+                continue
+            rows.append((ob, eph))
+        if not rows:
+            return None
+        obs = [r[0] for r in rows]
+        ephs = [r[1] for r in rows]
+        tx = np.array([o.tx_tow for o in obs], float)
+        pos, vel, clk, drift = sat_state(ephs, tx)
+        rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
+        return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
+                     [o.cn0_dbhz for o in obs], [o.doppler_hz for o in obs])
+
+    def _weights(self, el, cn0):
+        if self.weighting == "elevation" and el is not None:
+            w = np.sin(np.maximum(el, np.radians(1.0))) ** 2
+        elif self.weighting == "cn0" and np.all(np.isfinite(cn0)):
+            w = 10.0 ** (cn0 / 10.0)
+        else:
+            w = np.ones(len(cn0))
+        return w / np.max(w)
+
+    def _atmosphere(self, x, az, el, iono_utc, tow):
+        lat, lon, h = ecef2lla(x)
+        lat, lon = np.radians(lat), np.radians(lon)
+        iono = np.zeros(len(el))
+        tropo = np.zeros(len(el))
+        if self.ionosphere == "klobuchar" and iono_utc is not None:
+            iono = C_LIGHT * klobuchar_delay_s(iono_utc, lat, lon, az, el, tow)
+        if self.troposphere == "saastamoinen" and -1000.0 < h < 50e3:
+            tropo = saastamoinen_m(lat, h, el)
+        return iono, tropo
+
+    def _wls(self, s: _Sats, active, x, b, corrections, iono_utc, tow):
+        """Gauss-Newton WLS on the active satellites. Returns dict or None."""
+        idx = np.nonzero(active)[0]
+        if len(idx) < 4:
+            return None
+        rho_c = s.rho[idx] + C_LIGHT * s.clk[idx]
+        pos_tx = s.pos[idx]
+        for it in range(1, self.MAX_ITER + 1):
+            tau = np.linalg.norm(pos_tx - x, axis=1) / C_LIGHT
+            pos = earth_rotation(pos_tx, tau)
+            diff = pos - x
+            rng = np.linalg.norm(diff, axis=1)
+            los = diff / rng[:, None]
+            known = np.linalg.norm(x) > 5.0e6
+            if known:
+                az, el = azel(x, pos)
+            else:
+                az = el = None
+            if corrections and known:
+                iono, tropo = self._atmosphere(x, az, el, iono_utc, tow)
+            else:
+                iono = tropo = np.zeros(len(idx))
+            w = self._weights(el if (corrections and known) else None, s.cn0[idx])
+            resid = rho_c - iono - tropo - (rng + b)
+            h = np.hstack([-los, np.ones((len(idx), 1))])
+            sw = np.sqrt(w)
+            a = h * sw[:, None]
+            try:
+                dx, *_ = np.linalg.lstsq(a, resid * sw, rcond=None)
+            except np.linalg.LinAlgError:
+                return None
+            if not np.all(np.isfinite(dx)):
+                return None
+            x = x + dx[:3]
+            b = b + dx[3]
+            if np.linalg.norm(dx) < self.CONVERGED_M:
+                break
+        else:
+            return None
+        # final residuals at the converged state (geometry unchanged within 0.1 mm)
+        resid = resid - h @ dx
+        ata = a.T @ a
+        if np.linalg.cond(ata) > 1e12:
+            return None
+        hat_diag = np.einsum("ij,jk,ik->i", a, np.linalg.inv(ata), a)
+        norm_res = sw * resid / np.sqrt(np.maximum(1.0 - hat_diag, 1e-6))
+        return dict(idx=idx, x=x, b=b, resid=resid, norm_res=norm_res, h=h, w=w, los=los, tau=tau,
+                    az=az, el=el, iono=iono, tropo=tropo, rho_c=rho_c, iterations=it)
+
+    # -------------------------------------------------------------------------------------
+    def fix(self, week, rx_tow, observations, ephemerides, iono_utc=None, x0=None):
+        """Position/velocity/time fix at receiver time rx_tow (receiver clock, s of week).
+
+        ephemerides: dict prn -> Ephemeris (or prn -> list of Ephemeris, the nearest healthy
+        one is selected).  x0: initial ECEF position (e.g. the previous fix); without it the
+        iteration starts from the Earth's centre.  Returns a Fix or None (fewer than 4 usable
+        satellites, bad geometry or no convergence).
+        """
+        s = self._prepare(rx_tow, observations, ephemerides, week)
+        if s is None or len(s) < 4:
+            return None
+        n = len(s)
+        active = np.ones(n, dtype=bool)
+        if x0 is None or not np.all(np.isfinite(x0)) or np.linalg.norm(x0) < 5e6:
+            first = self._wls(s, active, np.zeros(3), 0.0, False, iono_utc, rx_tow)
+            if first is None:
+                return None
+            x, b = first["x"], first["b"]
+        else:
+            x = np.asarray(x0, dtype=float).copy()
+            d = np.linalg.norm(earth_rotation(s.pos, 0.075) - x, axis=1)
+            b = float(np.median(s.rho + C_LIGHT * s.clk - d))
+        # elevation mask, from the first position
+        _, el0 = azel(x, earth_rotation(s.pos, np.linalg.norm(s.pos - x, axis=1) / C_LIGHT))
+        active &= el0 >= np.radians(self.elevation_mask_deg)
+        rejected = []
+        while True:
+            sol = self._wls(s, active, x, b, True, iono_utc, rx_tow)
+            if sol is None:
+                return None
+            x, b = sol["x"], sol["b"]
+            k = int(np.argmax(np.abs(sol["norm_res"])))
+            if np.sum(active) > 5 and abs(sol["norm_res"][k]) > self.residual_threshold_m:
+                active[sol["idx"][k]] = False
+                rejected.append(int(s.prn[sol["idx"][k]]))
+                continue
+            break
+        idx = sol["idx"]
+
+        # DOPs (unweighted) in the local ENU frame
+        lat, lon, _ = ecef2lla(x)
+        rot = enu_matrix(lat, lon)
+        q = np.linalg.inv(sol["h"].T @ sol["h"])
+        q_enu = rot @ q[:3, :3] @ rot.T
+        hdop = float(np.sqrt(q_enu[0, 0] + q_enu[1, 1]))
+        vdop = float(np.sqrt(q_enu[2, 2]))
+        pdop = float(np.sqrt(np.trace(q_enu)))
+        gdop = float(np.sqrt(np.trace(q)))
+
+        # velocity and clock drift from Doppler
+        rate_raw = -s.doppler[idx] * LAMBDA_L1
+        rate_c = rate_raw + C_LIGHT * s.drift[idx]
+        vel_sat = earth_rotation(s.vel[idx], sol["tau"])
+        los = sol["los"]
+        ok = np.isfinite(rate_c)
+        v_rx = np.full(3, np.nan)
+        drift = float("nan")
+        v_res = np.full(len(idx), np.nan)
+        if np.sum(ok) >= 4:
+            hv = np.hstack([-los[ok], np.ones((np.sum(ok), 1))])
+            y = rate_c[ok] - np.sum(los[ok] * vel_sat[ok], axis=1)
+            sw = np.sqrt(sol["w"][ok])
+            sv, *_ = np.linalg.lstsq(hv * sw[:, None], y * sw, rcond=None)
+            v_rx, drift = sv[:3], float(sv[3])
+            v_res[ok] = y - hv @ sv
+
+        tow = rx_tow - b / C_LIGHT
+        gps_week = int(week)
+        if tow < 0:
+            tow, gps_week = tow + 604800.0, gps_week - 1
+        elif tow >= 604800.0:
+            tow, gps_week = tow - 604800.0, gps_week + 1
+        return Fix(
+            gps_week=gps_week, gps_tow=float(tow), ecef=x, velocity_ecef=np.asarray(v_rx, float),
+            clock_bias_m=float(b), clock_drift_mps=drift, n_sats=len(idx),
+            prns=[int(p) for p in s.prn[idx]], pdop=pdop, hdop=hdop, vdop=vdop, gdop=gdop,
+            residuals_m=sol["resid"], elevations_deg=np.degrees(sol["el"]),
+            azimuths_deg=np.degrees(sol["az"]),
+            pseudoranges_m=sol["rho_c"] - sol["iono"] - sol["tropo"],
+            pseudorange_rates_mps=rate_c, raw_pseudoranges_m=s.rho[idx],
+            iono_m=sol["iono"], tropo_m=sol["tropo"], velocity_residuals_mps=v_res,
+            rejected_prns=rejected, rx_tow=float(rx_tow), iterations=sol["iterations"])

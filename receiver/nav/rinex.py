@@ -1,0 +1,271 @@
+"""RINEX navigation files: GPS broadcast ephemerides (reader 2.x/3.x, writer 3.04).
+
+Only GPS records are used; records of other systems in RINEX 3 mixed files are skipped.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from .ephemeris import Ephemeris, IonoUtc, WEEK_S
+
+GPS_EPOCH = _dt.datetime(1980, 1, 6)
+
+# URA index -> upper bound of the URA (m), IS-GPS-200 20.3.3.3.1.3
+_URA_BOUNDS = (2.40, 3.40, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0,
+               1536.0, 3072.0, 6144.0)
+# nominal URA value (m) written for each index
+_URA_NOMINAL = (2.0, 2.8, 4.0, 5.7, 8.0, 11.3, 16.0, 32.0, 64.0, 128.0, 256.0, 512.0,
+                1024.0, 2048.0, 4096.0, 6144.0)
+
+
+def ura_index_from_m(ura_m: float) -> int:
+    """URA (m) as written in RINEX -> 4-bit URA index (15 when unknown/huge)."""
+    if not np.isfinite(ura_m) or ura_m < 0:
+        return 15
+    for i, b in enumerate(_URA_BOUNDS):
+        if ura_m <= b:
+            return i
+    return 15
+
+
+def ura_m_from_index(idx: int) -> float:
+    return _URA_NOMINAL[min(max(int(idx), 0), 15)]
+
+
+def gps_time_from_calendar(y, mo, d, h, mi, s):
+    """Calendar date/time (GPS time scale) -> (full GPS week, seconds of week)."""
+    whole = int(math.floor(s))
+    t = _dt.datetime(y, mo, d, h, mi, whole)
+    sec = (t - GPS_EPOCH).total_seconds() + (s - whole)
+    week = int(sec // WEEK_S)
+    return week, sec - week * WEEK_S
+
+
+def calendar_from_gps_time(week, sow):
+    """(full GPS week, seconds of week) -> datetime (GPS time scale)."""
+    return GPS_EPOCH + _dt.timedelta(seconds=week * WEEK_S + sow)
+
+
+def _num(text: str) -> float:
+    """Fortran-style number (D or E exponent, blank = 0)."""
+    text = text.strip().replace("D", "E").replace("d", "E")
+    if not text:
+        return 0.0
+    return float(text)
+
+
+def _fixed(line: str, start: int, width: int, count: int):
+    return [_num(line[start + k * width:start + (k + 1) * width]) for k in range(count)]
+
+
+def _records(lines, is_start):
+    rec = []
+    for line in lines:
+        if not line.strip():
+            continue
+        if is_start(line):
+            if rec:
+                yield rec
+            rec = [line]
+        elif rec:
+            rec.append(line)
+    if rec:
+        yield rec
+
+
+def _eph_from_values(prn, epoch, v, path):
+    """v: the 31 values of a record (af0, af1, af2, then 7 broadcast-orbit lines x 4)."""
+    y, mo, d, h, mi, s = epoch
+    _, toc = gps_time_from_calendar(y, mo, d, h, mi, s)
+    week = int(round(v[21]))
+    tx = v[27]
+    fit_hours = v[28]
+    return Ephemeris(
+        prn=prn, week=week, toe=v[11], toc=toc,
+        af0=v[0], af1=v[1], af2=v[2], tgd=v[25],
+        iode=int(round(v[3])), iodc=int(round(v[26])),
+        sqrt_a=v[10], e=v[8], i0=v[15], omega0=v[13], omega=v[17], m0=v[6],
+        delta_n=v[5], idot=v[19], omega_dot=v[18],
+        cuc=v[7], cus=v[9], crc=v[16], crs=v[4], cic=v[12], cis=v[14],
+        health=int(round(v[24])), ura_index=ura_index_from_m(v[23]),
+        fit_interval=1 if fit_hours > 4.0 else 0,
+        code_on_l2=int(round(v[20])), l2p_flag=int(round(v[22])), aodo=0,
+        tx_time=float("nan") if abs(tx) >= 0.9e9 else tx,
+    )
+
+
+def read_rinex_nav(path):
+    """Read a RINEX 2.x or 3.x GPS navigation file.
+
+    Returns (dict prn -> list of Ephemeris sorted by (week, toe), IonoUtc or None).
+    Raises UserError when the file is missing or not a RINEX GPS navigation file.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(errors="replace")
+    except OSError as exc:
+        raise UserError(f"cannot read RINEX navigation file {path}: {exc.strerror or exc}") from None
+    lines = text.splitlines()
+    if not lines or "RINEX VERSION / TYPE" not in lines[0]:
+        raise UserError(f"{path}: not a RINEX file (no 'RINEX VERSION / TYPE' header line)")
+    try:
+        version = float(lines[0][:9])
+    except ValueError:
+        raise UserError(f"{path}: unreadable RINEX version in first line") from None
+    ftype = lines[0][20:21].upper()
+    system = lines[0][40:41].upper()
+    if version < 3:
+        if ftype != "N":
+            raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a GPS navigation file")
+    else:
+        if ftype != "N":
+            raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a navigation file")
+        if system not in ("G", "M", " ", ""):
+            raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not GPS")
+
+    alpha = beta = None
+    a0 = a1 = tot = wnt = None
+    dt_ls = dt_lsf = wn_lsf = dn = None
+    end = None
+    try:
+        for i, line in enumerate(lines):
+            label = line[60:].strip()
+            if label == "END OF HEADER":
+                end = i
+                break
+            if label == "ION ALPHA":
+                alpha = tuple(_fixed(line, 2, 12, 4))
+            elif label == "ION BETA":
+                beta = tuple(_fixed(line, 2, 12, 4))
+            elif label == "DELTA-UTC: A0,A1,T,W":
+                a0, a1 = _fixed(line, 3, 19, 2)
+                tot, wnt = int(_num(line[41:50])), int(_num(line[50:59]))
+            elif label == "IONOSPHERIC CORR":
+                key = line[:4].strip().upper()
+                if key == "GPSA":
+                    alpha = tuple(_fixed(line, 5, 12, 4))
+                elif key == "GPSB":
+                    beta = tuple(_fixed(line, 5, 12, 4))
+            elif label == "TIME SYSTEM CORR":
+                if line[:4].strip().upper() == "GPUT":
+                    a0 = _num(line[5:22])
+                    a1 = _num(line[22:38])
+                    tot = int(_num(line[38:45]))
+                    wnt = int(_num(line[45:50]))
+            elif label == "LEAP SECONDS":
+                vals = [line[k * 6:(k + 1) * 6].strip() for k in range(4)]
+                dt_ls = int(vals[0]) if vals[0] else None
+                if version >= 3:
+                    dt_lsf = int(vals[1]) if vals[1] else None
+                    wn_lsf = int(vals[2]) if vals[2] else None
+                    dn = int(vals[3]) if vals[3] else None
+    except ValueError as exc:
+        raise UserError(f"{path}: bad RINEX header line {i + 1}: {exc}") from None
+    if end is None:
+        raise UserError(f"{path}: no 'END OF HEADER' line")
+
+    iono = None
+    if alpha is not None or beta is not None or a0 is not None:
+        iono = IonoUtc(alpha=alpha or (0.0,) * 4, beta=beta or (0.0,) * 4,
+                       a0=a0 or 0.0, a1=a1 or 0.0, tot=float(tot or 0), wnt=int(wnt or 0),
+                       dt_ls=int(dt_ls or 0), wn_lsf=wn_lsf, dn=dn, dt_lsf=dt_lsf)
+
+    body = lines[end + 1:]
+    out: dict[int, list[Ephemeris]] = {}
+    if version < 3:
+        starts = _records(body, lambda ln: ln[:3].strip() != "")
+    else:
+        starts = _records(body, lambda ln: ln[:1] != " ")
+    for rec in starts:
+        head = rec[0]
+        try:
+            if version < 3:
+                prn = int(head[0:2])
+                yy = int(head[3:5])
+                year = yy + (2000 if yy < 80 else 1900)
+                epoch = (year, int(head[6:8]), int(head[9:11]), int(head[12:14]),
+                         int(head[15:17]), float(head[17:22]))
+                vals = _fixed(head, 22, 19, 3)
+                orbit_start = 3
+            else:
+                if head[0].upper() != "G":
+                    continue
+                prn = int(head[1:3])
+                epoch = (int(head[4:8]), int(head[9:11]), int(head[12:14]), int(head[15:17]),
+                         int(head[18:20]), float(head[21:23]))
+                vals = _fixed(head, 23, 19, 3)
+                orbit_start = 4
+            if len(rec) < 8:
+                raise ValueError(f"record has {len(rec)} lines, expected 8")
+            for ln in rec[1:8]:
+                vals += _fixed(ln.ljust(orbit_start + 76), orbit_start, 19, 4)
+            eph = _eph_from_values(prn, epoch, vals, path)
+        except (ValueError, IndexError) as exc:
+            raise UserError(f"{path}: bad GPS navigation record '{head.strip()[:23]}': {exc}") from None
+        out.setdefault(prn, []).append(eph)
+    for prn in out:
+        out[prn].sort(key=lambda e: (e.week, e.toe))
+    return out, iono
+
+
+def _d19(x: float) -> str:
+    """Number in a 19-character field, scientific notation with 12 decimals."""
+    return f"{x: .12E}".rjust(19)
+
+
+def _d12(x: float) -> str:
+    return f"{x: .4E}".rjust(12)
+
+
+def _hdr(content: str, label: str) -> str:
+    return content.ljust(60)[:60] + label.ljust(20) + "\n"
+
+
+def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gnssrx"):
+    """Write a RINEX 3.04 GPS navigation file.
+
+    ephs: dict prn -> list of Ephemeris, or a flat iterable of Ephemeris.
+    """
+    if isinstance(ephs, dict):
+        flat = [e for lst in ephs.values() for e in lst]
+    else:
+        flat = list(ephs)
+    flat.sort(key=lambda e: (e.week, e.toc, e.prn))
+    now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d %H%M%S UTC")
+    out = [_hdr(f"{3.04:9.2f}" + " " * 11 + "N: GNSS NAV DATA    G: GPS", "RINEX VERSION / TYPE"),
+           _hdr(f"{program:<20}{'':<20}{now:<20}", "PGM / RUN BY / DATE")]
+    if iono is not None:
+        out.append(_hdr("GPSA " + "".join(_d12(v) for v in iono.alpha), "IONOSPHERIC CORR"))
+        out.append(_hdr("GPSB " + "".join(_d12(v) for v in iono.beta), "IONOSPHERIC CORR"))
+        out.append(_hdr(f"GPUT {iono.a0:17.10E}{iono.a1:16.9E}{int(iono.tot):7d}{int(iono.wnt):5d}",
+                        "TIME SYSTEM CORR"))
+        leap = f"{int(iono.dt_ls):6d}"
+        if iono.dt_lsf is not None and iono.wn_lsf is not None and iono.dn is not None:
+            leap += f"{int(iono.dt_lsf):6d}{int(iono.wn_lsf):6d}{int(iono.dn):6d}"
+        out.append(_hdr(leap, "LEAP SECONDS"))
+    out.append(_hdr("", "END OF HEADER"))
+    for e in flat:
+        dtoc = e.toc - e.toe
+        toc_week = e.week + (1 if dtoc < -WEEK_S / 2 else -1 if dtoc > WEEK_S / 2 else 0)
+        t = calendar_from_gps_time(toc_week, e.toc)
+        sec = t.second + t.microsecond * 1e-6
+        out.append(f"G{e.prn:02d} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} "
+                   f"{t.minute:02d} {int(round(sec)):02d}" + _d19(e.af0) + _d19(e.af1) + _d19(e.af2) + "\n")
+        tx = e.tx_time if np.isfinite(e.tx_time) else 0.9999e9
+        rows = [
+            (e.iode, e.crs, e.delta_n, e.m0),
+            (e.cuc, e.e, e.cus, e.sqrt_a),
+            (e.toe, e.cic, e.omega0, e.cis),
+            (e.i0, e.crc, e.omega, e.omega_dot),
+            (e.idot, e.code_on_l2, e.week, e.l2p_flag),
+            (ura_m_from_index(e.ura_index), e.health, e.tgd, e.iodc),
+            (tx, 6.0 if e.fit_interval else 4.0),
+        ]
+        for row in rows:
+            out.append("    " + "".join(_d19(float(v)) for v in row) + "\n")
+    Path(path).write_text("".join(out))

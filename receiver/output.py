@@ -1,0 +1,141 @@
+"""HDF5 run file: one self-describing file per run (schema in README.md).
+
+The file is written under a temporary name and renamed when the run finishes; a failed run leaves no
+output file behind.  Per-channel datasets are appended chunk by chunk, so memory does not grow with the
+length of the recording.
+"""
+from __future__ import annotations
+
+import os
+import time
+
+import h5py
+import numpy as np
+
+from . import __version__
+from .record import EPOCH_DTYPE, STATE_NAMES
+
+MODE_NAMES = {0: "scalar", 1: "vector"}
+
+FIX_DTYPE = np.dtype([
+    ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("ecef", "f8", (3,)),
+    ("velocity_ecef", "f8", (3,)), ("clock_bias_m", "f8"), ("clock_drift_mps", "f8"),
+    ("n_sats", "i4"), ("pdop", "f8"), ("hdop", "f8"), ("vdop", "f8"), ("gdop", "f8"),
+    ("mode", "u1"), ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
+])
+
+OBS_DTYPE = np.dtype([
+    ("epoch", "i4"), ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("prn", "i4"),
+    ("pseudorange_m", "f8"), ("pseudorange_rate_mps", "f8"), ("doppler_hz", "f8"),
+    ("carrier_phase_cycles", "f8"), ("cn0_dbhz", "f4"), ("lock_time_s", "f4"),
+    ("half_cycle_resolved", "u1"), ("used_in_fix", "u1"), ("elevation_deg", "f4"),
+    ("azimuth_deg", "f4"), ("residual_m", "f4"),
+])
+
+
+def _append(group: h5py.Group, name: str, data: np.ndarray):
+    if name not in group:
+        maxshape = (None,) + data.shape[1:]
+        chunk = (4096,) + data.shape[1:]
+        group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk)
+    else:
+        ds = group[name]
+        n = ds.shape[0]
+        ds.resize(n + len(data), axis=0)
+        ds[n:] = data
+
+
+class RunWriter:
+    def __init__(self, path, config_yaml: str, attrs: dict | None = None):
+        self.path = os.fspath(path)
+        d = os.path.dirname(os.path.abspath(self.path))
+        os.makedirs(d, exist_ok=True)
+        self.tmp = self.path + ".partial"
+        self.f = h5py.File(self.tmp, "w")
+        a = self.f.attrs
+        a["gnssrx_version"] = __version__
+        a["config"] = config_yaml
+        a["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        a["schema"] = "gnssrx-run-1"
+        for k, v in (attrs or {}).items():
+            a[k] = v
+        self.f.create_group("channels")
+        g = self.f.create_group("navigation")
+        g.attrs["mode_mapping"] = "0=scalar,1=vector"
+
+    # ------------------------------------------------------------------ acquisition
+    def write_acquisition(self, results, attrs: dict | None = None):
+        g = self.f.require_group("acquisition")
+        rows = {
+            "prn": np.array([r.prn for r in results], np.int32),
+            "doppler_hz": np.array([r.doppler_hz for r in results]),
+            "code_phase_chips": np.array([r.code_phase_chips for r in results]),
+            "metric": np.array([r.metric for r in results]),
+            "detected": np.array([r.detected for r in results], bool),
+            "cn0_dbhz_est": np.array([r.cn0_dbhz_est for r in results]),
+            "time_s": np.array([r.sample_index for r in results], float) / (attrs or {}).get("fs", 1.0),
+        }
+        for k, v in rows.items():
+            _append(g, k, v)
+        for k, v in (attrs or {}).items():
+            g.attrs[k] = v
+
+    # ------------------------------------------------------------------ channels
+    def append_channel(self, prn: int, records: np.ndarray):
+        if len(records) == 0:
+            return
+        g = self.f["channels"].require_group(f"G{prn:02d}")
+        if "prn" not in g.attrs:
+            g.attrs["prn"] = prn
+            g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+        for name in EPOCH_DTYPE.names:
+            _append(g, name, np.ascontiguousarray(records[name]))
+
+    # ------------------------------------------------------------------ navigation
+    def append_fixes(self, fixes: np.ndarray):
+        if len(fixes) == 0:
+            return
+        g = self.f["navigation"]
+        for name in FIX_DTYPE.names:
+            _append(g, name, np.ascontiguousarray(fixes[name]))
+
+    def append_observables(self, obs: np.ndarray):
+        if len(obs) == 0:
+            return
+        g = self.f.require_group("observables")
+        for name in OBS_DTYPE.names:
+            _append(g, name, np.ascontiguousarray(obs[name]))
+
+    def write_ephemerides(self, ephs: dict):
+        """ephs: prn -> Ephemeris (dataclass); stored as one compound-free table of fields."""
+        if not ephs:
+            return
+        g = self.f.require_group("ephemeris")
+        items = sorted(ephs.items())
+        fields = list(vars(items[0][1]).keys())
+        for name in fields:
+            vals = [getattr(e, name) for _, e in items]
+            try:
+                arr = np.array(vals, dtype=float)
+            except (TypeError, ValueError):
+                continue
+            if name in g:
+                del g[name]
+            g.create_dataset(name, data=arr)
+
+    def set_attrs(self, group: str, attrs: dict):
+        g = self.f.require_group(group) if group != "/" else self.f
+        for k, v in attrs.items():
+            g.attrs[k] = v
+
+    def close(self, ok: bool = True):
+        if self.f is None:
+            return
+        try:
+            self.f.close()
+        finally:
+            self.f = None
+            if ok:
+                os.replace(self.tmp, self.path)
+            elif os.path.exists(self.tmp):
+                os.remove(self.tmp)

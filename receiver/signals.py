@@ -1,0 +1,61 @@
+"""Signal definitions: physical constants, GPS L1 C/A codes.
+
+Everything here is pure numpy and has no dependency on other receiver modules.
+"""
+from functools import lru_cache
+
+import numpy as np
+
+C_LIGHT = 299792458.0            # speed of light, m/s (IS-GPS-200)
+OMEGA_E = 7.2921151467e-5        # Earth rotation rate, rad/s (WGS-84)
+MU_GPS = 3.986005e14             # Earth's gravitational constant, m^3/s^2 (IS-GPS-200)
+F_REL = -4.442807633e-10         # relativistic clock constant, s/sqrt(m)
+
+# GPS L1 C/A
+L1_HZ = 1575.42e6
+CA_CHIP_RATE = 1.023e6
+CA_CODE_LEN = 1023
+CA_PERIOD_S = 1e-3
+LNAV_BIT_S = 20e-3
+LAMBDA_L1 = C_LIGHT / L1_HZ
+
+# G2 tap pairs (phase selector) for PRN 1..32, IS-GPS-200 Table 3-Ia
+_G2_TAPS = {
+    1: (2, 6), 2: (3, 7), 3: (4, 8), 4: (5, 9), 5: (1, 9), 6: (2, 10), 7: (1, 8), 8: (2, 9),
+    9: (3, 10), 10: (2, 3), 11: (3, 4), 12: (5, 6), 13: (6, 7), 14: (7, 8), 15: (8, 9),
+    16: (9, 10), 17: (1, 4), 18: (2, 5), 19: (3, 6), 20: (4, 7), 21: (5, 8), 22: (6, 9),
+    23: (1, 3), 24: (4, 6), 25: (5, 7), 26: (6, 8), 27: (7, 9), 28: (8, 10), 29: (1, 6),
+    30: (2, 7), 31: (3, 8), 32: (4, 9),
+}
+GPS_PRNS = tuple(range(1, 33))
+
+
+@lru_cache(maxsize=None)
+def ca_code_bits(prn: int) -> np.ndarray:
+    """C/A code of a GPS PRN as 1023 bits (0/1, uint8), first chip first."""
+    if prn not in _G2_TAPS:
+        raise ValueError(f"GPS PRN must be 1..32, got {prn}")
+    t1, t2 = _G2_TAPS[prn]
+    g1 = [1] * 10
+    g2 = [1] * 10
+    out = np.empty(CA_CODE_LEN, dtype=np.uint8)
+    for i in range(CA_CODE_LEN):
+        out[i] = g1[9] ^ g2[t1 - 1] ^ g2[t2 - 1]
+        f1 = g1[2] ^ g1[9]
+        f2 = g2[1] ^ g2[2] ^ g2[5] ^ g2[7] ^ g2[8] ^ g2[9]
+        g1 = [f1] + g1[:9]
+        g2 = [f2] + g2[:9]
+    out.setflags(write=False)
+    return out
+
+
+def ca_code(prn: int) -> np.ndarray:
+    """C/A code as +/-1 float32 chips (bit 0 -> +1, bit 1 -> -1)."""
+    return (1.0 - 2.0 * ca_code_bits(prn)).astype(np.float32)
+
+
+def sample_code(code: np.ndarray, chip_rate: float, fs: float, n: int,
+                code_phase_chips: float = 0.0) -> np.ndarray:
+    """Sample a periodic code at rate fs: n samples starting at code_phase_chips."""
+    idx = code_phase_chips + np.arange(n) * (chip_rate / fs)
+    return code[np.floor(idx).astype(np.int64) % len(code)]

@@ -1,0 +1,1 @@
+"""Tracking: scalar channels (numba kernel), pluggable carrier loops, vector loops."""

@@ -1,0 +1,161 @@
+"""Scalar tracking channel: one satellite, numba epoch kernel, NCOs commandable from outside.
+
+A :class:`Channel` is created from an acquisition result and consumes blocks of samples:
+``records = channel.process(block, block_start)`` returns the channel-epoch records
+(:data:`receiver.record.EPOCH_DTYPE`) of all epochs that fit in the block.  With the built-in PLL and no
+external commands the whole block runs in one compiled call.  A Python carrier loop or a vector loop
+steps the channel epoch by epoch with ``process(..., max_epochs=1)`` and sets the NCOs between epochs
+with :meth:`Channel.command`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import record
+from ..correlator import extend_code
+from ..signals import CA_CHIP_RATE, CA_CODE_LEN, L1_HZ, LNAV_BIT_S, ca_code
+from . import kernel as K
+from .carrier import make_carrier_loop
+
+
+class Channel:
+    def __init__(self, prn: int, doppler_hz: float, code_phase_chips: float, sample_index: int,
+                 trk_cfg, fs: float, if_hz: float, channel_id: int = 0):
+        self.prn = prn
+        self.id = channel_id
+        self.fs = fs
+        self.if_hz = if_hz
+        self.cfg_section = trk_cfg
+        self.max_int_ms = int(trk_cfg.integration_ms)
+        self.code_ext = extend_code(ca_code(prn), 20)
+        self.hist = np.zeros(20, np.int64)
+        self.loop = make_carrier_loop(trk_cfg.carrier.variant, trk_cfg)
+        c = np.zeros(K.N_CONFIG)
+        c[K.C_FS] = fs
+        c[K.C_IF] = if_hz
+        c[K.C_CHIP_RATE] = CA_CHIP_RATE
+        c[K.C_CARRIER_HZ] = L1_HZ
+        c[K.C_CODE_LEN] = CA_CODE_LEN
+        c[K.C_EL_SPACING] = trk_cfg.early_late_chips
+        c[K.C_PLL_BW] = trk_cfg.pll_bw_hz
+        c[K.C_PLL_ORDER] = trk_cfg.pll_order
+        c[K.C_FLL_BW] = trk_cfg.fll_bw_hz
+        c[K.C_DLL_BW] = trk_cfg.dll_bw_hz
+        c[K.C_DLL_BW_PULL] = trk_cfg.dll_bw_pull_in_hz
+        c[K.C_DLL_ORDER] = trk_cfg.dll_order
+        c[K.C_PULL_IN_MS] = trk_cfg.pull_in_ms
+        c[K.C_MAX_INT_MS] = self.max_int_ms
+        c[K.C_CN0_WIN_MS] = trk_cfg.cn0_window_ms
+        c[K.C_LOCK_CN0_MIN] = trk_cfg.lock_cn0_min_dbhz
+        c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
+        c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
+        c[K.C_LOST_MS] = trk_cfg.lost_ms
+        c[K.C_BIT_MS] = round(LNAV_BIT_S * 1e3)
+        self.cfg = c
+        self.vector_carrier = self.vector_code = False
+        self.set_external(False, False)
+        s = np.zeros(K.N_STATE)
+        rate = CA_CHIP_RATE * (1.0 + doppler_hz / L1_HZ)
+        step = rate / fs
+        # start at the first sample at or after the next code-period start
+        k = int(np.ceil((CA_CODE_LEN - code_phase_chips) / step))
+        s[K.S_NEXT_SAMPLE] = sample_index + k
+        s[K.S_CODE_PHASE] = code_phase_chips + k * step - CA_CODE_LEN
+        s[K.S_CODE_RATE] = rate
+        s[K.S_CARR_FREQ] = if_hz + doppler_hz
+        s[K.S_PLL_FREQ] = doppler_hz
+        s[K.S_INT_MS] = 1
+        s[K.S_BIT_OFFSET] = -1
+        s[K.S_MODE] = K.MODE_PULL_IN
+        self.st = s
+        self.loop.start(doppler_hz, 1e-3)
+        self._out = np.zeros((1, K.N_OUT))
+
+    # ---------------------------------------------------------------- state
+    @property
+    def next_sample(self) -> int:
+        return int(self.st[K.S_NEXT_SAMPLE])
+
+    @property
+    def lost(self) -> bool:
+        return self.st[K.S_MODE] == K.MODE_LOST
+
+    @property
+    def doppler_hz(self) -> float:
+        return self.st[K.S_CARR_FREQ] - self.if_hz
+
+    @property
+    def cn0_dbhz(self) -> float:
+        return self.st[K.S_CN0]
+
+    @property
+    def bit_offset(self) -> int:
+        return int(self.st[K.S_BIT_OFFSET])
+
+    @property
+    def stepped(self) -> bool:
+        """True when Python must see every epoch (Python carrier loop or outside NCO control)."""
+        return self.vector_carrier or self.vector_code or not self.loop.builtin
+
+    # ---------------------------------------------------------------- commands
+    def set_external(self, carrier: bool, code: bool):
+        """Hand the carrier / code NCO to an outside controller (vector loop) or take them back."""
+        self.vector_carrier = carrier
+        self.vector_code = code
+        self.cfg[K.C_CARRIER_EXTERNAL] = 1.0 if (carrier or not self.loop.builtin) else 0.0
+        self.cfg[K.C_CODE_EXTERNAL] = 1.0 if code else 0.0
+
+    def command(self, doppler_hz: float | None = None, code_rate_hz: float | None = None,
+                code_phase_shift_chips: float = 0.0):
+        """Set the NCOs for the next epoch (outside control)."""
+        if doppler_hz is not None:
+            self.st[K.S_CARR_FREQ] = self.if_hz + doppler_hz
+            self.st[K.S_PLL_FREQ] = doppler_hz
+        if code_rate_hz is not None:
+            self.st[K.S_CODE_RATE] = code_rate_hz
+        if code_phase_shift_chips:
+            self.st[K.S_CODE_PHASE] += code_phase_shift_chips
+
+    # ---------------------------------------------------------------- processing
+    def process(self, block: np.ndarray, block_start: int, max_epochs: int | None = None) -> np.ndarray:
+        """Run all epochs that fit in block (or at most max_epochs); return EPOCH_DTYPE records."""
+        if self.lost:
+            return np.zeros(0, record.EPOCH_DTYPE)
+        if not self.stepped and max_epochs is None:
+            cap = int(len(block) / self.fs * 1000) + 2
+            if self._out.shape[0] < cap:
+                self._out = np.zeros((cap, K.N_OUT))
+            n = K.track_block(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
+                              self._out, cap)
+            return to_records(self._out[:n])
+        limit = max_epochs if max_epochs is not None else 10 ** 9
+        rows = []
+        while len(rows) < limit:
+            n = K.track_block(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
+                              self._out, 1)
+            if n == 0:
+                break
+            row = self._out[0].copy()
+            rows.append(row)
+            if not self.loop.builtin and not self.vector_carrier:
+                self._python_carrier_update(row)
+        if not rows:
+            return np.zeros(0, record.EPOCH_DTYPE)
+        return to_records(np.array(rows))
+
+    def _python_carrier_update(self, row):
+        dop = self.loop.update(row)
+        self.st[K.S_CARR_FREQ] = self.if_hz + dop
+        if not self.cfg[K.C_CODE_EXTERNAL]:
+            # keep the DLL carrier-aided with the new carrier frequency
+            aid = CA_CHIP_RATE * (1.0 + dop / L1_HZ)
+            self.st[K.S_CODE_RATE] += aid - CA_CHIP_RATE * (1.0 + row[K.O_DOPPLER] / L1_HZ)
+
+
+def to_records(rows: np.ndarray) -> np.ndarray:
+    """Kernel output rows -> EPOCH_DTYPE records."""
+    rec = np.zeros(len(rows), record.EPOCH_DTYPE)
+    names = record.EPOCH_DTYPE.names
+    for j, name in enumerate(names):
+        rec[name] = rows[:, j]
+    return rec
