@@ -37,37 +37,61 @@ def _threshold(pfa: float, n_cells: int, k: int) -> float:
 def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns, coherent_ms: int = 4,
            noncoherent: int = 10, doppler_max_hz: float = 10000.0, doppler_step_hz: float | None = None,
            pfa: float = 1e-3, threshold: float = 1.0, fine: bool = True) -> list[AcqResult]:
-    """Search `prns` in `samples` (complex64, first sample = file index start_index)."""
-    n = int(round(coherent_ms * 1e-3 * fs))
+    """Search `prns` in `samples` (complex64, first sample = file index start_index).
+
+    Each coherent block of T = coherent_ms is Fourier transformed once per distinct fractional Doppler
+    offset (in units of 1/T); a Doppler bin is then a circular shift of that spectrum.  The replica of
+    coherent_ms code periods has spectral lines only on every coherent_ms-th bin, so the correlation
+    over all code phases of one period is an inverse FFT of one period's length.
+    """
+    n1 = fs * 1e-3
+    if abs(n1 - round(n1)) > 1e-6:
+        raise ValueError("acquisition needs an integer number of samples per millisecond")
+    n1 = int(round(n1))
+    m = coherent_ms
+    n = n1 * m
     need = n * noncoherent
     if len(samples) < need:
         raise ValueError(f"acquisition needs {need} samples, got {len(samples)}")
-    step = doppler_step_hz or 1.0 / (2.0 * coherent_ms * 1e-3)
+    T = m * 1e-3
+    step = doppler_step_hz or 1.0 / (2.0 * T)
     dopplers = np.arange(-doppler_max_hz, doppler_max_hz + step / 2, step)
+    # carrier offsets in FFT bins (1/T): integer shift + one of a few fractional parts
+    pos = (if_hz + dopplers) * T
+    shift = np.floor(pos + 1e-9).astype(np.int64)
+    frac = np.round(pos - shift, 6)
+    fracs = np.unique(frac)
     t = np.arange(n) / fs
-    # spectra of the Doppler-wiped blocks: (noncoherent, n_dopp, n)
-    blocks = samples[:need].reshape(noncoherent, n).astype(np.complex64)
-    wipe = np.exp(-2j * np.pi * np.outer(if_hz + dopplers, t)).astype(np.complex64)
-    spectra = [sfft.fft(blocks[k][None, :] * wipe, axis=1, workers=-1) for k in range(noncoherent)]
-    out = []
-    n_cells = len(dopplers) * n
+    blocks = samples[:need].reshape(noncoherent, n)
+    spectra = {}
+    for r in fracs:
+        mix = np.exp(-2j * np.pi * (r / T) * t).astype(np.complex64)
+        spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=-1)       # (K, n)
+    # bin index of decimated line j for Doppler d: (m * j + shift_d) mod n
+    j = np.arange(n1)
+    idx = (m * j[None, :] + shift[:, None]) % n                                  # (n_dopp, n1)
+    n_cells = len(dopplers) * n1
     thr = _threshold(pfa, n_cells, noncoherent)
+    out = []
     for prn in prns:
-        code = sample_code(ca_code(prn), CA_CHIP_RATE, fs, n).astype(np.complex64)
-        cf = np.conj(sfft.fft(code))
-        power = np.zeros((len(dopplers), n), np.float32)
-        for k in range(noncoherent):
-            corr = sfft.ifft(spectra[k] * cf[None, :], axis=1, workers=-1)
-            power += corr.real ** 2 + corr.imag ** 2
+        code = sample_code(ca_code(prn), CA_CHIP_RATE, fs, n1).astype(np.complex64)
+        cf = np.conj(sfft.fft(code)).astype(np.complex64)
+        power = np.zeros((len(dopplers), n1), np.float32)
+        for r in fracs:
+            sel = np.flatnonzero(frac == r)
+            for k in range(noncoherent):
+                prod = spectra[r][k][idx[sel]] * cf[None, :]
+                corr = sfft.ifft(prod, axis=1, workers=-1)
+                power[sel] += corr.real ** 2 + corr.imag ** 2
         mean = float(power.mean())
         di, si = np.unravel_index(int(np.argmax(power)), power.shape)
         ptm = float(power[di, si]) / mean
         metric = ptm / thr / threshold
-        # the code starts at sample si: the signal's code phase at sample 0 is -si samples
+        # the replica starts at sample si: the signal's code phase at sample 0 is -si samples
         code_phase = (-si * CA_CHIP_RATE / fs) % CA_CODE_LEN
         dop = float(dopplers[di])
         # peak-to-mean - 1 ~ coherent SNR = C/N0 * T_coh (before straddle losses)
-        cn0 = 10 * np.log10(max(ptm - 1.0, 1e-3) / (coherent_ms * 1e-3))
+        cn0 = 10 * np.log10(max(ptm - 1.0, 1e-3) / T)
         res = AcqResult(prn, metric >= 1.0, dop, float(code_phase), start_index, float(metric), ptm,
                         float(cn0))
         if res.detected and fine:

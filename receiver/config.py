@@ -290,6 +290,13 @@ RECEIVER_SCHEMA = {
         "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                          lo=0.0),
     },
+    "vector": {
+        "enabled": P(False, "bool", "hand scalar channels over to a vector loop"),
+        "variant": P("adaptive_r", "str", "vector loop variant",
+                     choices=("fixed_r", "adaptive_r", "polynomial", "cv")),
+        "start_s": P(None, "float", "handover time in seconds from the first sample (empty: 5 s after "
+                                    "the first valid fix)", nullable=True, lo=0.0),
+    },
     "output": {
         "path": P(None, "str", "HDF5 output (empty: <input stem>.h5 in the current directory; "
                                "`--output` overrides)", nullable=True),

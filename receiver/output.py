@@ -46,7 +46,10 @@ def _append(group: h5py.Group, name: str, data: np.ndarray):
 
 
 class RunWriter:
+    FLUSH_ROWS = 20000
+
     def __init__(self, path, config_yaml: str, attrs: dict | None = None):
+        self._buffers: dict[int, list] = {}
         self.path = os.fspath(path)
         d = os.path.dirname(os.path.abspath(self.path))
         os.makedirs(d, exist_ok=True)
@@ -82,8 +85,19 @@ class RunWriter:
 
     # ------------------------------------------------------------------ channels
     def append_channel(self, prn: int, records: np.ndarray):
+        """Buffered: records are written in blocks of FLUSH_ROWS per channel (few large HDF5 writes)."""
         if len(records) == 0:
             return
+        buf = self._buffers.setdefault(prn, [])
+        buf.append(records)
+        if sum(len(b) for b in buf) >= self.FLUSH_ROWS:
+            self._flush_channel(prn)
+
+    def _flush_channel(self, prn: int):
+        buf = self._buffers.pop(prn, None)
+        if not buf:
+            return
+        records = np.concatenate(buf)
         g = self.f["channels"].require_group(f"G{prn:02d}")
         if "prn" not in g.attrs:
             g.attrs["prn"] = prn
@@ -132,6 +146,9 @@ class RunWriter:
         if self.f is None:
             return
         try:
+            if ok:
+                for prn in list(self._buffers):
+                    self._flush_channel(prn)
             self.f.close()
         finally:
             self.f = None

@@ -19,6 +19,7 @@ from .acquisition import search
 from .errors import UserError
 from .io import SampleReader
 from .output import RunWriter
+from .record import EPOCH_DTYPE
 from .tracking.carrier import make_carrier_loop
 from .tracking.scalar import Channel
 
@@ -96,6 +97,17 @@ def acquire(cfg, reader: SampleReader, start: int, prns) -> list:
                   a.doppler_max_hz, a.doppler_step_hz, a.pfa, a.threshold)
 
 
+def _maybe_handover(cfg, channels, nav, start, fs, n_fixes):
+    """Vector-loop handover hook: returns a vector tracker once vector.start_s is reached (or 5 s after
+    the first fix), else None.  The tracker's ``process(block, start)`` returns
+    ({prn: EPOCH_DTYPE records}, FIX_DTYPE fixes with mode=1) and drives the channels' NCOs."""
+    try:
+        from .tracking.vector import handover
+    except ImportError:
+        raise UserError("vector tracking is not available in this build") from None
+    return handover(cfg, channels, nav, start, fs)
+
+
 def run(cfg, quiet: bool = False, log=print) -> RunSummary:
     """Run the receiver on cfg.input.path; write cfg.output.path (HDF5)."""
     make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
@@ -143,12 +155,20 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     overlap = int(OVERLAP_S * fs)
     next_reacq = acq_start + int(cfg.tracking.reacquire_s * fs)
     rr = 0
+    vector = None
     bar = _progress(reader.duration_s, quiet)
     start = acq_start
     while start < reader.end:
         block = reader.read(start, chunk + overlap)
+        if vector is None and cfg.vector.enabled:
+            vector = _maybe_handover(cfg, channels, nav, start, fs, n_fixes)
+        if vector is not None:
+            block_recs, vfixes = vector.process(block, start)
+            writer.append_fixes(vfixes)
+        else:
+            block_recs = {prn: ch.process(block, start) for prn, ch in channels.items()}
         for prn, ch in list(channels.items()):
-            recs = ch.process(block, start)
+            recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
             writer.append_channel(prn, recs)
             if len(recs):
                 c = recs["cn0_dbhz"][recs["pll_lock"] > 0]
@@ -164,7 +184,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                     nav.drop(prn)
         if nav is not None:
             fixes, obs = nav.update(start + chunk)
-            writer.append_fixes(fixes)
+            if vector is None:
+                writer.append_fixes(fixes)
             writer.append_observables(obs)
             if len(fixes):
                 n_fixes += len(fixes)
