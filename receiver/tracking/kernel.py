@@ -92,7 +92,7 @@ def _samples_needed(st, cfg, periods):
     return int(math.ceil(chips / step))
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     """Run epochs while they fit in `samples` (file indices block_start...). Returns epochs written."""
     fs = cfg[C_FS]

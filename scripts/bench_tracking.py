@@ -1,0 +1,79 @@
+#!/usr/bin/env python3
+"""Tracking real-time factor: seconds of signal tracked per second of wall time, 8 channels, one core.
+
+Uses the third-party recording (../shared/data/gpssim_static_tokyo.bin) when present, else a synthetic
+2.6 MS/s int8-like signal with 8 satellites.  Acquisition, HDF5 output and navigation are excluded: only
+the channels' epoch loop (correlators, discriminators, loop filters) is timed.
+
+    python scripts/bench_tracking.py [--seconds 20] [--channels 8]
+"""
+import argparse
+import os
+import time
+from pathlib import Path
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from receiver.config import load_receiver_config  # noqa: E402
+from receiver.signals import CA_CHIP_RATE, L1_HZ, ca_code, sample_code  # noqa: E402
+from receiver.tracking.scalar import Channel  # noqa: E402
+
+FS = 2.6e6
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "gpssim_static_tokyo.bin"
+# PRN, Doppler, code phase at sample 0 (chips) of the reference recording (from `gnssrx acquire`)
+REF = [(23, -1867.2, 476.88), (10, 727.1, 930.93), (12, 1007.3, 76.33), (24, -2687.7, 877.03),
+       (15, -3357.4, 489.47), (25, 2705.0, 982.87), (32, 1979.0, 131.02), (18, -3658.1, 597.27),
+       (13, -3515.0, 349.39), (19, 381.4, 378.51)]
+
+
+def synthetic(seconds, sats):
+    n = int(seconds * FS)
+    rng = np.random.default_rng(1)
+    x = (rng.normal(size=n) + 1j * rng.normal(size=n)).astype(np.complex64) * 4
+    t = np.arange(n) / FS
+    for prn, dop, cp in sats:
+        code = sample_code(ca_code(prn), CA_CHIP_RATE * (1 + dop / L1_HZ), FS, n, cp)
+        x += (0.6 * code * np.exp(2j * np.pi * dop * t)).astype(np.complex64)
+    return x
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--channels", type=int, default=8)
+    args = ap.parse_args()
+    sats = REF[:args.channels]
+    if SHARED.exists():
+        raw = np.memmap(SHARED, np.int8, "r")[:int(2 * args.seconds * FS)]
+        x = (raw[0::2] + 1j * raw[1::2]).astype(np.complex64)
+        src = "reference recording"
+    else:
+        x = synthetic(args.seconds, sats)
+        src = "synthetic signal"
+    cfg = load_receiver_config()
+    chans = [Channel(p, d, c, 0, cfg.tracking, FS, 0.0) for p, d, c in sats]
+    warm = int(0.1 * FS)
+    for ch in chans:                      # JIT warm-up (cached after the first run)
+        ch.process(x[:warm], 0)
+    chunk = int(0.5 * FS)
+    t0 = time.perf_counter()
+    n_epochs = 0
+    for start in range(warm, len(x) - chunk, chunk):
+        block = x[start:start + chunk + int(0.03 * FS)]
+        for ch in chans:
+            # channels are behind `start` by < 1 ms after warm-up; give them the block from their sample
+            s = ch.next_sample
+            n_epochs += len(ch.process(x[s:start + chunk + int(0.03 * FS)], s))
+    wall = time.perf_counter() - t0
+    sig = (len(x) - warm - chunk) / FS
+    locked = sum(not ch.lost for ch in chans)
+    print(f"source: {src}; {len(chans)} channels at {FS / 1e6:.1f} MS/s; {locked} still locked")
+    print(f"signal {sig:.1f} s, wall {wall:.2f} s, {n_epochs} channel-epochs")
+    print(f"tracking real-time factor: {sig / wall:.1f}x  ({wall / n_epochs * 1e6:.1f} us per channel-epoch)")
+    del block
+
+
+if __name__ == "__main__":
+    main()
