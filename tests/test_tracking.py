@@ -1,0 +1,96 @@
+import numpy as np
+import pytest
+
+from receiver.config import load_receiver_config
+from receiver.record import STATE_BIT_SYNC
+from receiver.tracking.scalar import Channel
+
+from synth import make_signal
+
+FS = 2.6e6
+
+
+def _track(x, prn, doppler, code_phase, overrides=(), chunk_s=0.5):
+    cfg = load_receiver_config(None, list(overrides))
+    ch = Channel(prn, doppler, code_phase, 0, cfg.tracking, FS, 0.0)
+    recs = []
+    chunk = int(chunk_s * FS)
+    for start in range(0, len(x), chunk):
+        s = ch.next_sample
+        recs.append(ch.process(x[s:start + chunk + int(0.03 * FS)], s))
+    return ch, np.concatenate(recs)
+
+
+@pytest.mark.parametrize("cn0", [35.0, 45.0])
+def test_lock_doppler_cn0_and_bits(cn0):
+    rng = np.random.default_rng(int(cn0))
+    bits = rng.choice([-1, 1], size=200)
+    true_dop = 1234.5
+    sat = dict(prn=9, doppler_hz=true_dop, code_phase_chips=100.3, cn0_dbhz=cn0, bits=bits, bit_start_ms=7)
+    x = make_signal([sat], FS, 4.0, seed=5)
+    # start with acquisition-like errors: 25 Hz, 0.3 chip
+    ch, r = _track(x, 9, true_dop + 25.0, 100.0)
+    assert not ch.lost
+    late = r[r["time_s"] > 2.0]
+    assert late["pll_lock"].mean() > 0.95
+    assert np.mean(late["doppler_hz"]) == pytest.approx(true_dop, abs=0.5)
+    assert np.median(late["cn0_dbhz"]) == pytest.approx(cn0, abs=1.0)
+    # code phase: the replica's code phase at each epoch start equals the signal's
+    sig_chips = 100.3 + late["sample_index"] / FS * 1.023e6 * (1 + true_dop / 1575.42e6)
+    err = (late["code_phase_chips"] - sig_chips + 511.5) % 1023 - 511.5
+    assert np.sqrt(np.mean(err ** 2)) < (0.05 if cn0 > 40 else 0.12)
+    # bit synchronisation at the right code period, and bits recovered (up to the Costas sign).
+    # The channel's code period 0 is the signal's period 1 (the first full period after sample 0).
+    assert ch.bit_offset == (7 - 1) % 20
+    sync = r[r["state"] == STATE_BIT_SYNC]
+    assert len(sync) > 1000
+    period = sync["code_period"] + 1                 # signal code period
+    first = period[(period - 7) % 20 == 0][0]
+    k = (period - first) // 20
+    full = np.bincount(k, minlength=k.max() + 1) == 20
+    sums = np.bincount(k, weights=sync["prompt_i"])[full]
+    idx = ((first - 7) // 20 + np.flatnonzero(full)) % len(bits)
+    agree = np.mean(np.sign(sums) == bits[idx])
+    assert agree in (pytest.approx(1.0), pytest.approx(0.0))
+
+
+def test_longer_integration_after_bit_sync():
+    bits = np.random.default_rng(1).choice([-1, 1], size=200)
+    sat = dict(prn=3, doppler_hz=-800.0, code_phase_chips=10.0, cn0_dbhz=42.0, bits=bits, bit_start_ms=3)
+    x = make_signal([sat], FS, 3.0, seed=6)
+    ch, r = _track(x, 3, -790.0, 10.2, overrides=["tracking.integration_ms=10", "tracking.pll_bw_hz=10",
+                                                   "tracking.pll_order=2"])
+    assert not ch.lost
+    ten = r[r["integration_ms"] == 10]
+    assert len(ten) > 50
+    assert np.all((ten["code_period"] + 1 - 3) % 10 == 0)     # epochs aligned to bit edges
+    assert ten["pll_lock"][-20:].all()
+
+
+def test_loss_of_lock_when_signal_disappears():
+    sat = dict(prn=21, doppler_hz=500.0, code_phase_chips=5.0, cn0_dbhz=45.0)
+    x = make_signal([sat], FS, 3.0, seed=7)
+    x[int(1.0 * FS):] = make_signal([], FS, 2.0, seed=8)      # signal gone after 1 s
+    ch, r = _track(x, 21, 500.0, 5.0)
+    assert ch.lost
+    assert r["time_s"][-1] < 2.6
+
+
+def test_external_nco_commands():
+    """A channel whose NCOs are commanded from outside follows the commands (vector-loop contract)."""
+    sat = dict(prn=14, doppler_hz=-2000.0, code_phase_chips=400.0, cn0_dbhz=45.0)
+    x = make_signal([sat], FS, 1.2, seed=9)
+    cfg = load_receiver_config()
+    ch = Channel(14, -2000.0, 400.0, 0, cfg.tracking, FS, 0.0)
+    ch.process(x[:int(0.6 * FS)], 0)
+    ch.set_external(carrier=True, code=True)
+    ch.command(doppler_hz=-1990.0, code_rate_hz=1.023e6 + 0.5)
+    s = ch.next_sample
+    r = ch.process(x[s:], s, max_epochs=50)
+    assert len(r) == 50
+    np.testing.assert_allclose(r["doppler_hz"][1:], -1990.0)
+    np.testing.assert_allclose(r["code_rate_hz"][1:], 1.023e6 + 0.5)
+    ch.set_external(carrier=False, code=False)
+    s = ch.next_sample
+    r = ch.process(x[s:], s)
+    assert abs(r["doppler_hz"][-1] + 2000.0) < 2.0
