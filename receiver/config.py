@@ -220,7 +220,7 @@ def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, st
 # The receiver's schema
 # --------------------------------------------------------------------------------------------------
 INPUT_FORMATS = ("int8_iq", "int16_iq", "complex64", "int8_real", "int16_real")
-CARRIER_VARIANTS = ("pll",)
+CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
 
 RECEIVER_SCHEMA = {
     "input": {
@@ -238,7 +238,8 @@ RECEIVER_SCHEMA = {
         "start_gps_tow_s": P(None, "float", "approximate GPS time of week of the first sample",
                              nullable=True),
     },
-    "signal": P("gps_l1ca", "str", "signal to acquire and track", choices=("gps_l1ca",)),
+    "signal": P("gps_l1ca", "str", "signal to acquire and track (bds_b1i: BeiDou B1I, no navigation "
+                                   "decoding)", choices=("gps_l1ca", "bds_b1i")),
     "acquisition": {
         "prns": P(list(range(1, 33)), "list_int", "PRNs searched", lo=1, hi=32),
         "coherent_ms": P(4, "int", "coherent integration per non-coherent step (ms)", lo=1, hi=10),
@@ -273,7 +274,36 @@ RECEIVER_SCHEMA = {
         "reacquire_s": P(5.0, "float", "interval between re-acquisition attempts for missing PRNs",
                          lo=0.1),
         "carrier": {
-            "variant": P("pll", "str", "carrier loop variant", choices=CARRIER_VARIANTS),
+            "variant": P("pll", "str", "carrier loop variant: pll (built-in FLL-assisted PLL), cpll_atan "
+                                       "(ATAN Costas PLL, loop filter of order `order`), ekf (I/Q extended "
+                                       "Kalman filter), pli_ekf (EKF with PLI-weighted observation), kf "
+                                       "(Kalman-filter PLL on the ATAN discriminator), adaptive_kf (kf with "
+                                       "innovation-scaled Q and NWPR-C/N0 R)", choices=CARRIER_VARIANTS),
+            "t_coh_ms": P(None, "int", "coherent integration of the carrier loop after bit sync (empty: "
+                                       "tracking.integration_ms); limited to the data-symbol length unless "
+                                       "dataless", nullable=True, choices=(1, 2, 4, 5, 10, 20)),
+            "dataless": P(False, "bool", "the signal carries no data symbols (simulator navigation.data: "
+                                         "false): integrate across symbol edges; overlay codes still apply"),
+            "bn_hz": P(15.0, "float", "cpll_atan: loop noise bandwidth", lo=0.1),
+            "order": P(3, "int", "cpll_atan: loop order", choices=(2, 3)),
+            "clock_h0": P(2e-19, "float", "kf/ekf process noise: oscillator white FM level h0", lo=0.0),
+            "clock_h_2": P(2e-20, "float", "kf/ekf process noise: oscillator random-walk FM level h_-2",
+                           lo=0.0),
+            "kf": {
+                "cn0_dbhz": P(35.0, "float", "kf: design C/N0 for the discriminator variance R", lo=0.0),
+                "jerk_psd": P(4.0, "float", "kf: PSD of the white line-of-sight jerk ((m/s^3)^2/Hz)",
+                              lo=0.0),
+                "window": P(20, "int", "adaptive_kf: innovation window m (epochs)", lo=2),
+                "cn0_tau_s": P(0.5, "float", "adaptive_kf: NWPR C/N0 smoothing time constant", lo=0.0),
+            },
+            "ekf": {
+                "bn_hz": P(15.0, "float", "ekf/pli_ekf: loop bandwidth at the design C/N0 (sets the "
+                                          "white-snap process noise)", lo=0.1),
+                "cn0_dbhz": P(40.0, "float", "ekf/pli_ekf: design C/N0 for bn_hz", lo=0.0),
+                "amp_tau_s": P(0.05, "float", "ekf/pli_ekf: smoothing of the amplitude / noise power "
+                                              "estimates", lo=0.0),
+                "cn0_tau_s": P(0.5, "float", "ekf/pli_ekf: NWPR C/N0 smoothing time constant", lo=0.0),
+            },
         },
     },
     "navigation": {
@@ -287,6 +317,8 @@ RECEIVER_SCHEMA = {
         "residual_threshold_m": P(30.0, "float", "drop the worst satellite when a residual exceeds this",
                                   lo=0.0),
         "filter": P("wls", "str", "navigation filter", choices=("wls",)),
+        "settle_s": P(1.0, "float", "a channel's measurements are used this long after its pull-in "
+                                    "(DLL/PLL transients over)", lo=0.0),
         "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                          lo=0.0),
     },
@@ -296,11 +328,67 @@ RECEIVER_SCHEMA = {
                      choices=("fixed_r", "adaptive_r", "polynomial", "cv")),
         "start_s": P(None, "float", "handover time in seconds from the first sample (empty: 5 s after "
                                     "the first valid fix)", nullable=True, lo=0.0),
+        "integration_ms": P(1, "int", "vector-loop epoch T = coherent integration (ms; > 1 only on "
+                                      "bit-synchronised channels, the others average 1 ms epochs)",
+                            choices=(1, 2, 4, 5, 10, 20)),
+        "r_code_m2": P(1500.0, "float", "code discriminator variance R (m^2; fixed_r, cv, initial value of "
+                                        "the adaptive variants)", lo=1e-6),
+        "r_carrier_m2s2": P(900.0, "float", "frequency discriminator variance R ((m/s)^2)", lo=1e-6),
+        "q_accel": P(10.0, "float", "fixed_r/adaptive_r: PSD of the white receiver acceleration per axis "
+                                    "(m^2/s^3)", lo=0.0),
+        "clock_class": P("tcxo", "str", "oscillator class of the clock process noise (h0, h_-2)",
+                         choices=("tcxo", "ocxo", "rubidium")),
+        "code_carrier_drift": P(True, "bool", "estimate a code-minus-carrier clock drift state (front ends "
+                                              "whose oscillator error reaches the carrier only; ionospheric "
+                                              "divergence)"),
+        "q_code_carrier_drift": P(1e-4, "float", "PSD of the code-minus-carrier drift random walk "
+                                                 "((m/s)^2/s)", lo=0.0),
+        "init_sigma_pos_m": P(10.0, "float", "initial position standard deviation at handover", lo=0.0),
+        "init_sigma_vel_mps": P(1.0, "float", "initial velocity standard deviation at handover", lo=0.0),
+        "cn0_mask_dbhz": P(None, "float", "channels below this C/N0 are predicted only (no measurement "
+                                          "update); empty: every channel updates (the papers' setting)",
+                           nullable=True),
+        "drop_elevation_deg": P(-2.0, "float", "vector channels whose satellite sets below this elevation are "
+                                               "dropped", lo=-90.0, hi=90.0),
+        "add_predicted": P(True, "bool", "open channels predicted from the navigation solution for "
+                                         "satellites with an ephemeris above navigation.elevation_mask_deg "
+                                         "(no acquisition needed)"),
+        "adaptive_r": {
+            "window": P(500, "int", "innovations (epochs) in the sliding R estimate", lo=2),
+            "form": P("paper", "str", "R estimate: paper (C_v + H P+ H^T, as printed), innovation "
+                                      "(C_v - H P- H^T) or residual (C_r + H P+ H^T)",
+                      choices=("paper", "innovation", "residual")),
+            "floor_code_m2": P(10.0, "float", "lower limit of the code R", lo=1e-9),
+            "floor_carrier_m2s2": P(1.0, "float", "lower limit of the carrier R", lo=1e-9),
+        },
+        "polynomial": {
+            "position_taps": P(3, "int", "PPF length K of the position predictor (degree 2)", lo=3, hi=8),
+            "velocity_taps": P(2, "int", "PPF length K of the velocity predictor (degree 1)", lo=2, hi=8),
+            "drift_taps": P(2, "int", "PPF length K of the clock-drift predictor (degree 1)", lo=2, hi=8),
+            "chi2_threshold": P(25.0, "float", "manoeuvre detection threshold on the code / carrier "
+                                               "innovation chi-square tags (0 = off)", lo=0.0),
+            "q_manoeuvre_pos_m2": P(1.0, "float", "Q added to every position state on a detection", lo=0.0),
+            "q_manoeuvre_vel_m2s2": P(1.0, "float", "Q added to every velocity state on a detection", lo=0.0),
+            "q_manoeuvre_clock": P(0.01, "float", "Q added to the clock states on a detection (m^2, (m/s)^2)",
+                                   lo=0.0),
+            "adaptive_r": P(True, "bool", "residual-form adaptive R (R = C_r + H P H^T over "
+                                          "vector.adaptive_r.window epochs)"),
+        },
+        "cv": {
+            "q_velocity": P(1e-3, "float", "per-epoch velocity process noise sigma_v^2 ((m/s)^2)", lo=0.0),
+            "q_position": P(0.1, "float", "per-epoch position process noise sigma_p^2 (m^2)", lo=0.0),
+            "q_bias": P(1e-7, "float", "per-epoch clock-bias process noise sigma_b^2 (m^2)", lo=0.0),
+            "q_drift": P(0.1, "float", "per-epoch clock-drift process noise sigma_d^2 ((m/s)^2)", lo=0.0),
+        },
     },
     "output": {
         "path": P(None, "str", "HDF5 output (empty: <input stem>.h5 in the current directory; "
                                "`--output` overrides)", nullable=True),
-        "report": P(False, "bool", "write a PNG report beside the HDF5 file"),
+        "report": P(False, "bool", "write a PNG report beside the HDF5 file (<stem>_report.png)"),
+        "rinex": P(False, "bool", "write RINEX 3.04 observation and navigation files (<stem>.obs, <stem>.nav)"),
+        "nmea": P(False, "bool", "write NMEA 0183 GGA/RMC/GSA/GSV sentences at the fix rate (<stem>.nmea)"),
+        "kml": P(False, "bool", "write a KML track of the fixes (<stem>.kml)"),
+        "gpx": P(False, "bool", "write a GPX track of the fixes (<stem>.gpx)"),
     },
 }
 

@@ -20,6 +20,7 @@ from .errors import UserError
 from .io import SampleReader
 from .output import RunWriter
 from .record import EPOCH_DTYPE
+from .signals import get_signal
 from .tracking.carrier import make_carrier_loop
 from .tracking.scalar import Channel
 
@@ -94,7 +95,7 @@ def acquire(cfg, reader: SampleReader, start: int, prns) -> list:
         raise UserError("input too short for acquisition "
                         f"({len(block) / reader.fs * 1e3:.0f} ms available, {n / reader.fs * 1e3:.0f} needed)")
     return search(block, start, reader.fs, cfg.input.if_hz, prns, a.coherent_ms, a.noncoherent,
-                  a.doppler_max_hz, a.doppler_step_hz, a.pfa, a.threshold)
+                  a.doppler_max_hz, a.doppler_step_hz, a.pfa, a.threshold, signal=get_signal(cfg.signal))
 
 
 def _maybe_handover(cfg, channels, nav, start, fs, n_fixes):
@@ -131,6 +132,9 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
         return summary
     finally:
         writer.close(ok)
+        if ok:  # standard outputs (receiver/export): RINEX/NMEA/KML/GPX/report from the closed run file
+            from .export import export_all
+            export_all(out_path, cfg.output, log=None if quiet else log)
 
 
 def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
@@ -144,11 +148,13 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     channels: dict[int, Channel] = {}
     for r in detected[:cfg.tracking.max_channels]:
         channels[r.prn] = Channel(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index,
-                                  cfg.tracking, fs, if_hz, channel_id=len(channels))
+                                  cfg.tracking, fs, if_hz, channel_id=len(channels),
+                                  signal=get_signal(cfg.signal))
     week_hint = cfg.input.start_gps_week
     nav = None
-    if cfg.navigation.enabled:
-        nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint)
+    if cfg.navigation.enabled and cfg.signal == "gps_l1ca":      # no B1I navigation decoding
+        nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
+                               cfg.input.start_gps_tow_s)
     cn0_sum: dict[int, list] = {}
     n_fixes, first_fix, fix_ecef = 0, None, []
     chunk = int(CHUNK_S * fs)
@@ -206,7 +212,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                         if r.detected and len(channels) < cfg.tracking.max_channels:
                             channels[r.prn] = Channel(r.prn, r.doppler_hz, r.code_phase_chips,
                                                       r.sample_index, cfg.tracking, fs, if_hz,
-                                                      channel_id=len(channels))
+                                                      channel_id=len(channels),
+                                                      signal=get_signal(cfg.signal))
             next_reacq = start + int(cfg.tracking.reacquire_s * fs)
         start += chunk
         if bar is not None:

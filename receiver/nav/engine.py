@@ -50,6 +50,25 @@ class ChannelNav:
         self.lock_start_s = None
         self.locked = False
         self.hatch = None           # carrier-smoothing state
+        self.time_assisted = False  # transmit time resolved without frame sync (assisted mode)
+        self.track_start_s = None   # end of the pull-in (receiver time)
+        self.time_mismatches = 0
+
+    def set_assisted_offset(self, tx_offset: float):
+        """Transmit-time offset found by the assisted ambiguity search (until frame sync confirms)."""
+        self.cp_ref = 0
+        self.tow_ref = tx_offset
+        self.time_assisted = True
+
+    def offset_candidates(self, s: float, tx_guess: float):
+        """tx_offset making the transmit time at sample s nearest tx_guess, given bit synchronisation:
+        bit edges are transmitted at multiples of 20 ms of GPS time."""
+        m = self.measure(s)
+        if m is None or self.bit_offset < 0:
+            return None, None
+        base = -self.bit_offset * 1e-3
+        k = round((tx_guess - m[0] - base) / 0.02)
+        return base + 0.02 * k, m[0]
         self.cn0 = 0.0
 
     def add(self, recs: np.ndarray, bit_offset: int):
@@ -59,6 +78,10 @@ class ChannelNav:
         while len(self.recent) > 3:
             self.recent.popleft()
         self.last_sample = int(recs["sample_index"][-1])
+        if self.track_start_s is None:
+            st = np.flatnonzero(recs["state"] != 0)          # first epoch after the FLL pull-in
+            if len(st):
+                self.track_start_s = float(recs["time_s"][st[0]])
         self.cn0 = float(recs["cn0_dbhz"][-1])
         locked = bool(recs["pll_lock"][-1])
         if locked and not self.locked:
@@ -96,9 +119,13 @@ class ChannelNav:
             return
         for ev in self.decoder.feed(np.asarray(bits), first):
             if isinstance(ev, SubframeEvent):
-                self.cp_ref = self.bit_offset + BIT_MS * ev.bit_index
+                cp_ref = self.bit_offset + BIT_MS * ev.bit_index
+                if self.time_assisted and abs(ev.tow_s - cp_ref * 1e-3 - self.tx_offset) > 1e-4:
+                    self.time_mismatches += 1          # the assisted guess was wrong: frame sync wins
+                self.cp_ref = cp_ref
                 self.tow_ref = ev.tow_s
                 self.polarity = ev.polarity
+                self.time_assisted = False
 
     @property
     def has_time(self) -> bool:
@@ -108,6 +135,10 @@ class ChannelNav:
     def tx_offset(self) -> float:
         """GPS TOW of code period 0 (transmit time = tx_offset + relative transmit time)."""
         return self.tow_ref - self.cp_ref * 1e-3
+
+    def settled(self, s: float, settle_s: float) -> bool:
+        """True once the loops have tracked for settle_s after the pull-in (DLL transient over)."""
+        return self.track_start_s is not None and s / self.fs - self.track_start_s >= settle_s
 
     def measure(self, s: float):
         """(relative transmit time s, NCO Doppler Hz, carrier phase cycles) at fractional sample s.
@@ -176,7 +207,7 @@ class ChannelNav:
 
 class NavigationEngine:
     def __init__(self, nav_cfg, fs: float, if_hz: float, first_sample: int, ephemerides=None,
-                 iono_utc=None, week_hint: int | None = None):
+                 iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None):
         self.cfg = nav_cfg
         self.fs = fs
         self.if_hz = if_hz
@@ -195,6 +226,10 @@ class NavigationEngine:
         self.epoch = 0
         self.x0 = None
         self.n_attempts = 0
+        # assisted mode: approximate GPS TOW of file sample 0 (input.start_gps_tow_s) lets transmit times
+        # be resolved from bit synchronisation alone, before any subframe has been decoded
+        self.approx_tow0 = approx_tow0
+        self.time_mismatches = 0
 
     def channel(self, prn: int) -> ChannelNav:
         if prn not in self.channels:
@@ -268,12 +303,77 @@ class NavigationEngine:
         scale = self.fs / (1 - fix.clock_drift_mps / C_LIGHT)
         self.next_s = s_fix + (t_next - fix.gps_tow) * scale
 
+    def _resolve_assisted(self, s: float):
+        """Give transmit times to bit-synchronised channels without frame sync (assisted mode).
+
+        First fix: the 20 ms ambiguity of every channel is fixed jointly by trying common travel times
+        of 60..95 ms at the approximate receiver time and keeping the assignment whose least-squares fix
+        has the smallest residuals and a clock bias within 10 ms.  Later channels: the ambiguity is taken
+        from the current fix.  Frame sync, when it comes, replaces (and checks) the assisted value."""
+        from .ephemeris import select
+        pending = [ch for ch in self.channels.values()
+                   if not ch.has_time and ch.bit_offset >= 0 and ch.locked
+                   and ch.settled(s, self.cfg.settle_s)]
+        if not pending:
+            return
+        if self.last_fix is not None:
+            s_fix, fix = self.last_fix
+            rx_tow = self.tow0 + (s - self.s0) / self.fs
+            for ch in pending:
+                eph = self._ephemerides(rx_tow).get(ch.prn)
+                if eph is None:
+                    continue
+                from .ephemeris import sat_state
+                pos = sat_state(eph, fix.gps_tow - 0.075)[0]
+                rng = float(np.linalg.norm(pos - fix.ecef))
+                guess = rx_tow - (rng + fix.clock_bias_m) / C_LIGHT
+                off, _ = ch.offset_candidates(s, guess)
+                if off is not None:
+                    ch.set_assisted_offset(off)
+            return
+        if len(pending) < 5:
+            return
+        T = self.approx_tow0 + s / self.fs
+        week = self._week()
+        if week is None:
+            return
+        best = None
+        for c in np.arange(0.060, 0.0955, 0.001):
+            offs, obs = {}, []
+            for ch in pending:
+                off, txrel = ch.offset_candidates(s, T - c)
+                if off is None or ch.prn not in self.rinex_ephs:
+                    continue
+                e = select(self.rinex_ephs[ch.prn], T)
+                if e is None:
+                    continue
+                offs[ch.prn] = off
+                obs.append(Observation(prn=ch.prn, tx_tow=off + txrel, cn0_dbhz=ch.cn0))
+            if len(obs) < 5:
+                continue
+            ephs = {o.prn: select(self.rinex_ephs[o.prn], T) for o in obs}
+            fix = self.solver.fix(week, T, obs, ephs, self._iono())
+            # a common 20 ms shift of every transmit time fits almost as well (only the satellites'
+            # along-track motion differs) but needs a 20 ms clock bias: input.start_gps_tow_s must be
+            # within +/-10 ms for the search to pick the right assignment
+            if fix is None or fix.rejected_prns or fix.n_sats < 5 or \
+                    abs(fix.clock_bias_m) > 0.01 * C_LIGHT:
+                continue
+            rms = float(np.sqrt(np.mean(np.square(fix.residuals_m))))
+            if best is None or rms < best[0]:
+                best = (rms, offs)
+        if best is not None and best[0] < 100.0:
+            for prn, off in best[1].items():
+                self.channels[prn].set_assisted_offset(off)
+
     def _epoch(self, s: float):
+        if self.assisted and self.approx_tow0 is not None:
+            self._resolve_assisted(s)
         meas = {}
         dt = 1.0 / self.rate
         window = int(round(self.cfg.smoothing_s * self.rate))
         for prn, ch in self.channels.items():
-            if not ch.locked:
+            if not ch.locked or not ch.settled(s, self.cfg.settle_s):
                 ch.hatch = None
                 continue
             m = ch.measure(s)
