@@ -389,8 +389,13 @@ class NavigationEngine:
         if len(meas) < 4:
             return None, []
         if self.tow0 is None:
-            self.tow0 = max(m[0] for m, _ in meas.values()) + 0.075
-            self.s0 = s
+            if self.approx_tow0 is not None:
+                # receiver clock = nominal start time + sample count: clock_bias_m is then the receiver
+                # clock error against the recording's time stamp (comparable with simulator truth)
+                self.tow0, self.s0 = self.approx_tow0, 0.0
+            else:
+                self.tow0 = max(m[0] for m, _ in meas.values()) + 0.075
+                self.s0 = s
         rx_tow = self.tow0 + (s - self.s0) / self.fs
         week = self._week()
         ephs = self._ephemerides(rx_tow)
@@ -402,7 +407,7 @@ class NavigationEngine:
             fix = self.solver.fix(week, rx_tow, observations, ephs, self._iono(), x0=self.x0)
         if fix is None:
             return None, []
-        if self.last_fix is None:
+        if self.last_fix is None and (self.approx_tow0 is None or abs(fix.clock_bias_m) > C_LIGHT):
             # first fix: take the clock bias out of the receiver time and solve again
             self.tow0 -= fix.clock_bias_m / C_LIGHT
             rx_tow = self.tow0 + (s - self.s0) / self.fs

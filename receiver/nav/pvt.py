@@ -238,6 +238,8 @@ class NavSolver:
             if sol is None:
                 return None
             x, b = sol["x"], sol["b"]
+            if sol["el"] is None:            # converged far below the Earth's surface: no fix
+                return None
             k = int(np.argmax(np.abs(sol["norm_res"])))
             if np.sum(active) > 5 and abs(sol["norm_res"][k]) > self.residual_threshold_m:
                 active[sol["idx"][k]] = False

@@ -71,6 +71,8 @@ C_CN0_EST = 18         # 0 = snv (locked prompt moments), 1 = m2m4
 C_LOST_MS = 19
 C_BIT_MS = 20          # code periods per data bit (20 for GPS LNAV)
 C_DLL_ORDER = 21
+C_NH_BASE = 22         # > 0: index in code_ext of the overlay-modulated code section (B1I D1 NH code)
+C_NO_DATA = 23         # 1: the signal carries no data symbols (skip bit sync: integrate from pull-in end)
 N_CONFIG = 24
 
 # ---- output columns (same order as receiver.record.EPOCH_DTYPE)
@@ -117,7 +119,12 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
         code_step = st[S_CODE_RATE] / fs
         carr_step = st[S_CARR_FREQ] / fs
         half_el = 0.5 * cfg[C_EL_SPACING]
-        e, p, l, p1, p2 = correlate(samples, off, n, code_ext, st[S_CODE_PHASE], code_step, half_el,
+        cp = st[S_CODE_PHASE]
+        if cfg[C_NH_BASE] > 0 and st[S_MODE] == MODE_BIT_SYNC:
+            # overlay (NH) wipe-off: correlate against the NH-modulated code section
+            k_nh = (int(st[S_CODE_PERIOD]) - int(st[S_BIT_OFFSET])) % bit_ms
+            cp += cfg[C_NH_BASE] + k_nh * cfg[C_CODE_LEN]
+        e, p, l, p1, p2 = correlate(samples, off, n, code_ext, cp, code_step, half_el,
                                     st[S_CARR_PHASE], carr_step)
         ip = p.real
         qp = p.imag
@@ -225,14 +232,35 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
             best = 0
             second = 0
             ibest = 0
-            for j in range(bit_ms):
-                h = hist[j]
-                if h > best:
-                    second = best
-                    best = h
-                    ibest = j
-                elif h > second:
-                    second = h
+            if cfg[C_NH_BASE] > 0:
+                # overlay code: sign changes are expected where the NH code changes (weight +1) and
+                # not where it stays (weight -1); the data edge (NH position 0) is not scored
+                b0 = int(cfg[C_NH_BASE]) + 4
+                L = int(cfg[C_CODE_LEN])
+                for r in range(bit_ms):
+                    sc = 0
+                    for j in range(1, bit_ms):
+                        w = 1 if code_ext[b0 + j * L] != code_ext[b0 + (j - 1) * L] else -1
+                        sc += w * hist[(r + j) % bit_ms]
+                    if sc > best:
+                        second = best
+                        best = sc
+                        ibest = r
+                    elif sc > second:
+                        second = sc
+                # ~10 per NH period at the right offset, <= 3.5 at any other; mapped onto the
+                # rule below: >= 48 raw score and twice the runner-up
+                best = best // 4
+                second = max(second, 0) // 6      # i.e. best > 2 x runner-up
+            else:
+                for j in range(bit_ms):
+                    h = hist[j]
+                    if h > best:
+                        second = best
+                        best = h
+                        ibest = j
+                    elif h > second:
+                        second = h
             if best >= 12 and best > 3 * second:
                 st[S_BIT_OFFSET] = ibest
                 st[S_MODE] = MODE_BIT_SYNC
@@ -246,20 +274,26 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
         if st[S_MODE] == MODE_PULL_IN and st[S_MODE_MS] >= cfg[C_PULL_IN_MS]:
             st[S_MODE] = MODE_TRACK
             st[S_MODE_MS] = 0.0
+            if cfg[C_NO_DATA] > 0 and cfg[C_NH_BASE] == 0:
+                st[S_MODE] = MODE_BIT_SYNC           # no data, no overlay: any period is an edge
+                st[S_BIT_OFFSET] = 0
         o[O_STATE] = st[S_MODE]
         # ---- loop filters (built in): FLL-assisted PLL, carrier-aided DLL
         if cfg[C_CARRIER_EXTERNAL] == 0:
             pull = st[S_MODE] == MODE_PULL_IN
-            w0p = cfg[C_PLL_BW] / 0.7845 if cfg[C_PLL_ORDER] == 3 else cfg[C_PLL_BW] / 0.53
-            w0f = cfg[C_FLL_BW] / 0.53
-            ef = freq_err if pull else 0.0
-            if cfg[C_PLL_ORDER] == 3:
-                st[S_PLL_RATE] += T * (w0p ** 3 * carr_err + w0f * w0f * ef)
-                st[S_PLL_FREQ] += T * (st[S_PLL_RATE] + 1.1 * w0p * w0p * carr_err + 1.414 * w0f * ef)
-                nco = st[S_PLL_FREQ] + 2.4 * w0p * carr_err
-            else:
-                st[S_PLL_FREQ] += T * (w0p * w0p * carr_err + w0f * w0f * ef)
+            if pull or cfg[C_PLL_ORDER] == 2:
+                # 2nd-order PLL; during pull-in aided by a 1st-order FLL (freq += 4 Bn_fll T e_f).  No
+                # Doppler-rate integrator here: at low C/N0 noisy frequency discriminations would wind
+                # it up and the 3rd-order loop would then ramp away after the pull-in.
+                w0p = cfg[C_PLL_BW] / 0.53
+                ef = freq_err if pull else 0.0
+                st[S_PLL_FREQ] += T * (w0p * w0p * carr_err + 4.0 * cfg[C_FLL_BW] * ef)
                 nco = st[S_PLL_FREQ] + 1.414 * w0p * carr_err
+            else:
+                w0p = cfg[C_PLL_BW] / 0.7845
+                st[S_PLL_RATE] += T * w0p ** 3 * carr_err
+                st[S_PLL_FREQ] += T * (st[S_PLL_RATE] + 1.1 * w0p * w0p * carr_err)
+                nco = st[S_PLL_FREQ] + 2.4 * w0p * carr_err
             st[S_CARR_FREQ] = cfg[C_IF] + nco
         if cfg[C_CODE_EXTERNAL] == 0:
             bw = cfg[C_DLL_BW_PULL] if st[S_MODE] == MODE_PULL_IN else cfg[C_DLL_BW]
