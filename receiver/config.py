@@ -257,7 +257,8 @@ RECEIVER_SCHEMA = {
         "integration_ms": P(1, "int", "coherent integration after bit sync (1, 2, 4, 5, 10, 20 ms)",
                             choices=(1, 2, 4, 5, 10, 20)),
         "pull_in_ms": P(300, "int", "duration of FLL-assisted pull-in (ms)", lo=0),
-        "fll_bw_hz": P(10.0, "float", "FLL noise bandwidth during pull-in", lo=0.1),
+        "fll_bw_hz": P(1.0, "float", "FLL noise bandwidth during pull-in (1st-order FLL aiding a 2nd-order "
+                                      "PLL; wider FLLs random-walk at low C/N0)", lo=0.0),
         "pll_bw_hz": P(25.0, "float", "PLL noise bandwidth", lo=0.1),
         "pll_order": P(3, "int", "PLL order", choices=(2, 3)),
         "dll_bw_hz": P(2.0, "float", "DLL noise bandwidth (carrier aided)", lo=0.01),
@@ -303,6 +304,8 @@ RECEIVER_SCHEMA = {
                 "amp_tau_s": P(0.05, "float", "ekf/pli_ekf: smoothing of the amplitude / noise power "
                                               "estimates", lo=0.0),
                 "cn0_tau_s": P(0.5, "float", "ekf/pli_ekf: NWPR C/N0 smoothing time constant", lo=0.0),
+                "pli_tau_s": P(0.1, "float", "pli_ekf: low-pass time constant of I^2, Q^2 in the PLI "
+                                             "(0: the epoch's own I, Q)", lo=0.0),
             },
         },
     },
@@ -367,10 +370,12 @@ RECEIVER_SCHEMA = {
             "drift_taps": P(2, "int", "PPF length K of the clock-drift predictor (degree 1)", lo=2, hi=8),
             "chi2_threshold": P(25.0, "float", "manoeuvre detection threshold on the code / carrier "
                                                "innovation chi-square tags (0 = off)", lo=0.0),
-            "q_manoeuvre_pos_m2": P(1.0, "float", "Q added to every position state on a detection", lo=0.0),
-            "q_manoeuvre_vel_m2s2": P(1.0, "float", "Q added to every velocity state on a detection", lo=0.0),
-            "q_manoeuvre_clock": P(0.01, "float", "Q added to the clock states on a detection (m^2, (m/s)^2)",
-                                   lo=0.0),
+            "q_manoeuvre_pos_m2": P(1.0, "float", "manoeuvre Q (added on a detection): position jump "
+                                                  "variance", lo=0.0),
+            "q_manoeuvre_vel_m2s2": P(1.0, "float", "manoeuvre Q: velocity jump variance ((m/s)^2)", lo=0.0),
+            "q_manoeuvre_acc_m2s4": P(100.0, "float", "manoeuvre Q: acceleration jump variance ((m/s^2)^2)",
+                                      lo=0.0),
+            "q_manoeuvre_clock": P(0.01, "float", "manoeuvre Q: clock-drift jump variance ((m/s)^2)", lo=0.0),
             "adaptive_r": P(True, "bool", "residual-form adaptive R (R = C_r + H P H^T over "
                                           "vector.adaptive_r.window epochs)"),
         },
@@ -393,6 +398,27 @@ RECEIVER_SCHEMA = {
 }
 
 
+#: config keys naming input files; relative paths resolve against the current directory, else the config
+#: file's directory, else the repository root (so `configs/*.yaml` can say `../shared/data/...`)
+PATH_KEYS = (("input", "path"), ("navigation", "ephemeris"))
+REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def resolve_path(value: str, config_path=None) -> str:
+    if not value or os.path.isabs(value) or os.path.exists(value):
+        return value
+    bases = ([os.path.dirname(os.path.abspath(os.fspath(config_path)))] if config_path else []) + [REPO_ROOT]
+    for base in bases:
+        cand = os.path.join(base, value)
+        if os.path.exists(cand):
+            return os.path.normpath(cand)
+    return value
+
+
 def load_receiver_config(path=None, overrides=None) -> Section:
     raw = read_yaml(path) if path is not None else {}
-    return build(RECEIVER_SCHEMA, raw, overrides)
+    for sec, key in PATH_KEYS:
+        if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
+            raw[sec][key] = resolve_path(raw[sec][key], path)
+    cfg = build(RECEIVER_SCHEMA, raw, overrides)
+    return cfg

@@ -24,7 +24,7 @@ from ..errors import UserError
 from ..geodesy import lla2ecef
 from . import geosot
 from .doppler import DopplerData, doppler_jacobian, doppler_model
-from .filters import (CubatureKalmanFilter, ExtendedKalmanFilter, FilterDivergence,
+from ..nav.filters import (CubatureKalmanFilter, ExtendedKalmanFilter, FilterDivergence,
                       SquareRootCubatureKalmanFilter)
 
 METHODS = ("lsm", "ekf", "ckf", "sqrt_ckf")
