@@ -2,9 +2,8 @@
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
-SHARED ?= ../shared/data
 
-.PHONY: venv demo test bench figures figures-leo clean
+.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier batch-full clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,11 +21,22 @@ test: venv
 
 bench: venv
 	$(PY) scripts/bench_tracking.py
+	$(PY) scripts/bench_simulate.py
 
-figures: figures-leo
+figures: figures-leo figures-vector figures-carrier
+	$(PY) scripts/figures_index.py --figures figures
 
 figures-leo: venv
 	$(PY) scripts/figures_leo.py --out figures/leo
+
+figures-vector: venv
+	$(PY) scripts/figures_vector.py --out figures/vector
+
+figures-carrier: venv
+	$(PY) scripts/figures_carrier.py --out figures/carrier
+
+batch-full: venv
+	$(VENV)/bin/gnssrx batch configs/batch/full.yaml
 
 clean:
 	rm -rf out figures .pytest_cache

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.stats import gamma
 
-from .signals import CA_CHIP_RATE, CA_CODE_LEN, ca_code, sample_code
+from .signals import GPS_L1CA, sample_code
 
 
 @dataclass
@@ -36,14 +36,16 @@ def _threshold(pfa: float, n_cells: int, k: int) -> float:
 
 def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns, coherent_ms: int = 4,
            noncoherent: int = 10, doppler_max_hz: float = 10000.0, doppler_step_hz: float | None = None,
-           pfa: float = 1e-3, threshold: float = 1.0, fine: bool = True) -> list[AcqResult]:
+           pfa: float = 1e-3, threshold: float = 1.0, fine: bool = True, signal=None) -> list[AcqResult]:
     """Search `prns` in `samples` (complex64, first sample = file index start_index).
 
     Each coherent block of T = coherent_ms is Fourier transformed once per distinct fractional Doppler
     offset (in units of 1/T); a Doppler bin is then a circular shift of that spectrum.  The replica of
     coherent_ms code periods has spectral lines only on every coherent_ms-th bin, so the correlation
     over all code phases of one period is an inverse FFT of one period's length.
+    ``signal``: a :class:`receiver.signals.SignalDef` (default GPS L1 C/A); its code period must be 1 ms.
     """
+    sig = signal if signal is not None else GPS_L1CA
     n1 = fs * 1e-3
     if abs(n1 - round(n1)) > 1e-6:
         raise ValueError("acquisition needs an integer number of samples per millisecond")
@@ -74,7 +76,7 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     thr = _threshold(pfa, n_cells, noncoherent)
     out = []
     for prn in prns:
-        code = sample_code(ca_code(prn), CA_CHIP_RATE, fs, n1).astype(np.complex64)
+        code = sample_code(sig.code(prn), sig.chip_rate, fs, n1).astype(np.complex64)
         cf = np.conj(sfft.fft(code)).astype(np.complex64)
         power = np.zeros((len(dopplers), n1), np.float32)
         for r in fracs:
@@ -88,26 +90,34 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
         ptm = float(power[di, si]) / mean
         metric = ptm / thr / threshold
         # the replica starts at sample si: the signal's code phase at sample 0 is -si samples
-        code_phase = (-si * CA_CHIP_RATE / fs) % CA_CODE_LEN
+        code_phase = (-si * sig.chip_rate / fs) % sig.code_len
         dop = float(dopplers[di])
         # peak-to-mean - 1 ~ coherent SNR = C/N0 * T_coh (before straddle losses)
         cn0 = 10 * np.log10(max(ptm - 1.0, 1e-3) / T)
         res = AcqResult(prn, metric >= 1.0, dop, float(code_phase), start_index, float(metric), ptm,
                         float(cn0))
         if res.detected and fine:
-            res.doppler_hz = refine_doppler(samples, fs, if_hz, prn, res.code_phase_chips, dop, step)
+            # symbols shorter than 10 ms (NH overlay, D2): refine over 1 ms blocks
+            short = sig.secondary(prn) is not None or sig.bit_ms(prn) < 10
+            res.doppler_hz = refine_doppler(samples, fs, if_hz, prn, res.code_phase_chips, dop, step,
+                                            block_ms=1 if short else 10, n_blocks=40 if short else 20,
+                                            signal=sig)
         out.append(res)
     return out
 
 
 def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_phase_chips: float,
-                   coarse_hz: float, bin_hz: float, block_ms: int = 10, n_blocks: int = 4) -> float:
+                   coarse_hz: float, bin_hz: float, block_ms: int = 10, n_blocks: int = 4,
+                   signal=None) -> float:
     """Fine Doppler: wipe the code off `n_blocks` x `block_ms` blocks, zero-padded FFTs summed
     non-coherently around the coarse bin, peak interpolated.  Accuracy ~ a few Hz at 40 dB-Hz."""
     n = int(round(block_ms * 1e-3 * fs))
     total = min(n * n_blocks, len(samples))
     n_blocks = max(1, total // n)
-    code = sample_code(ca_code(prn), CA_CHIP_RATE, fs, n * n_blocks, code_phase_chips)
+    sig = signal if signal is not None else GPS_L1CA
+    # the code Doppler matters over 200 ms (1.8 chips/s at 2.8 kHz): follow it
+    code = sample_code(sig.code(prn), sig.chip_rate * (1.0 + coarse_hz / sig.carrier_hz), fs,
+                       n * n_blocks, code_phase_chips)
     t = np.arange(n * n_blocks) / fs
     x = samples[:n * n_blocks] * code * np.exp(-2j * np.pi * (if_hz + coarse_hz) * t)
     nfft = 1 << int(np.ceil(np.log2(n * 8)))
@@ -127,3 +137,24 @@ def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_
     else:
         d = 0.0
     return float(coarse_hz + freqs[i] + d * fs / nfft)
+
+
+def reject_cross_correlations(results: list[AcqResult], coherent_ms: int,
+                              min_ratio_db: float = 15.0) -> list[AcqResult]:
+    """Un-detect weak peaks that are cross-correlation images of a much stronger detected signal.
+
+    Gold-code cross-correlation sidelobes reach -24 dB; they show up at the strong signal's Doppler
+    (within one bin).  A detection whose coherent SNR is more than ``min_ratio_db`` below another
+    detection's within half a Doppler bin (1/(2 T_coh)) is flagged as not detected.
+    """
+    half_bin = 1.0 / (2.0 * coherent_ms * 1e-3)
+    strong = [r for r in results if r.detected]
+    for r in strong:
+        for s in strong:
+            if s is r or not s.detected:
+                continue
+            ratio = 10 * np.log10(max(s.peak_to_mean - 1, 1e-9) / max(r.peak_to_mean - 1, 1e-9))
+            if abs(s.doppler_hz - r.doppler_hz) <= half_bin and ratio > min_ratio_db:
+                r.detected = False
+                break
+    return results

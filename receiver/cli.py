@@ -85,6 +85,18 @@ def _register_optional():
         main.add_command(leo)
     except ImportError:
         pass
+    try:
+        from .export.cli import export, info, report
+        for cmd in (export, report, info):
+            main.add_command(cmd)
+    except ImportError:
+        pass
+    try:
+        from .batch.cli import batch, compare
+        main.add_command(batch)
+        main.add_command(compare)
+    except ImportError:
+        pass
 
 
 _register_optional()

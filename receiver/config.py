@@ -248,7 +248,8 @@ RECEIVER_SCHEMA = {
         "doppler_step_hz": P(None, "float", "Doppler bin width (empty: 1/(2 T_coh))", nullable=True,
                              lo=1.0),
         "pfa": P(1e-3, "float", "false-alarm probability over one PRN's search grid", lo=1e-12, hi=0.5),
-        "threshold": P(1.0, "float", "extra factor on the pfa-derived detection threshold (see README)",
+        "threshold": P(1.25, "float", "factor on the pfa-derived detection threshold: margin for the "
+                                      "non-Gaussian tail that strong signals' cross-correlation adds (README)",
                        lo=0.1),
         "start_s": P(0.0, "float", "time into the processed span where acquisition starts", lo=0.0),
     },
@@ -265,6 +266,9 @@ RECEIVER_SCHEMA = {
         "dll_order": P(2, "int", "DLL order (2 absorbs a code/carrier rate mismatch)", choices=(1, 2)),
         "dll_bw_pull_in_hz": P(4.0, "float", "DLL noise bandwidth during pull-in", lo=0.01),
         "early_late_chips": P(0.5, "float", "early-late spacing (total, chips)", lo=0.05, hi=1.5),
+        "early_late_snap": P(True, "bool", "round the early/late offsets to whole samples (removes the "
+                                           "sub-sample code bias of unfiltered signals; 0.5 chip becomes "
+                                           "0.79 chip at 2.6 MS/s)"),
         "cn0_window_ms": P(200, "int", "window for the C/N0 estimator (ms)", lo=20),
         "cn0_estimator": P("snv", "str", "C/N0 estimator: snv (signal-to-noise variance of the locked "
                                          "prompt; M2M4 before lock) or m2m4", choices=("snv", "m2m4")),
@@ -319,7 +323,34 @@ RECEIVER_SCHEMA = {
         "weighting": P("elevation", "str", "WLS weights", choices=("elevation", "cn0", "none")),
         "residual_threshold_m": P(30.0, "float", "drop the worst satellite when a residual exceeds this",
                                   lo=0.0),
-        "filter": P("wls", "str", "navigation filter", choices=("wls",)),
+        "filter": P("wls", "str", "navigation solution: wls (single-epoch weighted least squares and "
+                                  "Doppler velocity), ekf (extended Kalman filter) or ckf (square-root "
+                                  "cubature Kalman filter) over position, velocity, clock bias and drift, fed "
+                                  "with the pseudoranges and pseudorange rates of the satellites the WLS fix "
+                                  "used; /navigation then holds the filtered position, velocity and clock "
+                                  "(n_sats, DOPs and /observables stay the WLS's; receiver/nav/pvt_filter.py)",
+                    choices=("wls", "ekf", "ckf")),
+        "filter_accel_psd": P(1.0, "float", "ekf/ckf: PSD of the white receiver acceleration per axis "
+                                            "(m^2/s^3; ~0.01 static, 1 pedestrian/car, 10+ agile)", lo=0.0),
+        "filter_code_sigma_m": P(3.0, "float", "ekf/ckf: pseudorange noise standard deviation at zenith (m; "
+                                               "unsmoothed code unless filter_smoothed_code; divided by "
+                                               "sin(elevation) unless weighting is none)", lo=1e-6),
+        "filter_rate_sigma_mps": P(0.1, "float", "ekf/ckf: pseudorange-rate noise standard deviation at "
+                                                 "zenith (m/s; the rates are carrier delta ranges over 1/rate_hz, "
+                                                 "modelled as such; divided by sin(elevation) unless weighting is "
+                                                 "none)", lo=1e-6),
+        "filter_clock": P("tcxo", "str", "ekf/ckf: oscillator class of the clock process noise (h0, h_-2)",
+                          choices=("tcxo", "ocxo", "rubidium")),
+        "filter_code_carrier_drift": P(True, "bool", "ekf/ckf: estimate a code-minus-carrier clock drift "
+                                                     "(front ends whose oscillator error reaches the carrier "
+                                                     "only, e.g. the reference recording)"),
+        "filter_smoothed_code": P(False, "bool", "ekf/ckf: feed the filter the carrier-smoothed pseudoranges "
+                                                 "the WLS uses (smoothing_s) instead of the unsmoothed ones (the "
+                                                 "filter smooths with the carrier itself; smoothed code errors are "
+                                                 "correlated in time, which it takes as white)"),
+        "filter_reset_m": P(100.0, "float", "ekf/ckf: a WLS fix farther than this (plus 5 predicted sigma) "
+                                            "from the prediction is not used; 3 in a row restart the filter "
+                                            "from the WLS", lo=0.0),
         "settle_s": P(1.0, "float", "a channel's measurements are used this long after its pull-in "
                                     "(DLL/PLL transients over)", lo=0.0),
         "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
@@ -332,8 +363,9 @@ RECEIVER_SCHEMA = {
         "start_s": P(None, "float", "handover time in seconds from the first sample (empty: 5 s after "
                                     "the first valid fix)", nullable=True, lo=0.0),
         "integration_ms": P(1, "int", "vector-loop epoch T = coherent integration (ms; > 1 only on "
-                                      "bit-synchronised channels, the others average 1 ms epochs)",
-                            choices=(1, 2, 4, 5, 10, 20)),
+                                      "bit-synchronised channels, the others average 1 ms epochs; at most "
+                                      "10 ms: an epoch must fit in the pipeline's 30 ms chunk overlap)",
+                            choices=(1, 2, 4, 5, 10)),
         "r_code_m2": P(1500.0, "float", "code discriminator variance R (m^2; fixed_r, cv, initial value of "
                                         "the adaptive variants)", lo=1e-6),
         "r_carrier_m2s2": P(900.0, "float", "frequency discriminator variance R ((m/s)^2)", lo=1e-6),
@@ -351,6 +383,9 @@ RECEIVER_SCHEMA = {
         "cn0_mask_dbhz": P(None, "float", "channels below this C/N0 are predicted only (no measurement "
                                           "update); empty: every channel updates (the papers' setting)",
                            nullable=True),
+        "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, tracking.cn0_window_ms) above which a "
+                                          "vector channel counts as tracked (records' pll_lock, fixes' "
+                                          "n_sats and DOPs; M2M4 on noise alone reads 20-30 dB-Hz)"),
         "drop_elevation_deg": P(-2.0, "float", "vector channels whose satellite sets below this elevation are "
                                                "dropped", lo=-90.0, hi=90.0),
         "add_predicted": P(True, "bool", "open channels predicted from the navigation solution for "
@@ -372,9 +407,9 @@ RECEIVER_SCHEMA = {
                                                "innovation chi-square tags (0 = off)", lo=0.0),
             "q_manoeuvre_pos_m2": P(1.0, "float", "manoeuvre Q (added on a detection): position jump "
                                                   "variance", lo=0.0),
-            "q_manoeuvre_vel_m2s2": P(1.0, "float", "manoeuvre Q: velocity jump variance ((m/s)^2)", lo=0.0),
-            "q_manoeuvre_acc_m2s4": P(100.0, "float", "manoeuvre Q: acceleration jump variance ((m/s^2)^2)",
-                                      lo=0.0),
+            "q_manoeuvre_vel_m2s2": P(0.1, "float", "manoeuvre Q: velocity jump variance ((m/s)^2)", lo=0.0),
+            "q_manoeuvre_acc_m2s4": P(1.0, "float", "manoeuvre Q: acceleration jump variance ((m/s^2)^2; "
+                                                    "detections repeat while a manoeuvre lasts)", lo=0.0),
             "q_manoeuvre_clock": P(0.01, "float", "manoeuvre Q: clock-drift jump variance ((m/s)^2)", lo=0.0),
             "adaptive_r": P(True, "bool", "residual-form adaptive R (R = C_r + H P H^T over "
                                           "vector.adaptive_r.window epochs)"),
@@ -384,6 +419,8 @@ RECEIVER_SCHEMA = {
             "q_position": P(0.1, "float", "per-epoch position process noise sigma_p^2 (m^2)", lo=0.0),
             "q_bias": P(1e-7, "float", "per-epoch clock-bias process noise sigma_b^2 (m^2)", lo=0.0),
             "q_drift": P(0.1, "float", "per-epoch clock-drift process noise sigma_d^2 ((m/s)^2)", lo=0.0),
+            "psd": P(False, "bool", "read the four q values as continuous white-noise PSDs (Q = q T) "
+                                    "instead of per-epoch variances"),
         },
     },
     "output": {

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import __version__
-from .acquisition import search
+from .acquisition import reject_cross_correlations, search
 from .errors import UserError
 from .io import SampleReader
 from .output import RunWriter
@@ -89,13 +89,15 @@ def open_input(cfg) -> SampleReader:
 
 def acquire(cfg, reader: SampleReader, start: int, prns) -> list:
     a = cfg.acquisition
-    n = int(round(a.coherent_ms * a.noncoherent * 1e-3 * reader.fs)) + int(0.05 * reader.fs)
+    # the search needs T_coh x K; the fine Doppler estimate uses up to 200 ms (20 blocks of 10 ms)
+    n = max(int(round(a.coherent_ms * a.noncoherent * 1e-3 * reader.fs)), int(0.2 * reader.fs))
     block = reader.read(start, n)
     if len(block) < n:
         raise UserError("input too short for acquisition "
                         f"({len(block) / reader.fs * 1e3:.0f} ms available, {n / reader.fs * 1e3:.0f} needed)")
-    return search(block, start, reader.fs, cfg.input.if_hz, prns, a.coherent_ms, a.noncoherent,
+    res = search(block, start, reader.fs, cfg.input.if_hz, prns, a.coherent_ms, a.noncoherent,
                   a.doppler_max_hz, a.doppler_step_hz, a.pfa, a.threshold, signal=get_signal(cfg.signal))
+    return reject_cross_correlations(res, a.coherent_ms)
 
 
 def _maybe_handover(cfg, channels, nav, start, fs, n_fixes):
@@ -192,6 +194,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
             fixes, obs = nav.update(start + chunk)
             if vector is None:
                 writer.append_fixes(fixes)
+            else:
+                fixes = vfixes          # the summary counts the fixes that were written
             writer.append_observables(obs)
             if len(fixes):
                 n_fixes += len(fixes)

@@ -59,3 +59,43 @@ def sample_code(code: np.ndarray, chip_rate: float, fs: float, n: int,
     """Sample a periodic code at rate fs: n samples starting at code_phase_chips."""
     idx = code_phase_chips + np.arange(n) * (chip_rate / fs)
     return code[np.floor(idx).astype(np.int64) % len(code)]
+
+
+class SignalDef:
+    """What acquisition, tracking and the simulator need to know about one signal.
+
+    All signals here have a 1 ms primary-code period (``code_len`` chips at ``chip_rate``).  The data
+    structure is given per PRN: ``bit_ms(prn)`` code periods per data symbol and ``secondary(prn)``, an
+    optional +/-1 overlay code (one value per code period) that repeats every data symbol.
+    """
+    name = "gps_l1ca"
+    system = "G"                 # RINEX system letter, used in labels
+    carrier_hz = L1_HZ
+    chip_rate = CA_CHIP_RATE
+    code_len = CA_CODE_LEN
+    prns = GPS_PRNS
+
+    def code(self, prn: int) -> np.ndarray:
+        """Primary code as +/-1 float32 chips."""
+        return ca_code(prn)
+
+    def bit_ms(self, prn: int) -> int:
+        return round(LNAV_BIT_S * 1e3)
+
+    def secondary(self, prn: int):
+        """+/-1 overlay code per code period (length bit_ms), or None."""
+        return None
+
+
+GPS_L1CA = SignalDef()
+SIGNAL_NAMES = ("gps_l1ca", "bds_b1i")
+
+
+def get_signal(name: str) -> SignalDef:
+    """The SignalDef of a configured ``signal`` name."""
+    if name == "gps_l1ca":
+        return GPS_L1CA
+    if name == "bds_b1i":
+        from .signals_bds import BDS_B1I
+        return BDS_B1I
+    raise ValueError(f"unknown signal '{name}' (one of {', '.join(SIGNAL_NAMES)})")

@@ -26,6 +26,7 @@ from ..record import STATE_BIT_SYNC
 from ..signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
 from .lnav import LnavDecoder, SubframeEvent
 from .pvt import NavSolver, Observation
+from .pvt_filter import make_pvt_filter
 
 BIT_MS = 20
 
@@ -163,17 +164,18 @@ class ChannelNav:
             return txrel, dop, phase
         return None
 
-    def smooth(self, s: float, txrel: float, phase: float, window_epochs: int) -> float:
-        """Carrier smoothing of the code measurement; returns the smoothed relative transmit time.
+    def smooth_update(self, s: float, txrel: float, phase: float, window_epochs: int):
+        """Carrier smoothing, step 1: add this epoch's code-minus-carrier to the channel's fit.
 
         The code-minus-carrier z = c (s/fs - txrel) + lambda * phase is constant for an ideal front end
         but drifts linearly when code and carrier see different clock rates (an oscillator error applied
-        to the carrier only) and, slowly, with ionospheric divergence.  z is therefore fitted by a straight
-        line with exponential forgetting (memory ``window_epochs``); the smoothed code is the fitted z minus
-        the carrier.  A jump of the code against the fit (cycle slip) restarts the filter.
+        to the carrier only, as in the third-party reference recording) and, slowly, with ionospheric
+        divergence.  The sums of a straight-line fit of z over time are kept with exponential forgetting
+        (memory ``window_epochs``).  A jump of the code against the fit (cycle slip) restarts it.
         """
         if window_epochs <= 1:
-            return txrel
+            self.hatch = None
+            return
         t = s / self.fs
         z = C_LIGHT * (t - txrel) + LAMBDA_L1 * phase
         h = self.hatch
@@ -185,13 +187,38 @@ class ChannelNav:
             a, b = self._fit(S)
             if abs(zr - (a + b * tr)) > 20.0:            # slip: restart
                 self.hatch = None
-                return self.smooth(s, txrel, phase, window_epochs)
+                self.smooth_update(s, txrel, phase, window_epochs)
+                return
         S *= 1.0 - 1.0 / window_epochs
         S += (1.0, tr, tr * tr, zr, tr * zr)
         h["n"] += 1
-        if h["n"] < 3:
+
+    def slope_info(self):
+        """(slope m/s, weight) of this channel's code-minus-carrier fit, or None."""
+        h = self.hatch
+        if h is None or h["n"] < 3:
+            return None
+        s0, s1, s2, sz, stz = h["S"]
+        det = s0 * s2 - s1 * s1
+        if det <= 1e-9 * max(s0 * s2, 1e-30):
+            return None
+        return (s0 * stz - s1 * sz) / det, det / s0
+
+    def smooth_value(self, s: float, txrel: float, phase: float, slope: float | None) -> float:
+        """Carrier smoothing, step 2: the smoothed relative transmit time.  With a common drift
+        ``slope`` (m/s, estimated over all channels) only the channel's offset is fitted, which halves
+        the noise of a per-channel straight-line fit; without it the channel's own line is used."""
+        h = self.hatch
+        if h is None or h["n"] < 3:
             return txrel
-        a, b = self._fit(S)
+        t = s / self.fs
+        tr = t - h["t0"]
+        S = h["S"]
+        if slope is None:
+            a, b = self._fit(S)
+        else:
+            b = slope
+            a = (S[3] - b * S[1]) / S[0]
         ys = h["z0"] + a + b * tr - LAMBDA_L1 * phase
         return t - ys / C_LIGHT
 
@@ -212,6 +239,7 @@ class NavigationEngine:
         self.fs = fs
         self.if_hz = if_hz
         self.solver = NavSolver(nav_cfg)
+        self.pvt_filter = make_pvt_filter(nav_cfg)     # navigation.filter ekf|ckf (None: wls)
         self.channels: dict[int, ChannelNav] = {}
         self.assisted = ephemerides is not None
         self.rinex_ephs = ephemerides or {}
@@ -380,12 +408,23 @@ class NavigationEngine:
             if m is None:
                 ch.hatch = None
                 continue
-            txrel = ch.smooth(s, m[0], m[2], window)
+            ch.smooth_update(s, m[0], m[2], window)
             if not ch.has_time:
                 continue
             prev = ch.measure(s - dt * self.fs)
             dop = (m[2] - prev[2]) / dt if prev is not None else m[1]
+            meas[prn] = (m, dop, ch)
+        # common code-minus-carrier drift (clock-rate mismatch between code and carrier), weighted
+        info = [i for i in (ch.slope_info() for ch in self.channels.values()) if i is not None]
+        slope = None
+        if info:
+            w = np.array([i[1] for i in info])
+            slope = float(np.sum(w * np.array([i[0] for i in info])) / np.sum(w))
+        unsmoothed = {}             # unsmoothed minus smoothed pseudorange (m), for navigation.filter ekf/ckf
+        for prn, (m, dop, ch) in list(meas.items()):
+            txrel = ch.smooth_value(s, m[0], m[2], slope)
             meas[prn] = ((ch.tx_offset + txrel, dop, m[2]), ch)
+            unsmoothed[prn] = C_LIGHT * (txrel - m[0])
         if len(meas) < 4:
             return None, []
         if self.tow0 is None:
@@ -416,10 +455,13 @@ class NavigationEngine:
                 return None, []
         self.x0 = fix.ecef
         self.last_fix = (s, fix)
-        lat, lon, h = ecef2lla(fix.ecef)
         t_s = s / self.fs
-        row = (fix.gps_week, fix.gps_tow, t_s, fix.ecef, fix.velocity_ecef, fix.clock_bias_m,
-               fix.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop, 0,
+        # ekf/ckf: filtered position/velocity/clock (started at the first fix, after the clock re-basing);
+        # epoch placement, x0 and the observables stay on the WLS fix
+        out = self.pvt_filter.step(t_s, fix, unsmoothed) if self.pvt_filter is not None else fix
+        lat, lon, h = ecef2lla(out.ecef)
+        row = (out.gps_week, out.gps_tow, t_s, out.ecef, out.velocity_ecef, out.clock_bias_m,
+               out.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop, 0,
                float(lat), float(lon), float(h))
         used = set(fix.prns)
         el = dict(zip(fix.prns, fix.elevations_deg))

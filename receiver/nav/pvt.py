@@ -60,6 +60,11 @@ class Fix:
     tropo_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     velocity_residuals_mps: np.ndarray = field(default_factory=lambda: np.zeros(0))
     rejected_prns: list = field(default_factory=list)   # dropped by the residual check
+    # satellite states at transmit time, rotated into the ECEF frame at reception (the geometry of the
+    # fix: pseudoranges_m ~ |sat_pos_ecef - ecef| + clock_bias_m, pseudorange_rates_mps ~
+    # los . (sat_vel_ecef - velocity_ecef) + clock_drift_mps); used by the navigation filters
+    sat_pos_ecef: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    sat_vel_ecef: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     rx_tow: float = float("nan")
     iterations: int = 0
 
@@ -290,4 +295,5 @@ class NavSolver:
             pseudoranges_m=sol["rho_c"] - sol["iono"] - sol["tropo"],
             pseudorange_rates_mps=rate_c, raw_pseudoranges_m=s.rho[idx],
             iono_m=sol["iono"], tropo_m=sol["tropo"], velocity_residuals_mps=v_res,
-            rejected_prns=rejected, rx_tow=float(rx_tow), iterations=sol["iterations"])
+            rejected_prns=rejected, rx_tow=float(rx_tow), iterations=sol["iterations"],
+            sat_pos_ecef=earth_rotation(s.pos[idx], sol["tau"]), sat_vel_ecef=vel_sat)

@@ -22,7 +22,7 @@ class CarrierLoop:
     def __init__(self, cfg):
         self.cfg = cfg            # the tracking config Section
 
-    def start(self, doppler_hz: float, T: float):
+    def start(self, doppler_hz: float, T: float, rate_hz_s: float = 0.0, carrier_hz: float | None = None):
         self.doppler_hz = doppler_hz
         self.T = T
 
@@ -36,8 +36,17 @@ class BuiltinPLL(CarrierLoop):
     builtin = True
 
 
+from .loops.cpll import CPLL  # noqa: E402
+from .loops.ekf import EKF, PLIEKF  # noqa: E402
+from .loops.kfpll import KFPLL, AdaptiveKFPLL  # noqa: E402
+
 REGISTRY: dict[str, type[CarrierLoop]] = {
     "pll": BuiltinPLL,
+    "cpll_atan": CPLL,
+    "ekf": EKF,
+    "pli_ekf": PLIEKF,
+    "kf": KFPLL,
+    "adaptive_kf": AdaptiveKFPLL,
 }
 
 

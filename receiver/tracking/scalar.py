@@ -13,30 +13,53 @@ import numpy as np
 
 from .. import record
 from ..correlator import extend_code
-from ..signals import CA_CHIP_RATE, CA_CODE_LEN, L1_HZ, LNAV_BIT_S, ca_code
+from ..correlator import CODE_PAD
+from ..signals import GPS_L1CA
 from . import kernel as K
 from .carrier import make_carrier_loop
 
 
 class Channel:
     def __init__(self, prn: int, doppler_hz: float, code_phase_chips: float, sample_index: int,
-                 trk_cfg, fs: float, if_hz: float, channel_id: int = 0):
+                 trk_cfg, fs: float, if_hz: float, channel_id: int = 0, signal=None):
+        sig = self.signal = signal if signal is not None else GPS_L1CA
         self.prn = prn
         self.id = channel_id
         self.fs = fs
         self.if_hz = if_hz
         self.cfg_section = trk_cfg
-        self.max_int_ms = int(trk_cfg.integration_ms)
-        self.code_ext = extend_code(ca_code(prn), 20)
+        car = trk_cfg.carrier
+        dataless = bool(car["dataless"]) if "dataless" in car else False
+        nh = sig.secondary(prn)
+        bit_ms = sig.bit_ms(prn)
+        if dataless and nh is None:
+            bit_ms = 1                     # no data symbols: every code period is an "edge"
+        t_coh = car["t_coh_ms"] if "t_coh_ms" in car else None
+        want = int(t_coh) if t_coh else int(trk_cfg.integration_ms)
+        if not dataless:                   # integrate within a data symbol
+            want = max(d for d in range(1, min(want, bit_ms) + 1) if bit_ms % d == 0)
+        elif nh is not None:
+            want = max(d for d in range(1, min(want, len(nh)) + 1) if len(nh) % d == 0)
+        self.max_int_ms = want
+        code = sig.code(prn)
+        self.code_ext = extend_code(code, 20)
+        nh_base = 0
+        if nh is not None:
+            # overlay-modulated section: 20 periods of code x NH, repeated, CODE_PAD chips of wrap in front
+            mod = np.concatenate([code * s_ for s_ in nh]).astype(np.float32)
+            sec = np.tile(mod, 3)[len(mod) - CODE_PAD:]
+            nh_base = len(self.code_ext)
+            self.code_ext = np.ascontiguousarray(np.concatenate([self.code_ext, sec]), dtype=np.float32)
         self.hist = np.zeros(20, np.int64)
-        self.loop = make_carrier_loop(trk_cfg.carrier.variant, trk_cfg)
+        self.loop = make_carrier_loop(car.variant, trk_cfg)
+        self._loop_started = False
         c = np.zeros(K.N_CONFIG)
         c[K.C_FS] = fs
         c[K.C_IF] = if_hz
-        c[K.C_CHIP_RATE] = CA_CHIP_RATE
-        c[K.C_CARRIER_HZ] = L1_HZ
-        c[K.C_CODE_LEN] = CA_CODE_LEN
-        c[K.C_EL_SPACING] = trk_cfg.early_late_chips
+        c[K.C_CHIP_RATE] = sig.chip_rate
+        c[K.C_CARRIER_HZ] = sig.carrier_hz
+        c[K.C_CODE_LEN] = sig.code_len
+        c[K.C_EL_SPACING] = early_late_spacing(trk_cfg, fs, sig.chip_rate)
         c[K.C_PLL_BW] = trk_cfg.pll_bw_hz
         c[K.C_PLL_ORDER] = trk_cfg.pll_order
         c[K.C_FLL_BW] = trk_cfg.fll_bw_hz
@@ -50,17 +73,19 @@ class Channel:
         c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
         c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
         c[K.C_LOST_MS] = trk_cfg.lost_ms
-        c[K.C_BIT_MS] = round(LNAV_BIT_S * 1e3)
+        c[K.C_BIT_MS] = bit_ms
+        c[K.C_NH_BASE] = nh_base
+        c[K.C_NO_DATA] = 1.0 if dataless else 0.0
         self.cfg = c
         self.vector_carrier = self.vector_code = False
         self.set_external(False, False)
         s = np.zeros(K.N_STATE)
-        rate = CA_CHIP_RATE * (1.0 + doppler_hz / L1_HZ)
+        rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz)
         step = rate / fs
         # start at the first sample at or after the next code-period start
-        k = int(np.ceil((CA_CODE_LEN - code_phase_chips) / step))
+        k = int(np.ceil((sig.code_len - code_phase_chips) / step))
         s[K.S_NEXT_SAMPLE] = sample_index + k
-        s[K.S_CODE_PHASE] = code_phase_chips + k * step - CA_CODE_LEN
+        s[K.S_CODE_PHASE] = code_phase_chips + k * step - sig.code_len
         s[K.S_CODE_RATE] = rate
         s[K.S_CARR_FREQ] = if_hz + doppler_hz
         s[K.S_PLL_FREQ] = doppler_hz
@@ -102,7 +127,10 @@ class Channel:
         """Hand the carrier / code NCO to an outside controller (vector loop) or take them back."""
         self.vector_carrier = carrier
         self.vector_code = code
-        self.cfg[K.C_CARRIER_EXTERNAL] = 1.0 if (carrier or not self.loop.builtin) else 0.0
+        # a Python carrier loop takes the NCO over once the built-in FLL/PLL has pulled in and the
+        # data-symbol edges are known (see _python_carrier_update)
+        self.cfg[K.C_CARRIER_EXTERNAL] = 1.0 if (carrier or (not self.loop.builtin and self._loop_started)) \
+            else 0.0
         self.cfg[K.C_CODE_EXTERNAL] = 1.0 if code else 0.0
 
     def command(self, doppler_hz: float | None = None, code_rate_hz: float | None = None,
@@ -144,12 +172,40 @@ class Channel:
         return to_records(np.array(rows))
 
     def _python_carrier_update(self, row):
-        dop = self.loop.update(row)
+        if not self._loop_started:
+            # hand-over from the built-in pull-in loop when the integration may grow (bit sync)
+            if row[K.O_STATE] != K.MODE_BIT_SYNC:
+                return
+            self._loop_started = True
+            self.loop.start(self.st[K.S_CARR_FREQ] - self.if_hz, row[K.O_INT_MS] * 1e-3,
+                            rate_hz_s=self.st[K.S_PLL_RATE], carrier_hz=self.signal.carrier_hz)
+            self.set_external(self.vector_carrier, self.vector_code)
+            return
+        # the exact duration of the epoch just processed (sample count / fs)
+        self.loop.epoch_s = (self.st[K.S_NEXT_SAMPLE] - row[K.O_SAMPLE]) / self.fs
+        res = self.loop.update(row)
+        dop, dphase = res if isinstance(res, tuple) else (res, 0.0)
+        old = self.st[K.S_CARR_FREQ] - self.if_hz
         self.st[K.S_CARR_FREQ] = self.if_hz + dop
+        self.st[K.S_PLL_FREQ] = dop
+        if dphase:
+            self.st[K.S_CARR_PHASE] += dphase
         if not self.cfg[K.C_CODE_EXTERNAL]:
             # keep the DLL carrier-aided with the new carrier frequency
-            aid = CA_CHIP_RATE * (1.0 + dop / L1_HZ)
-            self.st[K.S_CODE_RATE] += aid - CA_CHIP_RATE * (1.0 + row[K.O_DOPPLER] / L1_HZ)
+            cr, fc = self.signal.chip_rate, self.signal.carrier_hz
+            self.st[K.S_CODE_RATE] += cr * (dop - old) / fc
+
+
+def early_late_spacing(trk_cfg, fs: float, chip_rate: float) -> float:
+    """E-L spacing actually used (chips).  With ``tracking.early_late_snap`` the early and late replicas
+    sit a whole number of samples from the prompt: with few samples per chip and an unfiltered signal,
+    a fractional-sample offset gives a code bias that wanders with the sub-sample phase (+/- 2.5 m at
+    2.6 MS/s and 0.5 chip when the code Doppler is small); a whole-sample offset cancels it."""
+    d = float(trk_cfg.early_late_chips)
+    if not trk_cfg.early_late_snap:
+        return d
+    half_samples = max(1, round(0.5 * d * fs / chip_rate))
+    return 2.0 * half_samples * chip_rate / fs
 
 
 def to_records(rows: np.ndarray) -> np.ndarray:

@@ -1,0 +1,155 @@
+"""``gnssrx info RUN.h5``: what is inside a run file (schema, counts, time span, fixes, config)."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+
+def _walk(f):
+    """(path, shape, dtype) of every dataset."""
+    rows = []
+
+    def visit(name, obj):
+        import h5py
+        if isinstance(obj, h5py.Dataset):
+            rows.append((name, obj.shape, obj.dtype))
+    f.visititems(visit)
+    return rows
+
+
+def run_info(path) -> dict:
+    """A JSON-friendly description of the run file."""
+    import h5py
+    from .run import load_run, gps_datetime
+    run = load_run(path)          # validates the file
+    info: dict = {"file": os.path.abspath(run.path), "size_bytes": os.path.getsize(run.path)}
+    a = run.attrs
+    for k in ("schema", "gnssrx_version", "created_utc", "input_path", "sample_rate_hz", "if_hz",
+              "first_sample", "n_samples", "wall_time_s", "realtime_factor", "command"):
+        if k in a:
+            v = a[k]
+            info[k] = v.item() if isinstance(v, np.generic) else v
+    fs = float(a.get("sample_rate_hz", np.nan))
+    if "n_samples" in a and np.isfinite(fs) and fs > 0:
+        info["duration_s"] = float(a["n_samples"]) / fs
+    info["assisted"] = run.assisted
+    with h5py.File(run.path, "r") as f:
+        datasets = _walk(f)
+        groups = {}
+        for name, shape, dtype in datasets:
+            top = name.split("/")[0]
+            groups.setdefault(top, 0)
+            groups[top] += 1
+        info["groups"] = groups
+        ch = {}
+        if "channels" in f:
+            for name, g in f["channels"].items():
+                if "time_s" in g and g["time_s"].shape[0]:
+                    t = g["time_s"]
+                    d = {"records": int(t.shape[0]), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
+                    if "cn0_dbhz" in g and "state" in g:
+                        st = g["state"][:]
+                        c = g["cn0_dbhz"][:][st == 2]
+                        if c.size:
+                            d["mean_cn0_dbhz"] = float(np.mean(c))
+                    ch[name] = d
+        info["channels"] = ch
+        if "acquisition" in f and "prn" in f["acquisition"]:
+            acq = f["acquisition"]
+            det = acq["detected"][:] if "detected" in acq else np.zeros(0, bool)
+            info["acquisition"] = {"searches": int(acq["prn"].shape[0]),
+                                   "detected_prns": sorted({int(p) for p in acq["prn"][:][det]})}
+    fx = run.fixes
+    nav = {"fixes": int(len(fx))}
+    if len(fx):
+        ok = np.all(np.isfinite(fx["ecef"]), axis=1)
+        w0, t0 = int(fx["gps_week"][0]), float(fx["gps_tow"][0])
+        w1, t1 = int(fx["gps_week"][-1]), float(fx["gps_tow"][-1])
+        nav.update({
+            "first_fix": {"gps_week": w0, "gps_tow": t0, "gps_time": gps_datetime(w0, t0).isoformat(),
+                          "utc": run.utc(w0, t0).isoformat(), "time_s": float(fx["time_s"][0])},
+            "last_fix": {"gps_week": w1, "gps_tow": t1, "gps_time": gps_datetime(w1, t1).isoformat()},
+            "span_s": float((w1 - w0) * 604800.0 + t1 - t0),
+            "rate_hz": (float(1.0 / np.median(np.diff(fx["time_s"]))) if len(fx) > 1 else None),
+            "modes": {"scalar": int(np.count_nonzero(fx["mode"] == 0)),
+                      "vector": int(np.count_nonzero(fx["mode"] == 1))},
+            "n_sats_mean": float(np.mean(fx["n_sats"])),
+            "pdop_mean": float(np.nanmean(fx["pdop"])),
+        })
+        if ok.any():
+            from ..geodesy import ecef2lla, ecef2enu
+            e = fx["ecef"][ok]
+            mean = e.mean(axis=0)
+            lat, lon, h = ecef2lla(mean)
+            nav["mean_position"] = {"lat_deg": float(lat), "lon_deg": float(lon), "height_m": float(h),
+                                    "ecef_m": [float(v) for v in mean]}
+            nav["scatter_enu_m"] = [float(v) for v in ecef2enu(e, mean).std(axis=0)]
+            sp = np.linalg.norm(fx["velocity_ecef"][ok], axis=1)
+            sp = sp[np.isfinite(sp)]
+            if sp.size:
+                nav["speed_mean_mps"] = float(np.mean(sp))
+    info["navigation"] = nav
+    ob = run.obs
+    info["observables"] = {"rows": int(len(ob)), "epochs": int(len(np.unique(ob["time_s"]))) if len(ob) else 0,
+                           "prns": sorted({int(p) for p in ob["prn"]})}
+    info["ephemerides"] = sorted({int(e.prn) for e in run.ephemerides})
+    info["config"] = run.attrs.get("config", "")
+    return info
+
+
+def format_info(info: dict, show_config: bool = True) -> str:
+    L = []
+    add = L.append
+    add(f"file            {info['file']} ({info['size_bytes'] / 1e6:.1f} MB)")
+    add(f"schema          {info.get('schema', '?')}  (gnssrx {info.get('gnssrx_version', '?')}, "
+        f"created {info.get('created_utc', '?')})")
+    if "input_path" in info:
+        add(f"input           {info['input_path']}")
+    if "duration_s" in info:
+        add(f"signal          {info['duration_s']:.2f} s at {info['sample_rate_hz'] / 1e6:g} MS/s, "
+            f"IF {info.get('if_hz', 0):g} Hz")
+    if "wall_time_s" in info:
+        add(f"processing      {info['wall_time_s']:.1f} s (real-time factor {info.get('realtime_factor', 0):.1f}x)")
+    add(f"navigation mode {'assisted (RINEX ephemerides)' if info['assisted'] else 'autonomous'}")
+    if "command" in info:
+        add(f"command         {info['command']}")
+    add("groups          " + ", ".join(f"/{k} ({v} datasets)" for k, v in sorted(info["groups"].items())))
+    if "acquisition" in info:
+        a = info["acquisition"]
+        add(f"acquisition     {a['searches']} searches; detected "
+            + (" ".join(f"G{p:02d}" for p in a["detected_prns"]) or "none"))
+    ch = info["channels"]
+    add(f"channels        {len(ch)}")
+    for name, d in sorted(ch.items()):
+        cn0 = f"  C/N0 {d['mean_cn0_dbhz']:.1f} dB-Hz" if "mean_cn0_dbhz" in d else ""
+        add(f"  {name}  {d['records']:8d} records  {d['t_first_s']:8.3f} .. {d['t_last_s']:8.3f} s{cn0}")
+    nav = info["navigation"]
+    add(f"fixes           {nav['fixes']}")
+    if nav["fixes"]:
+        f0, f1 = nav["first_fix"], nav["last_fix"]
+        add(f"  time span     GPS week {f0['gps_week']} TOW {f0['gps_tow']:.3f} .. week {f1['gps_week']} "
+            f"TOW {f1['gps_tow']:.3f} ({nav['span_s']:.1f} s)")
+        add(f"                {f0['gps_time']} .. {f1['gps_time']} GPS time (first fix {f0['utc']} UTC)")
+        add(f"  first fix     {f0['time_s']:.2f} s after the first sample of the file")
+        if nav.get("rate_hz"):
+            add(f"  rate          {nav['rate_hz']:.2f} Hz")
+        add(f"  modes         scalar {nav['modes']['scalar']}, vector {nav['modes']['vector']}")
+        add(f"  satellites    {nav['n_sats_mean']:.1f} used on average, mean PDOP {nav['pdop_mean']:.2f}")
+        if "mean_position" in nav:
+            m = nav["mean_position"]
+            add(f"  mean position lat {m['lat_deg']:.7f} lon {m['lon_deg']:.7f} h {m['height_m']:.2f} m")
+            add("  scatter (1sd) E {:.2f} N {:.2f} U {:.2f} m".format(*nav["scatter_enu_m"]))
+        if "speed_mean_mps" in nav:
+            add(f"  mean speed    {nav['speed_mean_mps']:.3f} m/s")
+    ob = info["observables"]
+    add(f"observables     {ob['rows']} rows, {ob['epochs']} epochs, satellites "
+        + (" ".join(f"G{p:02d}" for p in ob["prns"]) or "none"))
+    add("ephemerides     (decoded) " + (" ".join(f"G{p:02d}" for p in info["ephemerides"]) or "none"))
+    if show_config:
+        add("config:")
+        L.extend("  " + ln for ln in str(info["config"]).rstrip().splitlines())
+    return "\n".join(L)
+
+
+__all__ = ["run_info", "format_info"]

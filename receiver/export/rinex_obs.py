@@ -1,0 +1,174 @@
+"""RINEX 3.04 GPS observation file from a run's ``/observables`` table (plus the navigation file).
+
+Observation types: C1C (pseudorange, m), L1C (carrier phase, cycles), D1C (Doppler, Hz), S1C (C/N0,
+dB-Hz).  Conventions:
+
+* Epochs are the receiver clock readings of the measurements: GPS time of the fix plus its clock bias / c
+  (the pseudoranges are the raw ones, c (receiver time - transmit time)), so another program estimates
+  the same receiver clock bias as gnssrx.  Epochs are written to 0.1 microsecond.
+* L1C follows the RINEX sign convention (phase grows with the range): it is minus the accumulated carrier
+  NCO phase of the tracking loop, which grows with the Doppler.  The phase origin is arbitrary per
+  channel.  D1C is positive for approaching satellites.
+* Loss-of-lock indicator (on L1C): bit 0 when the carrier loop's lock time is shorter than the time since
+  the satellite's previous observation (lock was lost and regained in between), or when the satellite
+  appears after the first epoch with a lock time shorter than the gap; bit 1 while the half-cycle
+  ambiguity is not resolved (no LNAV preamble seen yet).
+* Signal strength indicator (C1C and L1C): 1..9 from C/N0 in 6 dB-Hz steps (RINEX 3 table).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import os
+
+import numpy as np
+
+from .. import __version__
+from .run import RunData, split_gps_time
+
+OBS_TYPES = ("C1C", "L1C", "D1C", "S1C")
+LLI_LOSS = 1
+LLI_HALF_CYCLE = 2
+
+
+def _hdr(content: str, label: str) -> str:
+    return content.ljust(60)[:60] + label.ljust(20)[:20]
+
+
+def _field(value, lli: int = 0, ssi: int = 0) -> str:
+    if value is None or not np.isfinite(value) or abs(value) >= 1e10:
+        return " " * 16
+    return f"{value:14.3f}" + (str(lli) if lli else " ") + (str(ssi) if ssi else " ")
+
+
+def ssi_from_cn0(cn0) -> int:
+    """RINEX 3 signal strength indicator: 1 (< 12 dB-Hz) ... 9 (>= 54 dB-Hz); 0 when unknown."""
+    if cn0 is None or not np.isfinite(cn0):
+        return 0
+    return int(min(max(int(cn0 // 6), 1), 9))
+
+
+def _epoch_groups(obs):
+    """Row index arrays of the observable epochs, in time order."""
+    if not len(obs):
+        return []
+    key = obs["time_s"]
+    order = np.lexsort((obs["prn"], key))
+    k = key[order]
+    cuts = np.nonzero(np.diff(k) > 1e-9)[0] + 1
+    return np.split(order, cuts)
+
+
+def lli_flags(obs) -> np.ndarray:
+    """Loss-of-lock indicator of every observable row (see the module docstring)."""
+    lli = np.zeros(len(obs), dtype=np.uint8)
+    last_t: dict[int, float] = {}
+    prev_epoch_t = None
+    for rows in _epoch_groups(obs):
+        t = float(obs["time_s"][rows[0]])
+        for r in rows:
+            prn = int(obs["prn"][r])
+            lock = float(obs["lock_time_s"][r])
+            ref = last_t.get(prn, prev_epoch_t)
+            if ref is not None and np.isfinite(lock) and lock + 1e-3 < t - ref:
+                lli[r] |= LLI_LOSS
+            if not obs["half_cycle_resolved"][r]:
+                lli[r] |= LLI_HALF_CYCLE
+            last_t[prn] = t
+        prev_epoch_t = t
+    return lli
+
+
+def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
+    """Write the observation file.  Returns a small summary (epochs, satellites, first/last epoch)."""
+    obs = run.obs
+    groups = _epoch_groups(obs)
+    if not groups:
+        raise ValueError("the run has no observables")
+    rx_tow = run.rx_tow()
+    lli = lli_flags(obs)
+    lines_body = []
+    epochs = []
+    for rows in groups:
+        r0 = rows[0]
+        t, frac = split_gps_time(int(obs["gps_week"][r0]), float(rx_tow[r0]), 7)
+        epochs.append((t, frac))
+        sec = t.second + frac
+        lines_body.append(f"> {t.year:4d} {t.month:02d} {t.day:02d} {t.hour:02d} {t.minute:02d}"
+                          f"{sec:11.7f}  0{len(rows):3d}")
+        for r in rows:
+            ssi = ssi_from_cn0(float(obs["cn0_dbhz"][r]))
+            phase = -float(obs["carrier_phase_cycles"][r])
+            lines_body.append((f"G{int(obs['prn'][r]):02d}"
+                               + _field(float(obs["pseudorange_m"][r]), 0, ssi)
+                               + _field(phase, int(lli[r]), ssi)
+                               + _field(float(obs["doppler_hz"][r]))
+                               + _field(float(obs["cn0_dbhz"][r]))).rstrip())
+    first_t, first_f = epochs[0]
+    last_t, last_f = epochs[-1]
+    if len(epochs) > 1:
+        times = np.array([(t - epochs[0][0]).total_seconds() + f for t, f in epochs])
+        interval = round(float(np.median(np.diff(times))), 6)
+    else:
+        interval = None
+    fx = run.fixes
+    fin = np.all(np.isfinite(fx["ecef"]), axis=1) if len(fx) else np.zeros(0, bool)
+    approx = np.median(fx["ecef"][fin], axis=0) if fin.any() else np.zeros(3)
+    marker = marker or run.name
+    now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d %H%M%S UTC")
+    mode = "assisted (RINEX ephemerides)" if run.assisted else "autonomous (decoded ephemerides)"
+    h = [
+        _hdr(f"{3.04:9.2f}{'':11}{'O':<20}{'G':<20}", "RINEX VERSION / TYPE"),
+        _hdr(f"{'gnssrx ' + __version__:<20}{'':<20}{now:<20}", "PGM / RUN BY / DATE"),
+        _hdr("gnssrx software receiver, GPS L1 C/A", "COMMENT"),
+        _hdr(f"run file {os.path.basename(run.path)}, {mode}", "COMMENT"),
+        _hdr("L1C = -(accumulated carrier NCO phase); epochs = receiver", "COMMENT"),
+        _hdr("clock (GPS time of fix + clock bias / c)", "COMMENT"),
+        _hdr(marker[:60], "MARKER NAME"),
+        _hdr("NON_GEODETIC", "MARKER TYPE"),
+        _hdr(f"{'unknown':<20}{'unknown':<40}", "OBSERVER / AGENCY"),
+        _hdr(f"{'0':<20}{'gnssrx':<20}{__version__:<20}", "REC # / TYPE / VERS"),
+        _hdr(f"{'0':<20}{'unknown':<20}", "ANT # / TYPE"),
+        _hdr("".join(f"{v:14.4f}" for v in approx), "APPROX POSITION XYZ"),
+        _hdr("".join(f"{0.0:14.4f}" for _ in range(3)), "ANTENNA: DELTA H/E/N"),
+        _hdr(f"G  {len(OBS_TYPES):3d}" + "".join(f" {t}" for t in OBS_TYPES), "SYS / # / OBS TYPES"),
+        _hdr("DBHZ", "SIGNAL STRENGTH UNIT"),
+    ]
+    if interval is not None and interval > 0:
+        h.append(_hdr(f"{interval:10.3f}", "INTERVAL"))
+    h.append(_hdr(f"{first_t.year:6d}{first_t.month:6d}{first_t.day:6d}{first_t.hour:6d}{first_t.minute:6d}"
+                  f"{first_t.second + first_f:13.7f}{'':5}GPS", "TIME OF FIRST OBS"))
+    h.append(_hdr(f"{last_t.year:6d}{last_t.month:6d}{last_t.day:6d}{last_t.hour:6d}{last_t.minute:6d}"
+                  f"{last_t.second + last_f:13.7f}{'':5}GPS", "TIME OF LAST OBS"))
+    h.append(_hdr(f"G L1C {0.0:8.5f}", "SYS / PHASE SHIFT"))
+    leap = run.leap_seconds()
+    if leap:
+        h.append(_hdr(f"{leap:6d}", "LEAP SECONDS"))
+    prns = sorted({int(p) for p in obs["prn"]})
+    h.append(_hdr(f"{len(prns):6d}", "# OF SATELLITES"))
+    for p in prns:
+        sel = obs["prn"] == p
+        counts = [int(np.count_nonzero(np.isfinite(obs[c][sel]))) for c in
+                  ("pseudorange_m", "carrier_phase_cycles", "doppler_hz", "cn0_dbhz")]
+        h.append(_hdr(f"   G{p:02d}" + "".join(f"{c:6d}" for c in counts), "PRN / # OF OBS"))
+    h.append(_hdr("", "END OF HEADER"))
+    with open(path, "w", newline="\n") as fh:
+        fh.write("\n".join(h + lines_body) + "\n")
+    return {"epochs": len(groups), "satellites": prns, "interval_s": interval}
+
+
+def nav_ephemerides(run: RunData) -> list:
+    """Ephemerides for the navigation file: the ones the fixes used (:meth:`RunData.used_ephemerides`)."""
+    return run.used_ephemerides()
+
+
+def write_nav(path, run: RunData) -> dict:
+    from ..nav.rinex import write_rinex_nav
+    ephs = nav_ephemerides(run)
+    if not ephs:
+        raise ValueError("the run has no ephemerides")
+    write_rinex_nav(path, ephs, run.iono())
+    return {"ephemerides": len(ephs), "satellites": sorted({e.prn for e in ephs}),
+            "iono": run.iono() is not None}
+
+
+__all__ = ["write_rinex_obs", "write_nav", "nav_ephemerides", "lli_flags", "ssi_from_cn0", "OBS_TYPES"]

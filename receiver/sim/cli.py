@@ -1,0 +1,50 @@
+"""Click commands ``simulate`` and ``eval`` (registered in the main ``gnssrx`` CLI).
+
+UserError raised here is turned into a one-line message (exit code 2) by the main CLI; ``simulate``
+removes its partial output files on any error.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+import click
+
+
+@click.command("simulate")
+@click.argument("scenario", type=str)
+@click.option("--output", "-o", "out", type=str, default=None,
+              help="IF output file (default: <scenario name>.bin in the current directory); the truth "
+                   "goes to <stem>.truth.h5 and a receiver input section to <stem>.yaml")
+@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a scenario key")
+@click.option("--quiet", "-q", is_flag=True, help="no progress bar or summary")
+def simulate(scenario, out, sets, quiet):
+    """Simulate a GPS L1 C/A IF recording with truth from a SCENARIO YAML file."""
+    from .simulate import simulate as run_sim
+    if out is None:
+        out = os.path.splitext(os.path.basename(scenario))[0] + ".bin"
+    paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet)
+    if not quiet:
+        import h5py
+        with h5py.File(paths["truth"], "r") as f:
+            a = f.attrs
+            sats = f["satellites"]
+            vis = [k for k in sats if sats[k]["visible"].size and bool(sats[k]["visible"][:].any())]
+            click.echo(f"wrote {paths['if']} ({a['n_samples'] / a['sample_rate_hz']:.1f} s, {a['format']}, "
+                       f"{a['sample_rate_hz'] / 1e6:g} MS/s, IF {a['if_hz']:g} Hz)")
+            click.echo(f"truth {paths['truth']}: {len(vis)} satellites with signal: {' '.join(vis)}")
+            click.echo(f"receiver input section: {paths['yaml']}")
+
+
+@click.command("eval")
+@click.argument("run_h5", type=str)
+@click.argument("truth_h5", type=str)
+@click.option("--json", "as_json", is_flag=True, help="print the statistics as JSON")
+def evaluate_cmd(run_h5, truth_h5, as_json):
+    """Compare a receiver run file with a simulator truth file (position, velocity, clock, TTFF)."""
+    from ..evaluate import evaluate, format_table
+    stats = evaluate(run_h5, truth_h5)
+    if as_json:
+        click.echo(json.dumps(stats, indent=2, default=float))
+    else:
+        click.echo(format_table(stats))

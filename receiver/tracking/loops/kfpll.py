@@ -1,0 +1,122 @@
+"""kf / adaptive_kf: Kalman-filter PLL on the ATAN discriminator (3 states), and its adaptive version.
+
+State (absolute carrier, cycles / Hz / Hz/s) at the start of epoch k: s = [theta, f, a].  The ATAN
+discriminator measures the epoch-average phase error, so with the NCO's average phase over the epoch
+(p + f_nco T/2) the measurement is
+
+    z_k = atan(Q/I)/(2 pi) + p_k + f_nco,k T/2 = H s_k + v_k,     H = [1, T/2, T^2/6]
+
+(in error-state terms: state [phase error, Doppler error, Doppler rate], Phi = [[1,T,T^2/2],[0,1,T],[0,0,1]],
+H = [1, T/2, T^2/6]).  After the update the state is predicted to the start of the next epoch and the
+NCO takes the predicted phase (phase step) and the predicted mean frequency f + a T/2.
+
+R = 1/(2 T C/N0) (1 + 1/(2 T C/N0)) / (2 pi)^2 cycles^2 (ATAN discriminator variance) at the design C/N0
+(tracking.carrier.kf.cn0_dbhz).  Q = oscillator (two-state clock model: S_f = h0/2, S_g = 2 pi^2 h_-2, times
+f_carrier^2) on (theta, f) + white line-of-sight jerk of PSD q_j (kf.jerk_psd, (m/s^3)^2/Hz) times
+(f_carrier/c)^2 through the integrator chain: q [[T^5/20, T^4/8, T^3/6], [T^4/8, T^3/3, T^2/2],
+[T^3/6, T^2/2, T]].
+
+Adaptive (adaptive_kf): innovation d_k = z_k - H s_k^-;  R_k from the NWPR C/N0 estimate (formula above
+with C/N0_k);  C^_k = (1/m) sum_{i=k-m+1..k} d_i^2 (kf.window = m);  with the unscaled prediction
+P0^- = Phi P^+ Phi^T + Q:
+
+    lambda_k = max(1, (C^_k - R_k) / (H P0^- H^T)),        P_k^- = Phi P^+ Phi^T + lambda_k Q
+
+(the exact form used: lambda scales Q only, the rest of the predicted covariance is kept).
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from ...signals import C_LIGHT
+from .common import NWPR, PythonLoop, atan_variance_cycles2, clock_q
+
+
+def kf_matrices(T, fc, h0, h_2, jerk_psd):
+    phi = np.array([[1.0, T, T * T / 2.0], [0.0, 1.0, T], [0.0, 0.0, 1.0]])
+    H = np.array([1.0, T / 2.0, T * T / 6.0])
+    q = jerk_psd * (fc / C_LIGHT) ** 2
+    Q = q * np.array([[T ** 5 / 20, T ** 4 / 8, T ** 3 / 6],
+                      [T ** 4 / 8, T ** 3 / 3, T ** 2 / 2],
+                      [T ** 3 / 6, T ** 2 / 2, T]])
+    Q[:2, :2] += clock_q(T, h0, h_2, fc)
+    return phi, H, Q
+
+
+class KFPLL(PythonLoop):
+    name = "kf"
+    adaptive = False
+
+    def __init__(self, cfg, cn0_dbhz=None, jerk_psd=None, h0=None, h_2=None, window=None, cn0_tau_s=None):
+        super().__init__(cfg)
+        kf = self.car.kf if self.car is not None else None
+        self.cn0_design = 10 ** ((cn0_dbhz if cn0_dbhz is not None else kf.cn0_dbhz) / 10.0)
+        self.jerk_psd = float(jerk_psd if jerk_psd is not None else kf.jerk_psd)
+        self.h0 = float(h0 if h0 is not None else self.car.clock_h0)
+        self.h_2 = float(h_2 if h_2 is not None else self.car.clock_h_2)
+        self.window = int(window if window is not None else kf.window)
+        self.cn0_tau = float(cn0_tau_s if cn0_tau_s is not None else kf.cn0_tau_s)
+        self._mats = {}
+
+    def matrices(self, T):
+        key = round(T, 9)
+        m = self._mats.get(key)
+        if m is None:
+            m = self._mats[key] = kf_matrices(T, self.carrier_hz, self.h0, self.h_2, self.jerk_psd)
+        return m
+
+    def init(self, doppler_hz, rate_hz_s):
+        # s: state at the start of the next epoch (prediction), P: posterior of the previous epoch
+        self.s = np.array([self.nco_phase, doppler_hz, rate_hz_s])
+        self.P = np.diag([0.05 ** 2, 3.0 ** 2, 20.0 ** 2])
+        self._pending_P = True          # the first epoch uses P as the prior directly
+        self.nwpr = NWPR(10 * math.log10(self.cn0_design), self.cn0_tau)
+        self.innov = deque(maxlen=self.window)
+        self.lam = 1.0
+        self.cn0 = self.cn0_design
+        self.last_err = 0.0
+
+    def step(self, ip, qp, T, p1=None, p2=None):
+        phi, H, Q = self.matrices(T)
+        e = math.atan(qp / ip) / (2.0 * math.pi) if ip != 0.0 else 0.0
+        self.last_err = e
+        z = e + self.nco_phase + self.nco_freq * T / 2.0
+        d = z - float(H @ self.s)
+        if self.adaptive:
+            self.cn0 = self.nwpr.update(p1, p2, T)
+            R = atan_variance_cycles2(self.cn0, T)
+        else:
+            R = atan_variance_cycles2(self.cn0_design, T)
+        if self._pending_P:
+            Pm = self.P
+            self._pending_P = False
+        else:
+            base = phi @ self.P @ phi.T
+            if self.adaptive:
+                self.innov.append(d * d)
+                c_hat = sum(self.innov) / len(self.innov)
+                hph = float(H @ (base + Q) @ H)
+                self.lam = max(1.0, (c_hat - R) / hph) if hph > 0 else 1.0
+            Pm = base + self.lam * Q
+        S = float(H @ Pm @ H) + R
+        Kg = Pm @ H / S
+        self.s = self.s + Kg * d
+        IKH = np.eye(3) - np.outer(Kg, H)
+        self.P = IKH @ Pm @ IKH.T + R * np.outer(Kg, Kg)       # Joseph form
+        self.s = phi @ self.s                                   # prediction: start of the next epoch
+        return self._command(T, self.s[0], self.s[1] + self.s[2] * T / 2.0)
+
+    # ---- analysis helpers
+    def steady_state(self, T):
+        """(gain K, predicted P) of the fixed-R filter at epoch length T."""
+        from .common import steady_state_gain
+        phi, H, Q = kf_matrices(T, self.carrier_hz, self.h0, self.h_2, self.jerk_psd)
+        return steady_state_gain(phi, H, Q, atan_variance_cycles2(self.cn0_design, T))
+
+
+class AdaptiveKFPLL(KFPLL):
+    name = "adaptive_kf"
+    adaptive = True

@@ -1,0 +1,54 @@
+"""EKF and PLI-EKF carrier loops: linearisation and the PLI = 1 reduction."""
+import numpy as np
+import pytest
+
+from receiver.config import load_receiver_config
+from receiver.tracking.carrier import make_carrier_loop
+from receiver.tracking.loops.ekf import jacobian, observation
+
+
+def test_jacobian_matches_finite_differences():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        s = rng.normal(size=4) * [3.0, 50.0, 10.0, 5.0]
+        A, nco = rng.uniform(0.5, 100.0), rng.normal() * 3.0
+        H = jacobian(s, A, nco)
+        num = np.zeros((2, 4))
+        for j in range(4):
+            d = np.zeros(4)
+            d[j] = 1e-6
+            num[:, j] = (observation(s + d, A, nco) - observation(s - d, A, nco)) / 2e-6
+        assert np.allclose(H, num, atol=1e-6 * A)
+
+
+def _run(variant, seq, T=5e-3, **over):
+    cfg = load_receiver_config(overrides=[f"tracking.carrier.{k}={v}" for k, v in over.items()])
+    loop = make_carrier_loop(variant, cfg.tracking)
+    loop.start(12.0, T)
+    return np.array([loop.step(ip, qp, T, p1, p2) for ip, qp, p1, p2 in seq])
+
+
+def test_pli_ekf_reduces_to_ekf_when_pli_is_one():
+    rng = np.random.default_rng(1)
+    n = 300
+    ip = 200.0 + rng.normal(size=n) * 10
+    p1 = ip / 2 + rng.normal(size=n)
+    seq = [(ip[k], 0.0, complex(p1[k], 0.0), complex(ip[k] - p1[k], 0.0)) for k in range(n)]  # Q = 0
+    a = _run("ekf", seq)
+    b = _run("pli_ekf", seq)
+    assert np.allclose(a, b, rtol=0, atol=1e-12)
+    # with a phase error the PLI drops below 1 and the two filters differ
+    seq2 = [(ip[k], 60.0 + rng.normal() * 10, complex(p1[k], 30.0), complex(ip[k] - p1[k], 30.0))
+            for k in range(n)]
+    assert not np.allclose(_run("ekf", seq2), _run("pli_ekf", seq2))
+
+
+@pytest.mark.parametrize("variant", ["ekf", "pli_ekf"])
+def test_ekf_converges_on_a_frequency_offset(variant):
+    from receiver.corrsim import CorrScenario, phase_error_std_deg, run
+    cfg = load_receiver_config()
+    loop = make_carrier_loop(variant, cfg.tracking)
+    sc = CorrScenario(duration_s=5.0, cn0_dbhz=40.0, h0=0.0, h_2=0.0, init_doppler_err_hz=5.0)
+    out = run(loop, sc)
+    assert abs(out["doppler"][-1] - out["doppler_true"][-1]) < 1.0
+    assert phase_error_std_deg(out["err_cycles"], per_s=2.5, t=out["t"])[0] < 6.0
