@@ -320,7 +320,9 @@ RECEIVER_SCHEMA = {
         "troposphere": P("saastamoinen", "str", "troposphere model", choices=("saastamoinen", "none")),
         "ionosphere": P("klobuchar", "str", "ionosphere model", choices=("klobuchar", "none")),
         "elevation_mask_deg": P(5.0, "float", "elevation mask", lo=-90.0, hi=90.0),
-        "weighting": P("elevation", "str", "WLS weights", choices=("elevation", "cn0", "none")),
+        "weighting": P("elevation", "str", "WLS weights: sin^2(el), C/N0, none, or rtklib (RTKLIB's default "
+                                               "single-point error model, to compare with rnx2rtkp)",
+                       choices=("elevation", "cn0", "none", "rtklib")),
         "residual_threshold_m": P(30.0, "float", "drop the worst satellite when a residual exceeds this",
                                   lo=0.0),
         "filter": P("wls", "str", "navigation solution: wls (single-epoch weighted least squares and "
@@ -383,6 +385,10 @@ RECEIVER_SCHEMA = {
         "cn0_mask_dbhz": P(None, "float", "channels below this C/N0 are predicted only (no measurement "
                                           "update); empty: every channel updates (the papers' setting)",
                            nullable=True),
+        "innovation_gate_sigma": P(0.0, "float", "skip a channel's code / carrier update when its innovation "
+                                                 "exceeds this many standard deviations (0 = off, the papers' "
+                                                 "setting); the innovation still feeds the adaptive R",
+                                   lo=0.0),
         "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, tracking.cn0_window_ms) above which a "
                                           "vector channel counts as tracked (records' pll_lock, fixes' "
                                           "n_sats and DOPs; M2M4 on noise alone reads 20-30 dB-Hz)"),

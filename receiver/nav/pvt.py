@@ -75,10 +75,16 @@ class Fix:
         return float(lat), float(lon), float(h)
 
 
+# URA index -> nominal URA (m), IS-GPS-200 20.3.3.3.1.3 (upper bounds; 15: no accuracy prediction)
+URA_M = (2.40, 3.40, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0, 1536.0, 3072.0,
+         6144.0, 6144.0)
+
+
 class _Sats:
     """Arrays of the satellites of one epoch (positions in the transmit-time ECEF frame)."""
 
-    def __init__(self, prn, rho, pos, vel, clk, drift, cn0, doppler):
+    def __init__(self, prn, rho, pos, vel, clk, drift, cn0, doppler, ura_m=None):
+        self.ura_m = np.asarray(ura_m if ura_m is not None else np.zeros(len(prn)), float)
         self.prn = np.asarray(prn, dtype=int)
         self.rho = np.asarray(rho, float)
         self.pos = np.asarray(pos, float).reshape(-1, 3)
@@ -119,7 +125,7 @@ class NavSolver:
         self.troposphere = str(g("troposphere", "saastamoinen"))
         self.ionosphere = str(g("ionosphere", "klobuchar"))
         self.residual_threshold_m = float(g("residual_threshold_m", 30.0))
-        if self.weighting not in ("elevation", "cn0", "none"):
+        if self.weighting not in ("elevation", "cn0", "none", "rtklib"):
             raise ValueError(f"unknown weighting {self.weighting!r}")
 
     # -------------------------------------------------------------------------------------
@@ -140,10 +146,20 @@ class NavSolver:
         pos, vel, clk, drift = sat_state(ephs, tx)
         rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
         return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
-                     [o.cn0_dbhz for o in obs], [o.doppler_hz for o in obs])
+                     [o.cn0_dbhz for o in obs], [o.doppler_hz for o in obs],
+                     ura_m=[URA_M[min(max(int(e.ura_index), 0), 15)] for e in ephs])
 
-    def _weights(self, el, cn0):
-        if self.weighting == "elevation" and el is not None:
+    def _weights(self, el, cn0, iono=None, ura_m=None):
+        if self.weighting == "rtklib" and el is not None:
+            # RTKLIB's single-point error model with its default settings (code/phase error ratio 100,
+            # a = b = 3 mm, code bias 0.3 m, URA, half the Klobuchar delay, 3 m unmodelled troposphere when
+            # the troposphere is off): the weighting to compare fixes with rnx2rtkp on equal terms
+            var = 100.0 ** 2 * (0.003 ** 2 + 0.003 ** 2 / np.sin(np.maximum(el, np.radians(1.0)))) \
+                + 0.3 ** 2 + (0.5 * (iono if iono is not None else 0.0)) ** 2 \
+                + (ura_m if ura_m is not None else 0.0) ** 2 \
+                + (9.0 if self.troposphere == "none" else (0.3 / np.sin(np.maximum(el, np.radians(1.0)))) ** 2)
+            w = 1.0 / var
+        elif self.weighting == "elevation" and el is not None:
             w = np.sin(np.maximum(el, np.radians(1.0))) ** 2
         elif self.weighting == "cn0" and np.all(np.isfinite(cn0)):
             w = 10.0 ** (cn0 / 10.0)
@@ -184,7 +200,7 @@ class NavSolver:
                 iono, tropo = self._atmosphere(x, az, el, iono_utc, tow)
             else:
                 iono = tropo = np.zeros(len(idx))
-            w = self._weights(el if (corrections and known) else None, s.cn0[idx])
+            w = self._weights(el if (corrections and known) else None, s.cn0[idx], iono, s.ura_m[idx])
             resid = rho_c - iono - tropo - (rng + b)
             h = np.hstack([-los, np.ones((len(idx), 1))])
             sw = np.sqrt(w)
