@@ -100,7 +100,7 @@ def acquire(cfg, reader: SampleReader, start: int, prns) -> list:
     return reject_cross_correlations(res, a.coherent_ms)
 
 
-def _maybe_handover(cfg, channels, nav, start, fs, n_fixes):
+def _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet=False):
     """Vector-loop handover hook: returns a vector tracker once vector.start_s is reached (or 5 s after
     the first fix), else None.  The tracker's ``process(block, start)`` returns
     ({prn: EPOCH_DTYPE records}, FIX_DTYPE fixes with mode=1) and drives the channels' NCOs."""
@@ -108,6 +108,8 @@ def _maybe_handover(cfg, channels, nav, start, fs, n_fixes):
         from .tracking.vector import handover
     except ImportError:
         raise UserError("vector tracking is not available in this build") from None
+    if quiet:
+        return handover(cfg, channels, nav, start, fs, log=lambda msg: None)
     return handover(cfg, channels, nav, start, fs)
 
 
@@ -169,7 +171,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     while start < reader.end:
         block = reader.read(start, chunk + overlap)
         if vector is None and cfg.vector.enabled:
-            vector = _maybe_handover(cfg, channels, nav, start, fs, n_fixes)
+            vector = _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet)
         if vector is not None:
             block_recs, vfixes = vector.process(block, start)
             writer.append_fixes(vfixes)

@@ -1,0 +1,129 @@
+"""Vector tracking: scalar-to-vector handover, variant registry.
+
+The pipeline calls :func:`handover` once per chunk while ``vector.enabled`` until it returns a
+:class:`~receiver.tracking.vector.tracker.VectorTracker`; from then on the tracker steps every channel.
+
+Variants (``vector.variant``; one module each, one line in :data:`REGISTRY`):
+  fixed_r     VLL, error-state EKF [r, v, t_b, dt_d], fixed R (fixed_r.py)
+  adaptive_r  the same with a sliding-window adaptive R (adaptive_r.py)
+  polynomial  VDFLL with polynomial predictive filters and chi-square manoeuvre detection (polynomial.py)
+  cv          constant-velocity VDFLL baseline with the paper's per-epoch Q (cv.py)
+
+Handover (``vector.start_s`` seconds after the first sample, default 5 s after the first fix): the filter
+starts from the latest scalar fix - position, velocity, clock bias and drift - propagated to the first
+vector epoch, and the code-minus-carrier drift is estimated from the history of scalar fixes (the slope of
+the clock bias minus the Doppler drift) or, lacking that, from the channels' DLL rate integrators.  The
+channels keep their NCO state: the first vector measurements are taken with the scalar NCOs, after which
+the vector filter commands them.
+"""
+from __future__ import annotations
+
+import sys
+import weakref
+
+import numpy as np
+
+from ...errors import UserError
+from ...signals import C_LIGHT, CA_CHIP_RATE
+from .. import kernel as K
+from .adaptive_r import AdaptiveR
+from .base import VectorFilter
+from .cv import CV
+from .fixed_r import FixedR
+from .polynomial import PolynomialFilter
+from .tracker import VectorTracker
+
+REGISTRY: dict[str, type[VectorFilter]] = {
+    "fixed_r": FixedR,
+    "adaptive_r": AdaptiveR,
+    "polynomial": PolynomialFilter,
+    "cv": CV,
+}
+
+DEFAULT_DELAY_S = 5.0
+_STATE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()   # nav engine -> handover bookkeeping
+
+
+def make_filter(name: str, vcfg) -> VectorFilter:
+    try:
+        cls = REGISTRY[name]
+    except KeyError:
+        raise UserError(f"unknown vector variant '{name}' (available: {', '.join(REGISTRY)})") from None
+    return cls(vcfg, int(vcfg.integration_ms) * 1e-3)
+
+
+def _log(msg):
+    print(msg, file=sys.stderr)
+
+
+def code_carrier_drift(history, channels) -> float:
+    """Code drift minus carrier drift (m/s) from scalar fixes [(sample_time_s, bias_m, drift_mps)], else
+    from the DLL rate integrators (chips/s) of the channels; 0 when neither is available."""
+    if len(history) >= 5 and history[-1][0] - history[0][0] >= 2.0:
+        t = np.array([h[0] for h in history])
+        b = np.array([h[1] for h in history])
+        d = np.array([h[2] for h in history])
+        ok = np.isfinite(b) & np.isfinite(d)
+        if ok.sum() >= 5:
+            slope = np.polyfit(t[ok] - t[ok][0], b[ok], 1)[0]
+            return float(slope - np.median(d[ok]))
+    rates = [ch.st[K.S_DLL_RATE] for ch in channels.values()
+             if ch.st[K.S_MODE] in (K.MODE_TRACK, K.MODE_BIT_SYNC) and ch.st[K.S_LOCK] > 0]
+    if rates:
+        return float(-C_LIGHT * np.median(rates) / CA_CHIP_RATE)
+    return 0.0
+
+
+def handover(cfg, channels, nav, start, fs, log=_log):
+    """The vector tracker once the handover time is reached and a scalar fix is available, else None."""
+    v = cfg.vector
+    if nav is None:
+        raise UserError("vector tracking needs the navigation solution (navigation.enabled: true)")
+    make_filter(v.variant, v)                       # validate early
+    st = _STATE.setdefault(nav, {"history": [], "first": None, "last": None})
+    lf = nav.last_fix
+    if lf is not None and (st["last"] is None or lf[0] != st["last"]):
+        s_fix, fix = lf
+        st["last"] = s_fix
+        st["history"].append((s_fix / fs, fix.clock_bias_m, fix.clock_drift_mps))
+        del st["history"][:-600]
+        if st["first"] is None:
+            st["first"] = s_fix
+    first_sample = int(round(cfg.input.skip_s * fs))
+    if v.start_s is not None:
+        if start < first_sample + v.start_s * fs:
+            return None
+    elif st["first"] is None or start < st["first"] + DEFAULT_DELAY_S * fs:
+        return None
+    if lf is None:
+        return None
+    s_fix, fix = lf
+    if start - s_fix > 2.0 * fs:                     # no recent fix (scalar positioning lost): wait
+        return None
+    vel = np.asarray(fix.velocity_ecef, dtype=float)
+    drift = float(fix.clock_drift_mps)
+    sig_v = float(v.init_sigma_vel_mps)
+    if not (np.all(np.isfinite(vel)) and np.isfinite(drift)):
+        vel, drift, sig_v = np.zeros(3), 0.0, 50.0
+    hist = [h for h in st["history"] if h[0] <= s_fix / fs + 1e-9]
+    delta = code_carrier_drift(hist, channels) if v.code_carrier_drift else 0.0
+    filt = make_filter(v.variant, v)
+    sig = {"pos": float(v.init_sigma_pos_m), "vel": sig_v, "b": float(v.init_sigma_pos_m),
+           "d": sig_v, "delta": 1.0}
+    tracker = VectorTracker(cfg, channels, nav, filt, fs, s_fix, fix.rx_tow,
+                            (np.asarray(fix.ecef, dtype=float), vel, float(fix.clock_bias_m), drift, delta),
+                            sig, start, log=log)
+    if len(tracker.prns) < 4:
+        # undo: give the NCOs back to the scalar loops and try again next chunk
+        for prn in list(tracker.prns):
+            ch = channels[prn]
+            tracker._remove(prn, False)
+            ch.set_external(False, False)
+            ch.cfg[K.C_LOST_MS] = cfg.tracking.lost_ms
+            ch.cfg[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[cfg.tracking.cn0_estimator]
+            ch.cfg[K.C_MAX_INT_MS] = cfg.tracking.integration_ms
+        return None
+    log(f"vector: handover at {start / fs - first_sample / fs:.2f} s to {filt.describe()}; "
+        f"{len(tracker.prns)} channels {' '.join(f'G{p:02d}' for p in tracker.prns)}; "
+        f"code-carrier drift {delta:+.2f} m/s")
+    return tracker

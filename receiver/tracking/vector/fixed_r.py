@@ -1,0 +1,19 @@
+"""fixed_r: vector lock loop (VLL) as an error-state EKF with a fixed measurement noise R.
+
+State [x, y, z, vx, vy, vz, t_b, dt_d] (+ the optional code-minus-carrier drift), constant-velocity
+transition, Q from the white-acceleration PSD ``vector.q_accel`` and the oscillator class
+``vector.clock_class``; R fixed: ``vector.r_code_m2`` (paper default 1500 m^2) on every code
+discriminator and ``vector.r_carrier_m2s2`` (900 (m/s)^2) on every frequency discriminator, whatever the
+channel's signal strength.
+"""
+from __future__ import annotations
+
+from .base import KinematicFilter
+
+
+class FixedR(KinematicFilter):
+    name = "fixed_r"
+
+    def describe(self):
+        return (f"fixed_r VLL: R code {self.r_code:g} m^2, carrier {self.r_carr:g} (m/s)^2, "
+                f"q_accel {self.vcfg.q_accel:g} m^2/s^3, clock {self.vcfg.clock_class}")

@@ -1,0 +1,211 @@
+"""Compiled Kalman-filter core shared by every vector-loop variant.
+
+The variants differ only in their state layout, transition matrix F, process noise Q, manoeuvre noise QB and
+options (adaptive R form, chi-square manoeuvre detection); the measurement model is the same for all:
+
+    code channel j:     z_code,j = rho_meas,j - rho_hat,j = -e_j^T (r - r_hat) + (b - b_hat) + eta_j
+    carrier channel j:  z_carr,j = rate_meas,j - rate_hat,j = -e_j^T (v - v_hat) + (d - d_hat) + w_j
+
+with e_j the unit line of sight receiver -> satellite (the papers' a_j = -e_j), r, v the receiver position
+and velocity, b the (code) clock bias and d the carrier clock drift (both in metres, m/s).  The state
+layout array ``lay`` = [ip, iv, ib, id, idel] gives the indices of x, y, z (ip..ip+2), vx, vy, vz
+(iv..iv+2), b, d and of the code-minus-carrier drift (idel, -1 when absent).
+
+Updates are sequential scalar updates (R diagonal), which is exactly the batch update.  Everything here
+is numba-compiled; :mod:`receiver.tracking.vector.loop` calls it once per epoch.
+"""
+from __future__ import annotations
+
+
+import numpy as np
+from numba import njit
+
+FORM_NONE = 0
+FORM_PAPER = 1          # R = C_v + H P+ H^T   (innovations, posterior covariance: as printed)
+FORM_INNOVATION = 2     # R = C_v - H P- H^T   (textbook innovation-based)
+FORM_RESIDUAL = 3       # R = C_r + H P+ H^T   (textbook residual-based)
+FORMS = {"none": FORM_NONE, "paper": FORM_PAPER, "innovation": FORM_INNOVATION, "residual": FORM_RESIDUAL}
+
+
+
+@njit(cache=True)
+def kf_predict(x, P, F, Q):
+    """x <- F x, P <- F P F^T + Q (in place)."""
+    x[:] = F @ x
+    P[:, :] = F @ P @ F.T + Q
+
+
+@njit(cache=True)
+def _ph(P, lay, e, kind, out):
+    """out = P h for the code (kind 0) or carrier (kind 1) row of LOS e; returns h P h^T."""
+    n = P.shape[0]
+    i0 = lay[0] if kind == 0 else lay[1]
+    ic = lay[2] if kind == 0 else lay[3]
+    for r in range(n):
+        out[r] = P[r, ic] - e[0] * P[r, i0] - e[1] * P[r, i0 + 1] - e[2] * P[r, i0 + 2]
+    return out[ic] - e[0] * out[i0] - e[1] * out[i0 + 1] - e[2] * out[i0 + 2]
+
+
+@njit(cache=True)
+def _hdot(lay, e, kind, v):
+    """h v for the code (0) or carrier (1) row."""
+    i0 = lay[0] if kind == 0 else lay[1]
+    ic = lay[2] if kind == 0 else lay[3]
+    return v[ic] - e[0] * v[i0] - e[1] * v[i0 + 1] - e[2] * v[i0 + 2]
+
+
+@njit(cache=True)
+def chi2_tag(P, lay, E, z, R, valid, kind):
+    """z^T (H P H^T + R)^-1 z over the valid channels of one measurement type (the manoeuvre tag)."""
+    m = E.shape[0]
+    n = P.shape[0]
+    idx = np.zeros(m, np.int64)
+    mv = 0
+    for j in range(m):
+        if valid[j]:
+            idx[mv] = j
+            mv += 1
+    if mv == 0:
+        return 0.0
+    PH = np.zeros((n, mv))
+    col = np.zeros(n)
+    for a in range(mv):
+        _ph(P, lay, E[idx[a]], kind, col)
+        PH[:, a] = col
+    S = np.zeros((mv, mv))
+    zz = np.zeros(mv)
+    for a in range(mv):
+        ja = idx[a]
+        for b in range(mv):
+            S[a, b] = _hdot(lay, E[ja], kind, PH[:, b])
+        S[a, a] += R[ja]
+        zz[a] = z[ja]
+    S = 0.5 * (S + S.T)
+    y = np.linalg.solve(S, zz)
+    return float(np.dot(zz, y))
+
+
+@njit(cache=True)
+def kf_update(x, P, lay, E, zc, zf, valid, Rc, Rf, QB, chi2_thr, diag, gate=0.0):
+    """One epoch's measurement update (in place).
+
+    E (m, 3) lines of sight, zc / zf innovations (m, m/s), valid (m,) channels with a measurement,
+    Rc / Rf (m,) their variances.  When chi2_thr > 0 the code and carrier tags are computed first and,
+    when either exceeds the threshold, QB is added to the prior covariance (manoeuvre).  gate > 0: a scalar
+    measurement whose innovation exceeds gate * sqrt(h P h^T + R) is not used (its innovation still feeds
+    the adaptive-R window).
+    diag (m, 8) receives per channel: [hP-h code, hP-h carr, hP+h code, hP+h carr, residual code,
+    residual carr, innovation code, innovation carr].  Returns (tag_code, tag_carr, fired).
+    """
+    n = x.shape[0]
+    m = E.shape[0]
+    tag_p = 0.0
+    tag_v = 0.0
+    fired = 0
+    if chi2_thr > 0.0:
+        tag_p = chi2_tag(P, lay, E, zc, Rc, valid, 0)
+        tag_v = chi2_tag(P, lay, E, zf, Rf, valid, 1)
+        if tag_p > chi2_thr or tag_v > chi2_thr:
+            P += QB
+            fired = 1
+    ph = np.zeros(n)
+    for j in range(m):
+        if valid[j]:
+            diag[j, 0] = _ph(P, lay, E[j], 0, ph)
+            diag[j, 1] = _ph(P, lay, E[j], 1, ph)
+    dx = np.zeros(n)
+    for kind in range(2):
+        for j in range(m):
+            if not valid[j]:
+                continue
+            e = E[j]
+            s = _ph(P, lay, e, kind, ph)
+            if kind == 0:
+                r = Rc[j]
+                innov = zc[j] - _hdot(lay, e, 0, dx)
+            else:
+                r = Rf[j]
+                innov = zf[j] - _hdot(lay, e, 1, dx)
+            s += r
+            if not s > 0.0:
+                continue
+            if gate > 0.0 and innov * innov > gate * gate * s:
+                continue
+            for a in range(n):
+                dx[a] += ph[a] * innov / s
+            for a in range(n):
+                pa = ph[a] / s
+                for b in range(n):
+                    P[a, b] -= pa * ph[b]
+    for a in range(n):
+        x[a] += dx[a]
+    for a in range(n):
+        for b in range(a + 1, n):
+            v = 0.5 * (P[a, b] + P[b, a])
+            P[a, b] = v
+            P[b, a] = v
+        if P[a, a] < 1e-12:
+            P[a, a] = 1e-12
+    for j in range(m):
+        if valid[j]:
+            diag[j, 2] = _ph(P, lay, E[j], 0, ph)
+            diag[j, 3] = _ph(P, lay, E[j], 1, ph)
+            diag[j, 4] = zc[j] - _hdot(lay, E[j], 0, dx)
+            diag[j, 5] = zf[j] - _hdot(lay, E[j], 1, dx)
+            diag[j, 6] = zc[j]
+            diag[j, 7] = zf[j]
+    return tag_p, tag_v, fired
+
+
+@njit(cache=True)
+def adapt_r(form, valid, diag, W, WI, WN, WS, Rc, Rf, min_fill, floor_c, floor_f):
+    """Sliding-window re-estimate of each channel's diagonal R after an update (in place).
+
+    W (m, 2, N) holds the last N squared innovations (paper / innovation forms) or post-fit residuals
+    (residual form), WI / WN the ring index and fill count per channel, WS (m, 2) the running sums.
+    The new Rc / Rf apply from the next epoch; until a window holds min_fill samples the initial R is
+    kept.
+    """
+    if form == 0:
+        return
+    m = W.shape[0]
+    N = W.shape[2]
+    for j in range(m):
+        if not valid[j]:
+            continue
+        k = WI[j]
+        for t in range(2):
+            if form == 3:
+                v = diag[j, 4 + t]
+            else:
+                v = diag[j, 6 + t]
+            v2 = v * v
+            WS[j, t] += v2 - W[j, t, k]
+            W[j, t, k] = v2
+        WI[j] = (k + 1) % N
+        if WN[j] < N:
+            WN[j] += 1
+        if WN[j] < min_fill:
+            continue
+        for t in range(2):
+            c = WS[j, t] / WN[j]
+            if c < 0.0:               # running-sum round-off
+                c = 0.0
+            if form == 1:
+                r = c + diag[j, 2 + t]
+            elif form == 2:
+                r = c - diag[j, t]
+            else:
+                r = c + diag[j, 2 + t]
+            if t == 0:
+                Rc[j] = r if r > floor_c else floor_c
+            else:
+                Rf[j] = r if r > floor_f else floor_f
+
+
+def reset_window(W, WI, WN, WS, j):
+    """Forget channel j's window (new channel or a channel re-assigned to another satellite)."""
+    W[j] = 0.0
+    WI[j] = 0
+    WN[j] = 0
+    WS[j] = 0.0

@@ -1,0 +1,226 @@
+"""The compiled vector-tracking epoch loop: one call runs every vector epoch that fits in a block.
+
+Epoch grid.  The filter runs on a grid of receiver time, epoch k ending at sample S_k = S_0 + k T fs.
+In epoch k every vector channel runs the correlation epochs that START before S_k (normally exactly one;
+occasionally none or two, since a channel's code periods last (1 - Doppler/f_L1) ms of receiver time;
+two are averaged).  A channel measurement is taken at the middle of its correlation epoch,
+tau_mid = tau_k + Delta with |Delta| <= T/2; the prediction is propagated by Delta with the estimated
+velocity and drift (the tiny Delta terms of H are neglected).
+
+Per channel and epoch:
+  replica transmit time   tx_nco = A_j + code_period * 1 ms + code_phase / f_code   (at tau_mid)
+  measured pseudorange    rho = c (tau_mid - tx_nco) + Z_code
+  measured rate           rate = -lambda (NCO Doppler + df),   df from the cross/dot of the halves
+  predicted               rho_hat = |p_sat(tau) - r| + I + T + b - c dt_sv(tau)
+                          rate_hat = e . (v_sat - v) + d - c ddt_sv
+(all times relative to the handover reference, see tracker.py; A_j is the relative transmit time of the
+channel's code period 0, an integer number of ms in absolute GPS time).  Since the NCOs are commanded
+from the prediction, the innovation rho - rho_hat is the discriminator output of the error-state
+formulation of the papers (E_code = t_b + (X - X_hat)^T a_j); the explicit form above stays exact when an
+NCO could not follow the prediction (clamped code steps, the first epoch after handover).
+
+NCO commands for the next correlation epoch of channel j (starting at sample s_next):
+  code phase  shifted so that the replica transmit time at s_next equals tau_next - rho_hat(tau_next)/c
+              (at most MAX_SHIFT chips per epoch)
+  code rate   f_code (1 - rate_hat_code / c), rate_hat_code with the code drift d + delta
+  carrier     Doppler -rate_hat / lambda at the middle of the next epoch
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .. import kernel as K
+from ...signals import C_LIGHT, CA_CHIP_RATE, L1_HZ
+from .discriminators import code_disc_m, freq_disc_hz
+from .kalman import adapt_r, kf_predict, kf_update
+
+LAMBDA = C_LIGHT / L1_HZ
+MAX_SHIFT = 3.0          # chips per epoch (the correlator's code array has 4 chips of wrap margin)
+GROSS_CODE_M = 3000.0    # innovations beyond these are not measurements of this channel's signal (the
+GROSS_RATE_MPS = 1000.0  # discriminators alone span +/- 220 m and +/- 190 m/s): never used in an update
+
+# ---- parameter vector indices
+P_FS = 0
+P_IF = 1
+P_GRID = 2               # samples per filter epoch
+P_SREF = 3               # sample index of tau = 0
+P_MARGIN = 4             # samples a correlation epoch may extend past its grid point
+P_CHI2 = 5
+P_CN0_MASK = 6
+P_LOCK_CN0 = 7
+P_FORM = 8
+P_FLOOR_C = 9
+P_FLOOR_F = 10
+P_MIN_FILL = 11
+P_GATE = 12
+N_PRM = 13
+
+# ---- per-epoch log columns (besides the state)
+L_TAU = 0
+L_TAGP = 1
+L_TAGV = 2
+L_FIRED = 3
+L_NVALID = 4
+L_NLOCK = 5
+N_LOG = 6
+
+
+@njit(cache=True)
+def _sat(POLY, TAU_A, j, tau, sp, sv):
+    dt = tau - TAU_A[j]
+    for a in range(4):
+        sp[a] = POLY[j, 0, a] + (POLY[j, 1, a] + POLY[j, 2, a] * dt) * dt
+        sv[a] = POLY[j, 1, a] + 2.0 * POLY[j, 2, a] * dt
+
+
+@njit(cache=True)
+def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e):
+    """Predicted pseudorange, carrier rate and code rate of channel j at tau (state x at tau_k); fills e."""
+    ip, iv, ib, idd, idl = lay[0], lay[1], lay[2], lay[3], lay[4]
+    dlt = x[idl] if idl >= 0 else 0.0
+    dt = tau - tau_k
+    _sat(POLY, TAU_A, j, tau, sp, sv)
+    rng2 = 0.0
+    los = np.empty(3)
+    for a in range(3):
+        los[a] = sp[a] - (x[ip + a] + x[iv + a] * dt)
+        rng2 += los[a] * los[a]
+    rng = math.sqrt(rng2)
+    rr = 0.0
+    for a in range(3):
+        e[a] = los[a] / rng
+        rr += e[a] * (sv[a] - x[iv + a])
+    b = x[ib] + (x[idd] + dlt) * dt
+    rho = rng + ATM[j] + b - sp[3]
+    rate_carr = rr + x[idd] - sv[3]
+    return rho, rate_carr, rate_carr + dlt
+
+
+@njit(cache=True)
+def run_chunk(block, block_start, prm, grid_next, max_epochs,
+              ST, CF, CODE, HIST, REC, NREC, CA, POLY, TAU_A, ATM, ACTIVE,
+              x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS, LOG, LX, LPD, LR):
+    """Run vector epochs while every channel's next correlation epoch fits in the block.
+
+    Returns (epochs run, next grid point).  REC (m, cap, N_OUT) / NREC receive the channels' correlation
+    records; LOG / LX / LPD / LR (per epoch: log columns, state, covariance diagonal, channel R) the
+    filter history.  ACTIVE (m,) 0 freezes a channel (not stepped, not commanded).
+    """
+    fs = prm[P_FS]
+    nblk = block.shape[0]
+    m = ST.shape[0]
+    n = x.shape[0]
+    step = prm[P_GRID]
+    T = step / fs
+    s_ref = prm[P_SREF]
+    chip = CA_CHIP_RATE
+    E = np.zeros((m, 3))
+    zc = np.zeros(m)
+    zf = np.zeros(m)
+    cnt = np.zeros(m, np.int64)
+    valid = np.zeros(m, np.bool_)
+    diag = np.zeros((m, 8))
+    sp = np.zeros(4)
+    sv = np.zeros(4)
+    e = np.zeros(3)
+    cap = REC.shape[1]
+    k = 0
+    while k < max_epochs:
+        s_end = grid_next
+        if s_end + prm[P_MARGIN] > block_start + nblk:
+            break
+        full = False
+        for j in range(m):
+            if ACTIVE[j] and NREC[j] + 2 >= cap:
+                full = True
+        if full:
+            break
+        tau_k = (s_end - s_ref) / fs
+        kf_predict(x, P, F, Q)
+        nlock = 0
+        for j in range(m):
+            zc[j] = 0.0
+            zf[j] = 0.0
+            cnt[j] = 0
+            valid[j] = False
+            if not ACTIVE[j]:
+                continue
+            if ST[j, K.S_CN0] >= prm[P_LOCK_CN0]:
+                nlock += 1
+            while ST[j, K.S_NEXT_SAMPLE] < s_end and NREC[j] < cap:
+                r0 = NREC[j]
+                got = K.track_block(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
+                                    REC[j, r0:r0 + 1], 1)
+                if got == 0:
+                    break
+                NREC[j] = r0 + 1
+                o = REC[j, r0]
+                ns = ST[j, K.S_NEXT_SAMPLE] - o[K.O_SAMPLE]
+                t_int = ns / fs
+                tau_mid = (o[K.O_SAMPLE] + 0.5 * ns - s_ref) / fs
+                txrel = CA[j] + o[K.O_PERIOD] * 1e-3 + \
+                    (o[K.O_CODE_PHASE] + 0.5 * ns * o[K.O_CODE_RATE] / fs) / chip
+                rho_meas = C_LIGHT * (tau_mid - txrel) + \
+                    code_disc_m(o[K.O_E], o[K.O_L], CF[j, K.C_EL_SPACING], chip)
+                dop = o[K.O_DOPPLER] + freq_disc_hz(o[K.O_P1I], o[K.O_P1Q], o[K.O_P2I], o[K.O_P2Q], t_int)
+                rate_meas = -LAMBDA * dop
+                rho_hat, rate_hat, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_mid, tau_k,
+                                                        sp, sv, e)
+                zc[j] += rho_meas - rho_hat
+                zf[j] += rate_meas - rate_hat
+                cnt[j] += 1
+                E[j, 0] = e[0]
+                E[j, 1] = e[1]
+                E[j, 2] = e[2]
+            if cnt[j] > 0:
+                zc[j] /= cnt[j]
+                zf[j] /= cnt[j]
+                valid[j] = ST[j, K.S_CN0] >= prm[P_CN0_MASK] and abs(zc[j]) < GROSS_CODE_M and \
+                    abs(zf[j]) < GROSS_RATE_MPS
+        nvalid = 0
+        for j in range(m):
+            if valid[j]:
+                nvalid += 1
+        tp, tv, fired = kf_update(x, P, lay, E, zc, zf, valid, Rc, Rf, QB, prm[P_CHI2], diag, prm[P_GATE])
+        adapt_r(int(prm[P_FORM]), valid, diag, W, WI, WN, WS, Rc, Rf, int(prm[P_MIN_FILL]),
+                prm[P_FLOOR_C], prm[P_FLOOR_F])
+        # ---- NCO commands for each channel's next correlation epoch
+        for j in range(m):
+            if not ACTIVE[j]:
+                continue
+            s_next = ST[j, K.S_NEXT_SAMPLE]
+            tau_n = (s_next - s_ref) / fs
+            rho_n, _, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_n, tau_k, sp, sv, e)
+            tx_pred = tau_n - rho_n / C_LIGHT
+            tx_nco = CA[j] + ST[j, K.S_CODE_PERIOD] * 1e-3 + ST[j, K.S_CODE_PHASE] / chip
+            shift = (tx_pred - tx_nco) * chip
+            if shift > MAX_SHIFT:
+                shift = MAX_SHIFT
+            elif shift < -MAX_SHIFT:
+                shift = -MAX_SHIFT
+            ST[j, K.S_CODE_PHASE] += shift
+            tau_m = tau_n + 0.5e-3 * ST[j, K.S_INT_MS]
+            _, rate_c, rate_code = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_m, tau_k, sp, sv, e)
+            ST[j, K.S_CODE_RATE] = chip * (1.0 - rate_code / C_LIGHT)
+            dop = -rate_c / LAMBDA
+            ST[j, K.S_CARR_FREQ] = prm[P_IF] + dop
+            ST[j, K.S_PLL_FREQ] = dop
+        # ---- log
+        LOG[k, L_TAU] = tau_k
+        LOG[k, L_TAGP] = tp
+        LOG[k, L_TAGV] = tv
+        LOG[k, L_FIRED] = fired
+        LOG[k, L_NVALID] = nvalid
+        LOG[k, L_NLOCK] = nlock
+        for a in range(n):
+            LX[k, a] = x[a]
+            LPD[k, a] = P[a, a]
+        for j in range(m):
+            LR[k, j, 0] = Rc[j]
+            LR[k, j, 1] = Rf[j]
+        grid_next += step
+        k += 1
+    return k, grid_next

@@ -1,0 +1,397 @@
+"""VectorTracker: runs the channels under one navigation filter after the scalar-to-vector handover.
+
+Chunk by chunk (``process(block, start)``):
+  1. channel bookkeeping - channels the pipeline opened since the last chunk (re-acquisition) track scalar
+     until they are locked and their satellite has an ephemeris, then join the vector loop; satellites
+     with an ephemeris above the navigation elevation mask and no channel get a channel opened straight
+     from the prediction (``vector.add_predicted``); vector channels whose satellite sets below
+     ``vector.drop_elevation_deg`` are closed;
+  2. the satellite geometry of the vector channels is refreshed (geometry.py);
+  3. the compiled loop (loop.py) runs every vector epoch that fits in the block;
+  4. records go back to the pipeline (``pll_lock`` of a vector channel = vector lock, C/N0 above
+     vector.lock_cn0_dbhz), fixes are formed at navigation.rate_hz on round GPS times (mode 1).
+
+Vector channels are never dropped by the scalar lock detector (its loss timer is disabled): a blocked
+channel keeps being predicted and is re-captured without re-acquisition when the signal returns.
+
+Time: receiver time tau (s) counts from the handover reference sample s_ref, whose receiver clock reading
+t_ref is the navigation engine's (rx_tow = tow0 + (s - s0)/fs), so the clock bias keeps its meaning:
+GPS time = t_ref + tau - b / c.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import kernel as K
+from ...geodesy import ecef2lla, enu_matrix
+from ...nav.ephemeris import select
+from ...output import FIX_DTYPE
+from ...signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
+from ..scalar import Channel, to_records
+from . import loop as L
+from .geometry import satellite_polys
+
+LAMBDA = C_LIGHT / L1_HZ
+NEVER_LOST_MS = 1e15
+PROMOTE_LOCKED_S = 1.0        # a scalar channel joins the vector loop after this long in lock
+
+
+class VectorTracker:
+    def __init__(self, cfg, channels, nav, filt, fs, s_ref, t_ref, nav0, sig, start_sample, log=None):
+        """nav0 = (r, v, b, d, delta) at sample s_ref (receiver clock reading t_ref); sig: initial sigmas."""
+        self.cfg = cfg
+        self.v = cfg.vector
+        self.fs = float(fs)
+        self.if_hz = float(cfg.input.if_hz)
+        self.channels = channels            # the pipeline's dict (shared)
+        self.nav = nav
+        self.filt = filt
+        self.s_ref = float(s_ref)
+        self.t_ref = float(t_ref)
+        self._sig = sig
+        x, P = filt.initial(*nav0, sig)
+        self.x, self.P = np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(P, dtype=float)
+        self.tau_state = 0.0
+        F, Q, QB = filt.matrices()
+        self.F, self.Q, self.QB = (np.ascontiguousarray(a, dtype=float) for a in (F, Q, QB))
+        self.lay = filt.layout()
+        self.T_ms = int(self.v.integration_ms)
+        self.step = self.T_ms * 1e-3 * self.fs
+        self.log = log or (lambda msg: None)
+        self.prns: list[int] = []           # vector channels, in array order
+        self.info: dict[int, dict] = {}     # prn -> {A, Rc, Rf, window...}
+        self.pending_since: dict[int, float] = {}
+        self.ephs: dict = {}                # prn -> Ephemeris
+        self.week = None
+        self.rate = float(cfg.navigation.rate_hz)
+        self.next_fix = None
+        self.stats = {"epochs": 0, "fired": 0}
+        self.last_log = None
+        self._arrays_dirty = True
+        self._refresh_ephemerides(self._gps_time(0.0))
+        for prn, ch in list(channels.items()):      # initial vector channel set
+            if self._eligible(prn, ch):
+                self._promote(prn, ch)
+        origin = min((float(channels[p].st[K.S_NEXT_SAMPLE]) for p in self.prns),
+                     default=float(start_sample))
+        self.grid_next = origin + self.step
+        # the filter state starts at the grid origin
+        tau0 = (origin - self.s_ref) / self.fs
+        r, v, b, d, dl = nav0
+        x, P = filt.initial(np.asarray(r) + np.asarray(v) * tau0, v, b + (d + dl) * tau0, d, dl, sig)
+        self.x, self.P = np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(P, dtype=float)
+        self.tau_state = tau0
+
+    # ================================================================== helpers
+    def _gps_time(self, tau):
+        r, v, b, d, dl = self.filt.nav_state(self.x)
+        return self.t_ref + tau - b / C_LIGHT
+
+    def _refresh_ephemerides(self, t_gps):
+        nav = self.nav
+        if nav.assisted:
+            for prn, lst in nav.rinex_ephs.items():
+                e = select(lst, t_gps)
+                if e is not None:
+                    self.ephs[prn] = e
+        for prn, ch in nav.channels.items():
+            if ch.decoder.ephemeris is not None and not nav.assisted:
+                self.ephs[prn] = ch.decoder.ephemeris
+        w = nav._week()
+        if w is not None:
+            self.week = int(w)
+
+    def _eligible(self, prn, ch) -> bool:
+        if ch.lost or prn not in self.ephs:
+            return False
+        locked = ch.st[K.S_LOCK] > 0 and ch.st[K.S_MODE] in (K.MODE_TRACK, K.MODE_BIT_SYNC)
+        return bool(locked)
+
+    def _predict_prn(self, prn, tau):
+        """(pseudorange m, pseudorange rate m/s, LOS unit vector, elevation rad) of a satellite at tau."""
+        r, v, b, d, dl = self.filt.nav_state(self.x)
+        dt = tau - self.tau_state
+        pos = r + v * dt
+        poly, atm, el = satellite_polys([self.ephs[prn]], self.t_ref, tau, 0.05, b + (d + dl) * dt,
+                                        d + dl, pos, self.nav._iono(), self.cfg.navigation)
+        sp, sv = poly[0, 0], poly[0, 1]
+        los = sp[:3] - pos
+        rng = float(np.linalg.norm(los))
+        e = los / rng
+        rho = rng + atm[0] + b + (d + dl) * dt - sp[3]
+        rate = float(e @ (sv[:3] - v)) + d - sv[3]
+        return rho, rate, e, float(el[0])
+
+    def _tx_offset(self, prn, ch):
+        """A_j: relative transmit time of the channel's code period 0 (an integer ms of GPS time)."""
+        s = float(ch.st[K.S_NEXT_SAMPLE])
+        tau = (s - self.s_ref) / self.fs
+        rho, _, _, _ = self._predict_prn(prn, tau)
+        tx_abs = self.t_ref + tau - rho / C_LIGHT
+        t0 = tx_abs - ch.st[K.S_CODE_PERIOD] * 1e-3 - ch.st[K.S_CODE_PHASE] / CA_CHIP_RATE
+        A = round(t0 * 1000.0) / 1000.0 - self.t_ref
+        cn = self.nav.channels.get(prn)
+        if cn is not None and cn.has_time:
+            A_dec = cn.tx_offset - self.t_ref
+            if abs(A_dec - A) > 1e-6:
+                self.log(f"vector: G{prn:02d} decoded transmit time disagrees with the prediction by "
+                         f"{(A_dec - A) * 1e3:.3f} ms; using the prediction")
+        return A
+
+    def _promote(self, prn, ch):
+        """Hand a channel's NCOs to the vector loop."""
+        ch.set_external(True, True)
+        ch.cfg[K.C_LOST_MS] = NEVER_LOST_MS
+        ch.cfg[K.C_CN0_EST] = 1.0                       # M2M4: phase-lock independent
+        ch.cfg[K.C_MAX_INT_MS] = self.T_ms
+        if ch.st[K.S_INT_MS] > self.T_ms:
+            ch.st[K.S_INT_MS] = 1
+        self.info[prn] = {"A": self._tx_offset(prn, ch), "Rc": self.filt.r_code, "Rf": self.filt.r_carr,
+                          "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2)}
+        self.prns.append(prn)
+        self.pending_since.pop(prn, None)
+        self._arrays_dirty = True
+
+    def _open_predicted(self, prn, s):
+        s = float(math.floor(s))
+        tau = (s - self.s_ref) / self.fs
+        rho, rate, _, _ = self._predict_prn(prn, tau)
+        tx_abs = self.t_ref + tau - rho / C_LIGHT
+        code_phase = ((tx_abs * 1000.0) % 1.0) * CA_CODE_LEN
+        doppler = -rate / LAMBDA
+        ch = Channel(prn, doppler, code_phase, int(s), self.cfg.tracking, self.fs, self.if_hz,
+                     channel_id=len(self.channels))
+        ch.st[K.S_MODE] = K.MODE_TRACK
+        self.channels[prn] = ch
+        self._promote(prn, ch)
+        self.log(f"vector: opened predicted channel G{prn:02d} (Doppler {doppler:.0f} Hz)")
+
+    # ================================================================== arrays
+    def _build_arrays(self):
+        self._save_arrays()
+        prns = self.prns
+        m = len(prns)
+        chans = [self.channels[p] for p in prns]
+        self.ST = np.zeros((m, K.N_STATE))
+        self.CF = np.zeros((m, K.N_CONFIG))
+        L_code = chans[0].code_ext.shape[0] if m else 1
+        self.CODE = np.zeros((m, L_code), np.float32)
+        self.HIST = np.zeros((m, 20), np.int64)
+        for i, ch in enumerate(chans):
+            self.ST[i] = ch.st
+            self.CF[i] = ch.cfg
+            self.CODE[i] = ch.code_ext
+            self.HIST[i, :len(ch.hist)] = ch.hist
+            ch.st = self.ST[i]                 # the channel now lives in the shared arrays
+            ch.cfg = self.CF[i]
+            ch.hist = self.HIST[i]
+        N = self.filt.window
+        self.CA = np.array([self.info[p]["A"] for p in prns], float)
+        self.RC = np.array([self.info[p]["Rc"] for p in prns], float)
+        self.RF = np.array([self.info[p]["Rf"] for p in prns], float)
+        self.W = np.zeros((m, 2, N))
+        self.WI = np.zeros(m, np.int64)
+        self.WN = np.zeros(m, np.int64)
+        self.WS = np.zeros((m, 2))
+        for i, p in enumerate(prns):
+            d = self.info[p]
+            self.W[i], self.WI[i], self.WN[i], self.WS[i] = d["W"], d["WI"], d["WN"], d["WS"]
+        self.ACTIVE = np.ones(m, np.int64)
+        self._arr_prns = list(prns)
+        self._arrays_dirty = False
+
+    def _save_arrays(self):
+        """Keep the adaptive-R state of the channels of the current arrays (before a rebuild)."""
+        for i, p in enumerate(getattr(self, "_arr_prns", [])):
+            d = self.info.get(p)
+            if d is None:
+                continue
+            d["Rc"], d["Rf"] = float(self.RC[i]), float(self.RF[i])
+            d["W"], d["WI"], d["WN"], d["WS"] = self.W[i].copy(), int(self.WI[i]), int(self.WN[i]), \
+                self.WS[i].copy()
+
+    def _remove(self, prn, mark_lost):
+        if prn in self.prns:
+            ch = self.channels.get(prn)
+            if ch is not None:
+                ch.st = ch.st.copy()
+                ch.cfg = ch.cfg.copy()
+                ch.hist = ch.hist.copy()
+                if mark_lost:
+                    ch.st[K.S_MODE] = K.MODE_LOST
+            self.prns.remove(prn)
+            self.info.pop(prn, None)
+            self._arrays_dirty = True
+
+    # ================================================================== per chunk
+    def process(self, block, start):
+        fs = self.fs
+        recs = {}
+        tau_now = (self.grid_next - self.s_ref) / fs
+        self._refresh_ephemerides(self._gps_time(tau_now))
+        # channels the pipeline dropped
+        for prn in [p for p in self.prns if p not in self.channels]:
+            self._remove(prn, False)
+        # scalar (pending) channels: track scalar, promote when locked
+        for prn, ch in list(self.channels.items()):
+            if prn in self.prns:
+                continue
+            recs[prn] = ch.process(block, start)
+            if ch.lost:
+                continue
+            locked = ch.st[K.S_LOCK] > 0
+            if locked:
+                t0 = self.pending_since.setdefault(prn, start / fs)
+                if start / fs - t0 >= PROMOTE_LOCKED_S and self._eligible(prn, ch):
+                    self._promote(prn, ch)
+                    self.log(f"vector: G{prn:02d} joined the vector loop")
+            else:
+                self.pending_since.pop(prn, None)
+        # geometry of all satellites with ephemeris (elevations), predicted channels, setting satellites
+        r, v, b, d, dl = self.filt.nav_state(self.x)
+        if self.v.add_predicted and len(self.channels) < self.cfg.tracking.max_channels:
+            cand = [p for p in sorted(self.ephs) if p not in self.channels]
+            if cand:
+                _, _, el = satellite_polys([self.ephs[p] for p in cand], self.t_ref, tau_now, 0.1, b,
+                                           d + dl, r, self.nav._iono(), self.cfg.navigation)
+                order = np.argsort(-el)
+                for i in order:
+                    if len(self.channels) >= self.cfg.tracking.max_channels:
+                        break
+                    if np.degrees(el[i]) >= self.cfg.navigation.elevation_mask_deg:
+                        self._open_predicted(cand[i], max(self.grid_next - self.step, float(start)))
+        if self._arrays_dirty:
+            self._build_arrays()
+        m = len(self.prns)
+        # satellite polynomials over this block
+        blk_end = start + len(block)
+        tau_a = (self.grid_next - self.step - self.s_ref) / fs
+        span = max((blk_end - (self.grid_next - self.step)) / fs, 0.05)
+        ephs = [self.ephs[p] for p in self.prns]
+        POLY, ATM, EL = satellite_polys(ephs, self.t_ref, tau_a, span / 2.0, b, d + dl, r,
+                                        self.nav._iono(), self.cfg.navigation)
+        TAU_A = np.full(m, tau_a)
+        cap = int(len(block) / fs * 1000.0) + 8
+        REC = np.zeros((m, cap, K.N_OUT))
+        NREC = np.zeros(m, np.int64)
+        max_ep = int(len(block) / self.step) + 2
+        n = self.filt.n
+        LOG = np.zeros((max_ep, L.N_LOG))
+        LX = np.zeros((max_ep, n))
+        LPD = np.zeros((max_ep, n))
+        LR = np.zeros((max_ep, m, 2))
+        prm = np.zeros(L.N_PRM)
+        prm[L.P_FS] = fs
+        prm[L.P_IF] = self.if_hz
+        prm[L.P_GRID] = self.step
+        prm[L.P_SREF] = self.s_ref
+        prm[L.P_MARGIN] = (self.T_ms + 1.0) * 1e-3 * fs
+        prm[L.P_CHI2] = self.filt.chi2_threshold
+        prm[L.P_CN0_MASK] = -1e9 if self.v.cn0_mask_dbhz is None else float(self.v.cn0_mask_dbhz)
+        prm[L.P_LOCK_CN0] = float(self.v.lock_cn0_dbhz)
+        prm[L.P_FORM] = self.filt.adaptive_form
+        prm[L.P_FLOOR_C] = self.filt.floor_code
+        prm[L.P_FLOOR_F] = self.filt.floor_carr
+        prm[L.P_MIN_FILL] = min(self.filt.window, 100)
+        prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
+        if m:
+            nep, self.grid_next = L.run_chunk(
+                block, start, prm, self.grid_next, max_ep, self.ST, self.CF, self.CODE, self.HIST, REC,
+                NREC, self.CA, POLY, TAU_A, ATM, self.ACTIVE, self.x, self.P, self.F, self.Q, self.QB,
+                self.lay, self.RC, self.RF, self.W, self.WI, self.WN, self.WS, LOG, LX, LPD, LR)
+        else:                                   # nothing to track: coast the filter over the block
+            nep = 0
+            while self.grid_next + prm[L.P_MARGIN] <= blk_end and nep < max_ep:
+                from .kalman import kf_predict
+                kf_predict(self.x, self.P, self.F, self.Q)
+                LOG[nep, L.L_TAU] = (self.grid_next - self.s_ref) / fs
+                LX[nep] = self.x
+                LPD[nep] = np.diag(self.P)
+                self.grid_next += self.step
+                nep += 1
+        if nep:
+            self.tau_state = float(LOG[nep - 1, L.L_TAU])
+        self.stats["epochs"] += nep
+        self.stats["fired"] += int(LOG[:nep, L.L_FIRED].sum())
+        lock_min = float(self.v.lock_cn0_dbhz)
+        for i, prn in enumerate(self.prns):
+            rec = to_records(REC[i, :NREC[i]])
+            rec["pll_lock"] = (rec["cn0_dbhz"] >= lock_min).astype(np.uint8)
+            if prn in recs and len(recs[prn]):          # promoted in this chunk: scalar records first
+                rec = np.concatenate([recs[prn], rec])
+            recs[prn] = rec
+        fixes = self._fixes(LOG[:nep], LX[:nep], LPD[:nep])
+        self.last_log = (LOG[:nep], LX[:nep], LPD[:nep], LR[:nep], list(self.prns))
+        # satellites that set: close their channels (the pipeline drops lost channels)
+        for i, prn in enumerate(list(self.prns)):
+            if np.degrees(EL[i]) < self.v.drop_elevation_deg:
+                self.log(f"vector: G{prn:02d} set below {self.v.drop_elevation_deg:g} deg, channel closed")
+                self._remove(prn, True)
+        return recs, fixes
+
+    # ================================================================== fixes
+    def _fixes(self, LOG, LX, LPD):
+        if not len(LOG) or self.week is None:
+            return np.zeros(0, FIX_DTYPE)
+        rows = []
+        step = 1.0 / self.rate
+        for k in range(len(LOG)):
+            tau = float(LOG[k, L.L_TAU])
+            r, v, b, d, dl = self.filt.nav_state(LX[k])
+            t_gps = self.t_ref + tau - b / C_LIGHT
+            if self.next_fix is None:
+                self.next_fix = math.ceil(t_gps * self.rate - 1e-9) / self.rate
+            while self.next_fix <= t_gps + 1e-12:
+                back = t_gps - self.next_fix                # s of GPS time before epoch k
+                tau_f = tau - back * (1.0 + (d + dl) / C_LIGHT)
+                rf = r - v * back
+                bf = b - (d + dl) * back
+                rows.append(self._fix_row(tau_f, rf, v, bf, d, int(LOG[k, L.L_NLOCK]), self.next_fix))
+                self.next_fix = round((self.next_fix + step) * self.rate) / self.rate
+        out = np.zeros(len(rows), FIX_DTYPE)
+        for i, row in enumerate(rows):
+            out[i] = row
+        return out
+
+    def _fix_row(self, tau, r, v, b, d, nsat, tow):
+        week = self.week
+        if tow >= 604800.0:
+            tow, week = tow - 604800.0, week + 1
+        lat, lon, h = ecef2lla(r)
+        dops = self._dops(tau, r)
+        t_s = (self.s_ref + tau * self.fs) / self.fs
+        return (week, tow, t_s, r, v, b, d, nsat, *dops, 1, float(lat), float(lon), float(h))
+
+    def _dops(self, tau, r):
+        """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4)."""
+        lock_min = float(self.v.lock_cn0_dbhz)
+        los = [p for p in self.prns if p in self.channels and p in self.ephs
+               and self.channels[p].st[K.S_CN0] >= lock_min]
+        if len(los) < 4:
+            return (np.nan,) * 4
+        E = self._los_cache(los, tau, r)
+        H = np.hstack([-E, np.ones((len(E), 1))])
+        try:
+            Qm = np.linalg.inv(H.T @ H)
+        except np.linalg.LinAlgError:
+            return (np.nan,) * 4
+        lat, lon, _ = ecef2lla(r)
+        R = enu_matrix(lat, lon)
+        qe = R @ Qm[:3, :3] @ R.T
+        return (float(np.sqrt(np.trace(qe))), float(np.sqrt(qe[0, 0] + qe[1, 1])),
+                float(np.sqrt(qe[2, 2])), float(np.sqrt(np.trace(Qm))))
+
+    def _los_cache(self, prns, tau, r):
+        key = (tuple(prns), round(tau, 0))
+        c = getattr(self, "_los_key", None)
+        if c == key:
+            return self._los_val
+        from .geometry import transmit_state
+        pos, _, _ = transmit_state([self.ephs[p] for p in prns],
+                                   np.full(len(prns), self.t_ref + tau), r)
+        los = pos - r
+        E = los / np.linalg.norm(los, axis=1)[:, None]
+        self._los_key, self._los_val = key, E
+        return E
