@@ -24,7 +24,7 @@ bench: venv
 	$(PY) scripts/bench_simulate.py
 
 figures: figures-leo figures-vector figures-carrier
-	$(PY) scripts/figures_index.py --figures figures
+	$(PY) scripts/figures_index.py figures
 
 figures-leo: venv
 	$(PY) scripts/figures_leo.py --out figures/leo
@@ -37,6 +37,7 @@ figures-carrier: venv
 
 batch-full: venv
 	$(VENV)/bin/gnssrx batch configs/batch/full.yaml
+	$(VENV)/bin/gnssrx compare out/batch/full/summary.h5 --by variant
 
 clean:
 	rm -rf out figures .pytest_cache
