@@ -18,18 +18,13 @@ import os
 import numpy as np
 
 from .errors import UserError
+from .output import open_h5
 from .geodesy import ecef2lla, enu_matrix
 from .nav.ephemeris import WEEK_S
 
 
 def _open(path, what):
-    import h5py
-    if not os.path.isfile(path):
-        raise UserError(f"{what} not found: {path}")
-    try:
-        return h5py.File(path, "r")
-    except OSError:
-        raise UserError(f"{what} {path} is not an HDF5 file") from None
+    return open_h5(path, what)
 
 
 def _rms(x):

@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from ..errors import UserError
+from ..output import open_h5
 from .metrics import METRIC_KEYS
 
 ID_COLUMNS = ("run_id", "variant", "variant_name", "input", "kind", "seed")
@@ -189,14 +190,8 @@ def write_summary(plan, rows: list):
 # ------------------------------------------------------------------------------------------ reading
 def read_summary(path) -> tuple[list, dict]:
     """(rows, attrs) of a summary.h5 (rows: dicts of the /runs columns plus 'config_yaml')."""
-    import h5py
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise UserError(f"summary file not found: {path}")
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise UserError(f"{path} is not an HDF5 file") from None
+    f = open_h5(path, "summary file")
     with f:
         if "runs" not in f:
             raise UserError(f"{path} is not a gnssrx batch summary (no /runs group)")

@@ -22,7 +22,7 @@ import yaml
 
 from ..errors import UserError
 from ..nav.ephemeris import Ephemeris, IonoUtc
-from ..output import FIX_DTYPE, OBS_DTYPE
+from ..output import FIX_DTYPE, OBS_DTYPE, open_h5
 from ..signals import C_LIGHT
 
 GPS_EPOCH = _dt.datetime(1980, 1, 6)
@@ -291,14 +291,8 @@ def _ephemerides(group) -> list:
 
 def load_run(path) -> RunData:
     """Read a run file.  Raises UserError when it is missing or not a gnssrx run file."""
-    import h5py
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise UserError(f"run file not found: {path}")
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise UserError(f"{path} is not an HDF5 file") from None
+    f = open_h5(path, "run file")
     with f:
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
         if "config" not in attrs and "navigation" not in f and "channels" not in f:

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import UserError
+from ..output import open_h5
 from ..geodesy import lla2ecef
 from ..signals import C_LIGHT
 from .constellation import Constellation, to_datetime64
@@ -232,14 +233,8 @@ def save_measurements(path, data: DopplerData):
 
 
 def load_measurements(path) -> DopplerData:
-    import h5py
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise UserError(f"measurement file not found: {path}")
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise UserError(f"{path} is not an HDF5 file") from None
+    f = open_h5(path, "measurement file")
     with f:
         need = ("time_utc", "t_s", "sat_names", "sat_pos_m", "sat_vel_mps", "doppler_hz")
         missing = [k for k in need if k not in f]
