@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import __version__
 from .acquisition import reject_cross_correlations, search
 from .errors import UserError
 from .io import SampleReader
@@ -118,7 +117,6 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
     make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
     reader = open_input(cfg)
     out_path = default_output_path(cfg, cfg.input.path)
-    nav = None
     ephemerides, iono = None, None
     if cfg.navigation.enabled and cfg.navigation.ephemeris:
         from .nav.rinex import read_rinex_nav
@@ -234,9 +232,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     s.first_fix_s = first_fix
     if nav is not None:
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
-        writer.write_ephemerides(nav._ephemerides(0.0) if not nav.assisted else
-                                 {p: ch.decoder.ephemeris for p, ch in nav.channels.items()
-                                  if ch.decoder.ephemeris is not None})
+        writer.write_ephemerides({p: ch.decoder.ephemeris for p, ch in nav.channels.items()
+                                  if ch.decoder.ephemeris is not None})     # the decoded ones
     if fix_ecef:
         from .geodesy import ecef2enu, ecef2lla
         e = np.concatenate(fix_ecef)

@@ -245,7 +245,6 @@ class NavigationEngine:
         self.rinex_ephs = ephemerides or {}
         self.iono_utc = iono_utc
         self.week_hint = week_hint
-        self.week = week_hint
         self.rate = nav_cfg.rate_hz
         self.next_s = float(first_sample + int(round(fs / self.rate)))
         self.tow0 = None            # rx_tow at sample s0
@@ -253,11 +252,9 @@ class NavigationEngine:
         self.last_fix = None        # (sample, Fix)
         self.epoch = 0
         self.x0 = None
-        self.n_attempts = 0
         # assisted mode: approximate GPS TOW of file sample 0 (input.start_gps_tow_s) lets transmit times
         # be resolved from bit synchronisation alone, before any subframe has been decoded
         self.approx_tow0 = approx_tow0
-        self.time_mismatches = 0
 
     def channel(self, prn: int) -> ChannelNav:
         if prn not in self.channels:
