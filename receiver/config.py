@@ -371,8 +371,18 @@ RECEIVER_SCHEMA = {
         "r_code_m2": P(1500.0, "float", "code discriminator variance R (m^2; fixed_r, cv, initial value of "
                                         "the adaptive variants)", lo=1e-6),
         "r_carrier_m2s2": P(900.0, "float", "frequency discriminator variance R ((m/s)^2)", lo=1e-6),
-        "q_accel": P(10.0, "float", "fixed_r/adaptive_r: PSD of the white receiver acceleration per axis "
-                                    "(m^2/s^3)", lo=0.0),
+        "motion_model": P("cv", "str", "fixed_r/adaptive_r kinematic model: cv = constant velocity (the "
+                                       "papers' 8 states), ca = constant acceleration (3 more states)",
+                          choices=("cv", "ca")),
+        "q_accel": P(10.0, "float", "fixed_r/adaptive_r, motion_model cv: PSD of the white receiver "
+                                    "acceleration per axis (m^2/s^3)", lo=0.0),
+        "q_jerk": P(1.0, "float", "fixed_r/adaptive_r, motion_model ca: PSD of the white receiver jerk per "
+                                  "axis (m^2/s^5)", lo=0.0),
+        "q_vertical_scale": P(1.0, "float", "fixed_r/adaptive_r: factor on the kinematic PSD along the local "
+                                            "vertical (at handover); 1 = isotropic, a land vehicle ~0.001",
+                              lo=0.0),
+        "init_sigma_acc_mps2": P(2.0, "float", "motion_model ca: initial acceleration standard deviation "
+                                               "(m/s^2; the acceleration starts at zero)", lo=0.0),
         "clock_class": P("tcxo", "str", "oscillator class of the clock process noise (h0, h_-2)",
                          choices=("tcxo", "ocxo", "rubidium")),
         "code_carrier_drift": P(True, "bool", "estimate a code-minus-carrier clock drift state (front ends "

@@ -71,8 +71,13 @@ LOS = np.array([[0.3, 0.4, 0.866], [-0.5, 0.2, 0.84], [0.7, -0.6, 0.39], [-0.2, 
 LOS = LOS / np.linalg.norm(LOS, axis=1)[:, None]
 
 
-def run_synthetic(filt, traj, n_epochs, sig_c, sig_f, R0=(None, None), seed=0, blocked=(), gate=0.0):
-    """Drive a filter with linear synthetic code/carrier measurements; returns per-epoch logs."""
+def run_synthetic(filt, traj, n_epochs, sig_c, sig_f, R0=(None, None), seed=0, blocked=(), gate=0.0,
+                  only=None):
+    """Drive a filter with linear synthetic code/carrier measurements; returns per-epoch logs.
+
+    blocked: channels whose discriminators output noise; only = (t0, channels): from t0 on only these
+    channels have a measurement (the others are out of the update).
+    """
     T = filt.T
     rng = np.random.default_rng(seed)
     F, Q, QB = filt.matrices()
@@ -93,6 +98,9 @@ def run_synthetic(filt, traj, n_epochs, sig_c, sig_f, R0=(None, None), seed=0, b
         rh, vh, bh, dh, _ = filt.nav_state(x)
         zc = -LOS @ (r - rh) - bh + sig_c * rng.standard_normal(m)        # true b = d = 0
         zf = -LOS @ (v - vh) - dh + sig_f * rng.standard_normal(m)
+        if only is not None and k * T >= only[0]:
+            valid[:] = False
+            valid[list(only[1])] = True
         for j in blocked:                         # no signal: the discriminators output noise
             zc[j] = rng.uniform(-220.0, 220.0)
             zf[j] = rng.uniform(-190.0, 190.0)
@@ -165,6 +173,8 @@ def test_registry_and_state_sizes():
     assert set(REGISTRY) == {"fixed_r", "adaptive_r", "polynomial", "cv"}
     assert make_filter("fixed_r", vcfg()).n == 9
     assert make_filter("fixed_r", vcfg(code_carrier_drift=False)).n == 8
+    assert make_filter("adaptive_r", vcfg(motion_model="ca")).n == 12
+    assert make_filter("cv", vcfg(motion_model="ca")).n == 9            # cv is the constant-velocity baseline
     assert make_filter("polynomial", vcfg(code_carrier_drift=False)).n == 18
     cv = make_filter("cv", vcfg(cv={"q_velocity": 0.1}))
     _, Q, _ = cv.matrices()
@@ -212,3 +222,89 @@ def test_innovation_gate_rejects_blocked_channel_noise():
     e_clean = clean["vel_err"][500:].mean()
     assert e_gated < 0.7 * e_free
     assert e_gated < 2.0 * e_clean
+
+
+# ------------------------------------------------------------------------------------------- kinematic models
+def _van_loan(A, G, T):
+    """Exact discretisation (Phi, Qd) of dx = A x dt + dw, E[dw dw^T] = G dt (Van Loan)."""
+    from scipy.linalg import expm
+    n = A.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n], M[:n, n:], M[n:, n:] = -A, G, A.T
+    E = expm(M * T)
+    Phi = E[n:, n:].T
+    return Phi, Phi @ E[:n, n:]
+
+
+@pytest.mark.parametrize("model", ["cv", "ca"])
+def test_kinematic_transition_and_q_equal_the_continuous_model(model):
+    T = 0.05                                            # long epoch: the T^5 terms are not negligible
+    f = make_filter("fixed_r", vcfg(motion_model=model, q_accel=7.0, q_jerk=0.3, clock_class="tcxo"))
+    f.T = T
+    F, Q, _ = f.matrices()
+    k = f.nk
+    A = np.zeros((f.n, f.n))
+    G = np.zeros((f.n, f.n))
+    A[0:3, 3:6] = np.eye(3)
+    if model == "ca":
+        A[3:6, 6:9] = np.eye(3)
+        G[6:9, 6:9] = 0.3 * np.eye(3)
+    else:
+        G[3:6, 3:6] = 7.0 * np.eye(3)
+    A[k, k + 1] = 1.0                                   # db/dt = d + delta
+    A[k, k + 2] = 1.0
+    from receiver.tracking.vector.base import clock_psd
+    sb, sd = clock_psd("tcxo")
+    G[k, k], G[k + 1, k + 1] = sb, sd
+    G[k + 2, k + 2] = f.vcfg.q_code_carrier_drift
+    Phi, Qd = _van_loan(A, G, T)
+    assert np.allclose(F, Phi, atol=1e-12)
+    # the clock block keeps the two-state model (the delta random walk is not integrated into b)
+    Qd[k, k + 2] = Qd[k + 2, k] = 0.0
+    Qd[k, k] -= f.vcfg.q_code_carrier_drift * T ** 3 / 3.0
+    assert np.allclose(Q, Qd, rtol=1e-9, atol=1e-15)
+    # a constant acceleration is propagated exactly by the ca model
+    if model == "ca":
+        x = np.zeros(f.n)
+        x[0:3], x[3:6], x[6:9] = [1.0, 2.0, 3.0], [10.0, -5.0, 0.0], [2.0, 1.0, -0.5]
+        for _ in range(40):
+            x = F @ x
+        t = 40 * T
+        assert np.allclose(x[0:3], np.array([1.0, 2.0, 3.0]) + np.array([10.0, -5.0, 0.0]) * t
+                           + 0.5 * np.array([2.0, 1.0, -0.5]) * t * t, atol=1e-9)
+        assert np.allclose(x[3:6], np.array([10.0, -5.0, 0.0]) + np.array([2.0, 1.0, -0.5]) * t, atol=1e-12)
+
+
+def test_vertical_scale_shapes_q_in_the_local_level():
+    from receiver.geodesy import enu_matrix, lla2ecef
+    f = make_filter("adaptive_r", vcfg(q_accel=10.0, q_vertical_scale=0.001))
+    r0 = np.asarray(lla2ecef(35.68, 139.77, 40.0), float)
+    f.initial(r0, np.zeros(3), 0.0, 0.0, 0.0, {"pos": 1, "vel": 1, "b": 1, "d": 1, "delta": 1})
+    _, Q, _ = f.matrices()
+    E = enu_matrix(35.68, 139.77)
+    qv = E @ Q[3:6, 3:6] @ E.T / f.T                    # velocity block in ENU, per second
+    assert np.allclose(qv, np.diag([10.0, 10.0, 0.01]), atol=1e-9)
+    iso = make_filter("adaptive_r", vcfg(q_accel=10.0))
+    iso.initial(r0, np.zeros(3), 0.0, 0.0, 0.0, {"pos": 1, "vel": 1, "b": 1, "d": 1, "delta": 1})
+    assert np.allclose(iso.matrices()[1][3:6, 3:6], 10.0 * iso.T * np.eye(3))
+
+
+@pytest.mark.parametrize("pair", [(0, 1), (2, 3), (0, 6)])
+def test_constant_acceleration_model_carries_a_turn_through_two_satellites(pair):
+    """50 m/s on a 600 m circle (4.2 m/s^2): 6 s with 8 satellites, then 2 s with two.  The cv model's
+    velocity error grows with the unobserved centripetal acceleration; the ca model predicts it."""
+    rad, spd = 600.0, 50.0
+    w = spd / rad
+
+    def turn(t):
+        return (np.array([rad * np.sin(w * t), rad * (1 - np.cos(w * t)), 0.0]),
+                np.array([spd * np.cos(w * t), spd * np.sin(w * t), 0.0]))
+
+    err = {}
+    for model in ("cv", "ca"):
+        cfg = vcfg(motion_model=model, q_accel=10.0, q_jerk=1.0, r_code_m2=25.0, r_carrier_m2s2=0.25)
+        res = run_synthetic(make_filter("fixed_r", cfg), turn, 8000, 5.0, 0.5, seed=2, only=(6.0, pair))
+        err[model] = res["vel_err"][6000:].max()
+        assert res["vel_err"][5000:6000].max() < 0.6         # all satellites: both models track the turn
+    assert err["cv"] > 3.0
+    assert err["ca"] < 1.5 and err["ca"] < 0.35 * err["cv"]

@@ -24,4 +24,4 @@ class AdaptiveR(FixedR):
 
     def describe(self):
         return (f"adaptive_r VLL: {self.vcfg.adaptive_r.form} form, window {self.window}, "
-                f"q_accel {self.vcfg.q_accel:g} m^2/s^3, clock {self.vcfg.clock_class}")
+                f"{self.q_text()}, clock {self.vcfg.clock_class}")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...geodesy import ecef2lla, enu_matrix
 from ...signals import C_LIGHT
 from .kalman import FORM_NONE
 
@@ -48,6 +49,7 @@ class VectorFilter:
         self.floor_code = float(vcfg.adaptive_r.floor_code_m2)
         self.floor_carr = float(vcfg.adaptive_r.floor_carrier_m2s2)
         self.chi2_threshold = 0.0
+        self._r0 = None                     # set by initial(): position at handover
 
     # --------------------------------------------------------------------- to implement
     @property
@@ -78,55 +80,106 @@ class VectorFilter:
 
 
 class KinematicFilter(VectorFilter):
-    """[r, v, b, d (, delta)] error-state EKF with a constant-velocity transition (fixed_r, adaptive_r, cv).
+    """[r, v, (a,) b, d (, delta)] error-state EKF with a kinematic transition (fixed_r, adaptive_r, cv).
 
     Error-state / total-state: the loop feeds the NCOs from the prediction, so the innovations are the
     papers' E_code = t_b + (X - X_hat)^T a_j and E_carr = dt_d + (V - V_hat)^T a_j; the filter keeps the
     total state (the error state is reset into it after every update), which is the same filter.
+
+    ``vector.motion_model``: ``cv`` is the papers' constant-velocity model (8 states; white acceleration
+    of PSD ``vector.q_accel``); ``ca`` adds an acceleration state per axis (11 states; white jerk of PSD
+    ``vector.q_jerk``), which carries a turning vehicle through periods where fewer satellites than
+    velocity unknowns carry a signal.  ``vector.q_vertical_scale`` scales the PSD on the local vertical
+    (1 = isotropic; a land vehicle's vertical dynamics are far smaller than its horizontal ones).
     """
+    motion = None           # class override (cv: always constant velocity)
+
+    @property
+    def model(self) -> str:
+        return self.motion or str(self.vcfg.motion_model)
+
+    @property
+    def nk(self) -> int:
+        """number of kinematic states (6 or 9)."""
+        return 9 if self.model == "ca" else 6
 
     @property
     def n(self) -> int:
-        return 9 if self.has_delta else 8
+        return self.nk + (3 if self.has_delta else 2)
 
     def layout(self):
-        return np.array([0, 3, 6, 7, 8 if self.has_delta else -1], np.int64)
+        k = self.nk
+        return np.array([0, 3, k, k + 1, k + 2 if self.has_delta else -1], np.int64)
 
     def transition(self):
-        T, n = self.T, self.n
+        T, n, k = self.T, self.n, self.nk
         F = np.eye(n)
         F[0:3, 3:6] = T * np.eye(3)
-        F[6, 7] = T
+        if self.model == "ca":
+            F[0:3, 6:9] = 0.5 * T * T * np.eye(3)
+            F[3:6, 6:9] = T * np.eye(3)
+        F[k, k + 1] = T
         if self.has_delta:
-            F[6, 8] = T
+            F[k, k + 2] = T
         return F
 
+    def kinematic_psd_ecef(self):
+        """3x3 PSD of the white acceleration (cv, m^2/s^3) or jerk (ca, m^2/s^5) in ECEF.
+
+        Isotropic, except that ``vector.q_vertical_scale`` multiplies it on the local vertical at the
+        handover position.
+        """
+        q = float(self.vcfg.q_jerk if self.model == "ca" else self.vcfg.q_accel)
+        scale = float(self.vcfg.q_vertical_scale)
+        if scale == 1.0 or self._r0 is None:
+            return q * np.eye(3)
+        lat, lon, _ = ecef2lla(np.asarray(self._r0, float))
+        E = enu_matrix(float(lat), float(lon))          # rows: E, N, U in ECEF
+        return E.T @ np.diag([q, q, q * scale]) @ E
+
+    def q_text(self) -> str:
+        if self.model == "ca":
+            txt = f"constant acceleration, q_jerk {self.vcfg.q_jerk:g} m^2/s^5"
+        else:
+            txt = f"q_accel {self.vcfg.q_accel:g} m^2/s^3"
+        sc = float(self.vcfg.q_vertical_scale)
+        return txt + ("" if sc == 1.0 else f" (x{sc:g} vertical)")
+
     def process_noise(self):
-        """Q from a white-acceleration model (q_accel) and the oscillator class (two-state clock)."""
-        T, n = self.T, self.n
-        qa = float(self.vcfg.q_accel)
+        """Q of the kinematic model (kinematic_psd_ecef) and of the oscillator class (two-state clock)."""
+        T, n, k = self.T, self.n, self.nk
+        S = self.kinematic_psd_ecef()
         sb, sd = clock_psd(self.vcfg.clock_class)
         Q = np.zeros((n, n))
-        for a in range(3):
-            Q[a, a] = qa * T ** 3 / 3.0
-            Q[a, 3 + a] = Q[3 + a, a] = qa * T ** 2 / 2.0
-            Q[3 + a, 3 + a] = qa * T
-        Q[6, 6] = sb * T + sd * T ** 3 / 3.0
-        Q[6, 7] = Q[7, 6] = sd * T ** 2 / 2.0
-        Q[7, 7] = sd * T
+        if self.model == "ca":          # white jerk: integrated three times
+            c = np.array([[T ** 5 / 20.0, T ** 4 / 8.0, T ** 3 / 6.0],
+                          [T ** 4 / 8.0, T ** 3 / 3.0, T ** 2 / 2.0],
+                          [T ** 3 / 6.0, T ** 2 / 2.0, T]])
+        else:                           # white acceleration: integrated twice
+            c = np.array([[T ** 3 / 3.0, T ** 2 / 2.0], [T ** 2 / 2.0, T]])
+        for i in range(c.shape[0]):
+            for j in range(c.shape[0]):
+                Q[3 * i:3 * i + 3, 3 * j:3 * j + 3] = c[i, j] * S
+        Q[k, k] = sb * T + sd * T ** 3 / 3.0
+        Q[k, k + 1] = Q[k + 1, k] = sd * T ** 2 / 2.0
+        Q[k + 1, k + 1] = sd * T
         if self.has_delta:
-            Q[8, 8] = float(self.vcfg.q_code_carrier_drift) * T
+            Q[k + 2, k + 2] = float(self.vcfg.q_code_carrier_drift) * T
         return Q
 
     def matrices(self):
         return self.transition(), self.process_noise(), np.zeros((self.n, self.n))
 
     def initial(self, r, v, b, d, delta, sig):
-        n = self.n
+        self._r0 = np.array(r, float)       # the local level of the process noise (handover position)
+        n, k = self.n, self.nk
         x = np.zeros(n)
-        x[0:3], x[3:6], x[6], x[7] = r, v, b, d
-        sd = [sig["pos"]] * 3 + [sig["vel"]] * 3 + [sig["b"], sig["d"]]
+        x[0:3], x[3:6], x[k], x[k + 1] = r, v, b, d
+        sd = [sig["pos"]] * 3 + [sig["vel"]] * 3
+        if self.model == "ca":
+            sd += [float(self.vcfg.init_sigma_acc_mps2)] * 3      # acceleration starts at zero
+        sd += [sig["b"], sig["d"]]
         if self.has_delta:
-            x[8] = delta
+            x[k + 2] = delta
             sd.append(sig["delta"])
         return x, np.diag(np.square(sd))

@@ -16,6 +16,7 @@ from .base import KinematicFilter
 
 class CV(KinematicFilter):
     name = "cv"
+    motion = "cv"
 
     def process_noise(self):
         c = self.vcfg.cv

@@ -16,4 +16,4 @@ class FixedR(KinematicFilter):
 
     def describe(self):
         return (f"fixed_r VLL: R code {self.r_code:g} m^2, carrier {self.r_carr:g} (m/s)^2, "
-                f"q_accel {self.vcfg.q_accel:g} m^2/s^3, clock {self.vcfg.clock_class}")
+                f"{self.q_text()}, clock {self.vcfg.clock_class}")
