@@ -10,8 +10,9 @@ Experiments (IF files, truth and run files go to --data, default out/vector):
   horizontal figure-eight at 50 m/s; ten satellites for 50 s, then intermittent blockage with fewer than
   four satellites from 58 s on.  Receiver configs/vector_fig8.yaml: scalar tracking (T = 1 ms, PLL 25 Hz,
   DLL 2 Hz) for 45 s, then the vector loop.  Runs: scalar only, fixed_r VLL, adaptive_r VLL (the paper's
-  settings: every channel updates, R 1500 m^2 / 900 (m/s)^2, N = 500) and adaptive_r with a 32 dB-Hz
-  C/N0 mask and a 3-sigma innovation gate (beyond the paper).
+  settings: every channel updates, R 1500 m^2 / 900 (m/s)^2, N = 500), adaptive_r with a 32 dB-Hz
+  C/N0 mask and a 3-sigma innovation gate, and fixed_r / adaptive_r with an acceleration state
+  (vector.motion_model: ca) plus mask and gate (the last three beyond the paper).
     fig8_carrier_error.png    carrier-frequency tracking error (NCO - true Doppler) vs time and histograms,
                               for an always-visible and an intermittently blocked satellite
     fig8_position_error.png   3D position error vs time (grey: fewer than 4 satellites) and histogram
@@ -57,6 +58,11 @@ FIG8 = {
         "adaptive_r": [("vector.variant", "adaptive_r")],
         "adaptive_r_robust": [("vector.variant", "adaptive_r"), ("vector.cn0_mask_dbhz", 32.0),
                               ("vector.innovation_gate_sigma", 3.0)],
+        "adaptive_r_ca_only": [("vector.variant", "adaptive_r"), ("vector.motion_model", "ca")],
+        "fixed_r_ca": [("vector.variant", "fixed_r"), ("vector.motion_model", "ca"),
+                       ("vector.cn0_mask_dbhz", 32.0), ("vector.innovation_gate_sigma", 3.0)],
+        "adaptive_r_ca": [("vector.variant", "adaptive_r"), ("vector.motion_model", "ca"),
+                          ("vector.cn0_mask_dbhz", 32.0), ("vector.innovation_gate_sigma", 3.0)],
     },
 }
 ACCEL = {
@@ -70,9 +76,13 @@ ACCEL = {
     },
 }
 LABEL = {"scalar": "scalar (PLL 25 Hz / DLL 2 Hz)", "fixed_r": "VLL fixed R", "adaptive_r": "adaptive VLL",
-         "adaptive_r_robust": "adaptive VLL + C/N0 mask + 3-sigma gate", "poly_20": "polynomial, chi2 20",
+         "adaptive_r_robust": "adaptive VLL + C/N0 mask + 3-sigma gate",
+         "adaptive_r_ca_only": "adaptive VLL, acceleration state",
+         "fixed_r_ca": "VLL fixed R, acceleration state + mask + gate",
+         "adaptive_r_ca": "adaptive VLL, acceleration state + mask + gate", "poly_20": "polynomial, chi2 20",
          "poly_25": "polynomial, chi2 25", "poly_30": "polynomial, chi2 30"}
 COLOR = {"scalar": "tab:gray", "fixed_r": "tab:blue", "adaptive_r": "tab:red", "adaptive_r_robust": "tab:orange",
+         "fixed_r_ca": "tab:cyan", "adaptive_r_ca": "tab:green", "adaptive_r_ca_only": "tab:olive",
          "cv_10": "tab:blue", "cv_0.1": "tab:orange", "cv_0.001": "tab:green", "cv_1e-05": "tab:purple",
          "poly_20": "tab:cyan", "poly_25": "tab:red", "poly_30": "tab:green"}
 FREQ_LOCK_HZ = 100.0        # "in lock": |NCO - true Doppler| below this ...
@@ -108,8 +118,11 @@ def run_receiver(exp, run, overrides, bin_path, data, quick, reuse, log):
     stem = exp["name"] + ("_quick" if quick else "")
     out = os.path.join(data, f"{stem}_{run}.h5")
     if reuse and os.path.exists(out) and os.path.getmtime(out) >= os.path.getmtime(bin_path):
+        import h5py
+        with h5py.File(out, "r") as f:
+            wall = f.attrs.get("wall_time_s")          # the run's own timing (receiver pipeline only)
         log(f"  reusing {out}")
-        return out, None
+        return out, (float(wall) if wall is not None else None)
     cfg = load_receiver_config(os.path.join(ROOT, exp["config"]),
                                [("input.path", bin_path), ("output.path", out), *overrides])
     t0 = time.perf_counter()
@@ -117,6 +130,33 @@ def run_receiver(exp, run, overrides, bin_path, data, quick, reuse, log):
     wall = time.perf_counter() - t0
     log(f"  {run:<16} {summary.duration_s:6.1f} s of signal in {wall:6.1f} s")
     return out, wall
+
+
+def _run_one(a):
+    exp, run, ov, bin_path, data, quick, reuse = a
+    lines = []
+    out = run_receiver(exp, run, ov, bin_path, data, quick, reuse, lines.append)
+    return run, out, lines
+
+
+def run_all(exp, bin_path, args, log):
+    """Every receiver run of one experiment, ``--jobs`` at a time (each run is one process)."""
+    jobs = [(exp, run, ov, bin_path, args.data, args.quick, args.reuse_runs) for run, ov in exp["runs"].items()]
+    res = {}
+    if args.jobs <= 1:
+        for a in jobs:
+            run, out, lines = _run_one(a)
+            res[run] = out
+            for ln in lines:
+                log(ln)
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+            for run, out, lines in pool.map(_run_one, jobs):
+                res[run] = out
+                for ln in lines:
+                    log(ln)
+    return res
 
 
 # ----------------------------------------------------------------------------------------- analysis
@@ -207,7 +247,7 @@ def plot_fig8(res, tr, out, t_end):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    runs = [r for r in ("scalar", "fixed_r", "adaptive_r_robust", "adaptive_r") if r in res]
+    runs = [r for r in ("scalar", "fixed_r", "adaptive_r", "adaptive_r_ca") if r in res]
     files = []
     for key, unit, fname in (("pos_err", "m", "fig8_position_error.png"),
                              ("vel_err", "m/s", "fig8_velocity_error.png")):
@@ -490,6 +530,8 @@ def main(argv=None):
     ap.add_argument("--only", choices=("fig8", "accel", "tokyo"), help="run one experiment")
     ap.add_argument("--resimulate", action="store_true", help="simulate even if the IF files exist")
     ap.add_argument("--reuse-runs", action="store_true", help="reuse receiver run files newer than the IF file")
+    ap.add_argument("--jobs", "-j", type=int, default=min(2, os.cpu_count() or 1),
+                    help="receiver runs in parallel (default: 2; wall times per run grow when they share cores)")
     args = ap.parse_args(argv)
     os.chdir(ROOT)
     os.makedirs(args.out, exist_ok=True)
@@ -507,9 +549,7 @@ def main(argv=None):
         log(f"{exp['name']}:")
         bin_path, truth = simulate(exp, args.data, args.quick, args.resimulate, log)
         t_end = exp["quick_duration"] if args.quick else exp["duration"]
-        runs_h5 = {}
-        for run, ov in exp["runs"].items():
-            runs_h5[run] = run_receiver(exp, run, ov, bin_path, args.data, args.quick, args.reuse_runs, log)
+        runs_h5 = run_all(exp, bin_path, args, log)
         tr = load_truth(truth)
         carrier_prns = [24, 26] if exp is FIG8 else [12, 30]
         res = analyse(exp, runs_h5, tr, carrier_prns, t_end, 1)
@@ -530,22 +570,31 @@ def main(argv=None):
                                ("max freq err (Hz)", lambda r: f"{r['freq_err_max_hz']:.0f}"),
                                ("max code err (chips)", lambda r: f"{r['code_err_max_chips']:.2f}")])
             md += ["", "Notes.  The paper's settings (every channel updates, R = 1500 m^2 / 900 (m/s)^2, N = 500, "
-                   "paper form of the adaptive R) are used for fixed_r and adaptive_r; the last row additionally "
-                   "keeps channels under 32 dB-Hz (M2M4, 200 ms) out of the update and skips innovations beyond "
-                   "3 sigma (vector.cn0_mask_dbhz, vector.innovation_gate_sigma; not in the paper).  Both VLLs "
-                   "keep the paper's constant-velocity state (no acceleration), so while only "
-                   "two satellites carry a signal two velocity directions are unobserved and the velocity error "
-                   "grows with the car's centripetal acceleration (up to 4.2 m/s^2) - the largest velocity errors "
-                   "of the adaptive loops are in and just after the three 2-s periods with two satellites.  With "
-                   "three satellites the result depends on their geometry: an earlier version of this scenario "
-                   "that kept the three highest satellites (G11, G14, G24, all in the east, east velocity DOP 14 "
-                   "with a known clock) gave 36.6 m / 20.9 m/s maximum errors for the adaptive VLL (16.8 m / "
-                   "10.6 m/s with the C/N0 mask); the committed scenario rotates the remaining satellites "
-                   "(velocity DOP 1.1-3.6).", ""]
+                   "paper form of the adaptive R, constant-velocity state) are used for fixed_r and adaptive_r.  "
+                   "'+ C/N0 mask + 3-sigma gate' additionally keeps channels under 32 dB-Hz (M2M4, 200 ms) out "
+                   "of the update and skips innovations beyond 3 sigma (vector.cn0_mask_dbhz, "
+                   "vector.innovation_gate_sigma; not in the paper).  'acceleration state' runs the same loops "
+                   "with vector.motion_model: ca (an acceleration per axis, white-jerk PSD vector.q_jerk = 1 "
+                   "m^2/s^5; not in the paper).", "",
+                   "Why the paper's loop misses the 5 m/s bound: (1) while only two satellites carry a signal "
+                   "(73-75, 140-142, 195-197 s; their lines of sight are nearly opposite in azimuth, e.g. G14 at "
+                   "48 deg and G29 at 254 deg) the horizontal velocity across them is unobserved, and a "
+                   "constant-velocity state lets its error grow with the car's centripetal acceleration (up to "
+                   "4.2 m/s^2); the acceleration state predicts the turn instead.  (2) When a satellite is "
+                   "blocked, its R estimate over N = 500 epochs needs ~0.5 s to rise from ~250 to ~12000 "
+                   "(m/s)^2 (the variance of a frequency discriminator on noise), and the noise enters the "
+                   "velocity meanwhile (the peaks at 142 s and 184 s, where G17 / G01 are blocked as the others "
+                   "return); the C/N0 mask and the gate keep it out.  Each measure alone leaves a peak above "
+                   "5 m/s: mask + gate without the acceleration state "
+                   f"{by.get('adaptive_r_robust', {}).get('vel_max', np.nan):.1f} m/s, the acceleration state "
+                   f"without mask and gate {by.get('adaptive_r_ca_only', {}).get('vel_max', np.nan):.1f} m/s; "
+                   f"both: {by.get('adaptive_r_ca', {}).get('vel_max', np.nan):.1f} m/s.", ""]
             a = by.get("adaptive_r", {})
             f_ = by.get("fixed_r", {})
             s_ = by.get("scalar", {})
             am = by.get("adaptive_r_robust", {})
+            ac = by.get("adaptive_r_ca", {})
+            fc = by.get("fixed_r_ca", {})
             claims += [
                 {"figure": "fig8_position_error.png", "claim": "scalar positioning fails after 58 s",
                  "measured": f"scalar availability {100 * s_.get('availability', 0):.0f} % of the 10 Hz epochs "
@@ -555,19 +604,23 @@ def main(argv=None):
                  "claim": "adaptive VLL within 220 m 3D (acceptance: <= 50 m), beats fixed R",
                  "measured": f"adaptive {a.get('pos_max', np.nan):.1f} m max / {a.get('pos_rms', np.nan):.1f} m "
                              f"RMS; fixed R {f_.get('pos_max', np.nan):.1f} m max / "
-                             f"{f_.get('pos_rms', np.nan):.1f} m RMS; adaptive + mask + gate "
-                             f"{am.get('pos_max', np.nan):.1f} m max",
+                             f"{f_.get('pos_rms', np.nan):.1f} m RMS; with the acceleration state + mask + gate "
+                             f"adaptive {ac.get('pos_max', np.nan):.1f} m max, fixed R "
+                             f"{fc.get('pos_max', np.nan):.1f} m max",
                  "status": "reproduced" if a.get("pos_max", 1e9) <= 50 and
                  a.get("pos_rms", 1e9) < f_.get("pos_rms", 0) else "partly"},
                 {"figure": "fig8_velocity_error.png",
-                 "claim": "adaptive VLL within 30 m/s (acceptance: <= 5 m/s)",
-                 "measured": f"adaptive {a.get('vel_max', np.nan):.1f} m/s max / {a.get('vel_rms', np.nan):.2f} "
-                             f"RMS (>= 3 satellites for 2 s: {a.get('vel_max_ge3', np.nan):.1f} m/s max); fixed R "
-                             f"{f_.get('vel_max', np.nan):.1f} m/s max; adaptive + mask + gate "
-                             f"{am.get('vel_max', np.nan):.1f} m/s max",
+                 "claim": "adaptive VLL within 30 m/s (acceptance: <= 5 m/s), beats fixed R",
+                 "measured": f"paper's loop: adaptive {a.get('vel_max', np.nan):.1f} m/s max / "
+                             f"{a.get('vel_rms', np.nan):.2f} RMS, fixed R {f_.get('vel_max', np.nan):.1f} m/s max, "
+                             f"adaptive + mask + gate {am.get('vel_max', np.nan):.1f} m/s max; with the "
+                             f"acceleration state + mask + gate: adaptive {ac.get('vel_max', np.nan):.1f} m/s max / "
+                             f"{ac.get('vel_rms', np.nan):.2f} RMS, fixed R {fc.get('vel_max', np.nan):.1f} m/s max",
                  "status": "reproduced" if a.get("vel_max", 1e9) <= 5 else
-                 ("paper's bound reproduced, acceptance not met" if a.get("vel_max", 1e9) <= 30 else
-                  "not reproduced")},
+                 ("reproduced with the acceleration state + mask + gate; the paper's 8-state loop meets the "
+                  "paper's 30 m/s only" if ac.get("vel_max", 1e9) <= 5 and a.get("vel_max", 1e9) <= 30 else
+                  ("paper's bound reproduced, acceptance not met" if a.get("vel_max", 1e9) <= 30 else
+                   "not reproduced"))},
             ]
         else:
             plot_accel(res, tr, args.out, t_end)
@@ -598,7 +651,8 @@ def main(argv=None):
             ]
         walls = [(r["run"], r["wall_s"]) for r in rows if np.isfinite(r["wall_s"])]
         if walls:
-            md += ["Wall-clock time per run (whole run, scalar part included): " +
+            md += ["Wall-clock time per run (whole run, scalar part included; "
+                   f"{args.jobs} run{'s' if args.jobs > 1 else ''} at a time): " +
                    ", ".join(f"{label(n)} {w:.0f} s" for n, w in walls) + f" for {t_end:g} s of signal.", ""]
     if not args.only or args.only == "tokyo":
         log("tokyo:")
