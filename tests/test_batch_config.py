@@ -97,6 +97,17 @@ def test_code_fingerprint():
     assert code_fingerprint("v1") == "fixed:v1"
 
 
+def test_code_fingerprint_follows_the_numeric_libraries(monkeypatch):
+    import numba
+    import numpy as np
+    before = code_fingerprint("auto")
+    monkeypatch.setattr(numba, "__version__", numba.__version__ + ".post1")
+    after_numba = code_fingerprint("auto")
+    monkeypatch.setattr(np, "__version__", np.__version__ + ".post1")
+    assert len({before, after_numba, code_fingerprint("auto")}) == 3
+    assert code_fingerprint("v1") == "fixed:v1"          # a pinned version stays pinned
+
+
 @pytest.mark.parametrize("mutate, message", [
     (lambda b: b.update(bogus=1), "unknown config key 'bogus'"),
     (lambda b: b["variants"][0].update(colour="red"), "variants[0].colour"),

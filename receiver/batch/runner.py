@@ -12,7 +12,8 @@ Content hashes (cache keys)
       file it names (``navigation.ephemeris`` ...) by its content signature, and the code version.
     Content signature of a file: sha256 of its bytes up to 16 MiB; beyond, of its size and its first and
     last 4 MiB.  Code version (``code_version: auto``): sha256 of ``receiver.__version__`` and of every
-    ``receiver/**/*.py`` except ``receiver/batch`` and ``receiver/leo``; a fixed string pins it.  As the
+    ``receiver/**/*.py`` except ``receiver/batch`` and ``receiver/leo``, and the numpy / scipy / numba
+    versions; a fixed string pins it.  As the
     resolved config includes every default, a change of the receiver's config schema (a new key or default)
     changes the run keys even with a pinned code version.  ``--force`` re-runs the runs, not the simulations
     (recordings are content-addressed).
@@ -96,9 +97,15 @@ def code_fingerprint(setting: str = "auto") -> str:
     """Code identity used in the hashes ('auto': the receiver sources, see the module docstring)."""
     if setting != "auto":
         return f"fixed:{setting}"
+    import numba
+    import numpy as np
+    import scipy
+
     from .. import __version__
     pkg = Path(__file__).resolve().parents[1]
     h = hashlib.sha256(__version__.encode())
+    # the numeric libraries change results too (FFT, linear algebra, numba's float contraction)
+    h.update(f"numpy {np.__version__} scipy {scipy.__version__} numba {numba.__version__}".encode())
     for p in sorted(pkg.rglob("*.py")):
         rel = p.relative_to(pkg).as_posix()
         if rel.split("/")[0] in ("batch", "leo") or "__pycache__" in rel:
