@@ -149,6 +149,17 @@ class RunWriter:
                 del g[name]
             g.create_dataset(name, data=arr)
 
+    def write_iono_utc(self, iono, source: str):
+        """The Klobuchar / GPS-UTC parameters the fixes used: group /iono_utc, one attribute per field."""
+        if iono is None:
+            return
+        g = self.f.require_group("iono_utc")
+        for name, val in vars(iono).items():
+            if val is None:
+                continue
+            g.attrs[name] = np.asarray(val, dtype=float) if isinstance(val, tuple) else val
+        g.attrs["source"] = source
+
     def set_attrs(self, group: str, attrs: dict):
         g = self.f.require_group(group) if group != "/" else self.f
         for k, v in attrs.items():

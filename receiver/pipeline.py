@@ -234,6 +234,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
         writer.write_ephemerides({p: ch.decoder.ephemeris for p, ch in nav.channels.items()
                                   if ch.decoder.ephemeris is not None})     # the decoded ones
+        writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else "lnav")
     if fix_ecef:
         from .geodesy import ecef2enu, ecef2lla
         e = np.concatenate(fix_ecef)

@@ -153,3 +153,21 @@ def test_decoded_ephemeris_equals_rinex_to_the_lsb(standalone):
                 # to the LSB: GPS-SDR-SIM truncates (not rounds) when it scales RINEX values into
                 # LNAV fields, so a value that is within 1e-12 of a whole LSB can come out one lower
                 assert abs(got - want) <= lsb * (1 + 1e-9), (prn, field, got, want)
+
+
+def test_stored_iono_utc_equals_the_rinex_header(standalone):
+    """/iono_utc holds the Klobuchar / UTC parameters decoded from subframe 4 page 18: the file's
+    generator took them from the RINEX header (ION ALPHA / ION BETA / DELTA-UTC / LEAP SECONDS)."""
+    from receiver.nav.rinex import read_rinex_nav
+    _, ref = read_rinex_nav(SHARED / "brdc0010.22n")
+    assert ref is not None
+    with h5py.File(standalone[0]) as f:
+        a = dict(f["iono_utc"].attrs)
+    assert a["source"] == "lnav"
+    lsb_a = [2.0 ** -30, 2.0 ** -27, 2.0 ** -24, 2.0 ** -24]
+    lsb_b = [2.0 ** 11, 2.0 ** 14, 2.0 ** 16, 2.0 ** 16]
+    for got, want, lsb in zip(a["alpha"], ref.alpha, lsb_a):
+        assert abs(got - want) <= lsb, ("alpha", got, want)
+    for got, want, lsb in zip(a["beta"], ref.beta, lsb_b):
+        assert abs(got - want) <= lsb, ("beta", got, want)
+    assert int(a["dt_ls"]) == int(ref.dt_ls) == 18

@@ -280,7 +280,7 @@ class NavigationEngine:
                 out[prn] = ch.decoder.ephemeris
         return out
 
-    def _iono(self):
+    def iono(self):
         if self.iono_utc is not None:
             return self.iono_utc
         for ch in self.channels.values():
@@ -377,7 +377,7 @@ class NavigationEngine:
             if len(obs) < 5:
                 continue
             ephs = {o.prn: select(self.rinex_ephs[o.prn], T) for o in obs}
-            fix = self.solver.fix(week, T, obs, ephs, self._iono())
+            fix = self.solver.fix(week, T, obs, ephs, self.iono())
             # a common 20 ms shift of every transmit time fits almost as well (only the satellites'
             # along-track motion differs) but needs a 20 ms clock bias: input.start_gps_tow_s must be
             # within +/-10 ms for the search to pick the right assignment
@@ -440,14 +440,14 @@ class NavigationEngine:
                         for prn, (m, ch) in sorted(meas.items()) if prn in ephs]
         fix = None
         if len(observations) >= 4 and week is not None:
-            fix = self.solver.fix(week, rx_tow, observations, ephs, self._iono(), x0=self.x0)
+            fix = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0)
         if fix is None:
             return None, []
         if self.last_fix is None and (self.approx_tow0 is None or abs(fix.clock_bias_m) > C_LIGHT):
             # first fix: take the clock bias out of the receiver time and solve again
             self.tow0 -= fix.clock_bias_m / C_LIGHT
             rx_tow = self.tow0 + (s - self.s0) / self.fs
-            fix = self.solver.fix(week, rx_tow, observations, ephs, self._iono(), x0=fix.ecef)
+            fix = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=fix.ecef)
             if fix is None:
                 return None, []
         self.x0 = fix.ecef

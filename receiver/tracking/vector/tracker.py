@@ -115,7 +115,7 @@ class VectorTracker:
         dt = tau - self.tau_state
         pos = r + v * dt
         poly, atm, el = satellite_polys([self.ephs[prn]], self.t_ref, tau, 0.05, b + (d + dl) * dt,
-                                        d + dl, pos, self.nav._iono(), self.cfg.navigation)
+                                        d + dl, pos, self.nav.iono(), self.cfg.navigation)
         sp, sv = poly[0, 0], poly[0, 1]
         los = sp[:3] - pos
         rng = float(np.linalg.norm(los))
@@ -255,7 +255,7 @@ class VectorTracker:
             cand = [p for p in sorted(self.ephs) if p not in self.channels]
             if cand:
                 _, _, el = satellite_polys([self.ephs[p] for p in cand], self.t_ref, tau_now, 0.1, b,
-                                           d + dl, r, self.nav._iono(), self.cfg.navigation)
+                                           d + dl, r, self.nav.iono(), self.cfg.navigation)
                 order = np.argsort(-el)
                 for i in order:
                     if len(self.channels) >= self.cfg.tracking.max_channels:
@@ -271,7 +271,7 @@ class VectorTracker:
         span = max((blk_end - (self.grid_next - self.step)) / fs, 0.05)
         ephs = [self.ephs[p] for p in self.prns]
         POLY, ATM, EL = satellite_polys(ephs, self.t_ref, tau_a, span / 2.0, b, d + dl, r,
-                                        self.nav._iono(), self.cfg.navigation)
+                                        self.nav.iono(), self.cfg.navigation)
         TAU_A = np.full(m, tau_a)
         cap = int(len(block) / fs * 1000.0) + 8
         REC = np.zeros((m, cap, K.N_OUT))
