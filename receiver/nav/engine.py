@@ -54,6 +54,11 @@ class ChannelNav:
         self.time_assisted = False  # transmit time resolved without frame sync (assisted mode)
         self.track_start_s = None   # end of the pull-in (receiver time)
         self.time_mismatches = 0
+        # frequency-locked (vector) tracking from this sample on: bits by differential detection
+        self.noncoherent_from = None
+        self.cur_sum_c = 0j         # complex prompt sum of the current bit
+        self.cur_nc = False         # the current bit has frequency-locked epochs
+        self.prev_bit = None        # (bit index, complex sum, soft value) of the last complete bit
 
     def set_assisted_offset(self, tx_offset: float):
         """Transmit-time offset found by the assisted ambiguity search (until frame sync confirms)."""
@@ -96,24 +101,53 @@ class ChannelNav:
             return
         r = recs[sync]
         bits_idx = (r["code_period"] - bit_offset) // BIT_MS
-        # collect complete bits: sum prompt_i over the integration epochs of each bit
+        nc_from = self.noncoherent_from
+        nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
+        # collect complete bits: sum the prompt over the integration epochs of each bit
         out_bits, first = [], None
-        for b, pi, ms in zip(bits_idx, r["prompt_i"], r["integration_ms"]):
+        for b, pi, pq, ms, n in zip(bits_idx, r["prompt_i"], r["prompt_q"], r["integration_ms"], nc):
             b = int(b)
             if self.cur_bit is None or b != self.cur_bit:
                 if self.cur_bit is not None and self.cur_ms == BIT_MS:
+                    v = self._soft_bit()
                     if first is None:
                         first = self.cur_bit
                     if self.cur_bit == first + len(out_bits):
-                        out_bits.append(self.cur_sum)
+                        out_bits.append(v)
                     else:                   # gap: flush what we have
                         self._feed(out_bits, first)
-                        out_bits, first = [self.cur_sum], self.cur_bit
-                self.cur_bit, self.cur_sum, self.cur_ms = b, 0.0, 0
+                        out_bits, first = [v], self.cur_bit
+                self.cur_bit, self.cur_sum, self.cur_sum_c, self.cur_ms, self.cur_nc = b, 0.0, 0j, 0, False
             self.cur_sum += float(pi)
+            self.cur_sum_c += complex(float(pi), float(pq))
             self.cur_ms += int(ms)
+            self.cur_nc |= bool(n)
         if out_bits:
             self._feed(out_bits, first)
+
+    def set_noncoherent(self, from_sample):
+        """The channel's carrier is frequency-locked (vector loop) from this sample on (None: phase-locked).
+
+        A phase-locked channel's bit is the sign of the in-phase prompt sum.  A frequency-locked channel's
+        prompt phase wanders, so its bits are detected differentially: the sign of Re(S_k conj(S_k-1))
+        says whether bit k equals bit k-1 (the absolute polarity is resolved by the LNAV preamble and
+        parity as for a phase-locked channel).
+        """
+        self.noncoherent_from = None if from_sample is None else int(from_sample)
+
+    def _soft_bit(self) -> float:
+        """Soft value of the completed current bit (negative = 1), coherent or differential."""
+        S = self.cur_sum_c
+        prev = self.prev_bit
+        if not self.cur_nc:
+            v = float(self.cur_sum)
+        elif prev is not None and prev[0] == self.cur_bit - 1 and abs(prev[1]) > 0.0:
+            same = (S * prev[1].conjugate()).real / abs(prev[1])
+            v = same if prev[2] >= 0.0 else -same
+        else:                                   # no previous bit to refer to: start a new chain
+            v = abs(S)
+        self.prev_bit = (self.cur_bit, S, v)
+        return v
 
     def _feed(self, bits, first):
         if not bits:
@@ -263,6 +297,10 @@ class NavigationEngine:
 
     def add_records(self, prn: int, recs, bit_offset: int):
         self.channel(prn).add(recs, bit_offset)
+
+    def set_noncoherent(self, prn: int, from_sample):
+        """Channel prn is frequency-locked from from_sample on (None: phase-locked again)."""
+        self.channel(prn).set_noncoherent(from_sample)
 
     def drop(self, prn: int):
         self.channels.pop(prn, None)

@@ -153,6 +153,8 @@ class VectorTracker:
         self.prns.append(prn)
         self.pending_since.pop(prn, None)
         self._arrays_dirty = True
+        if self.nav is not None:                        # frequency-locked from now: differential bits
+            self.nav.set_noncoherent(prn, int(ch.st[K.S_NEXT_SAMPLE]))
 
     def _open_predicted(self, prn, s):
         s = float(math.floor(s))
@@ -221,6 +223,8 @@ class VectorTracker:
                 ch.hist = ch.hist.copy()
                 if mark_lost:
                     ch.st[K.S_MODE] = K.MODE_LOST
+                elif self.nav is not None:              # back to its scalar loop
+                    self.nav.set_noncoherent(prn, None)
             self.prns.remove(prn)
             self.info.pop(prn, None)
             self._arrays_dirty = True
