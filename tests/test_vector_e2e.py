@@ -23,12 +23,14 @@ pytestmark = pytest.mark.skipif(not (BIN.exists() and BRDC.exists()),
                                 reason=f"third-party recording absent ({DATA})")
 
 
-@pytest.mark.parametrize("variant", ["adaptive_r", "polynomial"])
-def test_vector_handover_tokyo(tmp_path, variant):
+@pytest.mark.parametrize("variant,extra", [("adaptive_r", []), ("polynomial", []),
+                                           ("adaptive_r", [("vector.motion_model", "ca")])],
+                         ids=["adaptive_r", "polynomial", "adaptive_r-ca"])
+def test_vector_handover_tokyo(tmp_path, variant, extra):
     out = tmp_path / f"tokyo_{variant}.h5"
     cfg = load_receiver_config(ROOT / "configs" / "vector_tokyo.yaml", [
         ("input.path", str(BIN)), ("navigation.ephemeris", str(BRDC)), ("input.duration_s", 25.0),
-        ("vector.start_s", 15.0), ("vector.variant", variant), ("output.path", str(out))])
+        ("vector.start_s", 15.0), ("vector.variant", variant), ("output.path", str(out)), *extra])
     cwd = os.getcwd()
     try:
         os.chdir(ROOT)
