@@ -36,7 +36,7 @@ def _records(bits, freq_hz, phase0, cn0_dbhz=45.0, seed=0):
     return rec
 
 
-def _decode(rec, noncoherent_from=None, chunk=500):
+def _decode(rec, noncoherent_from=None, chunk=487):          # chunks end inside bits
     ch = ChannelNav(5, 2300, 0.0, FS)
     ch.set_noncoherent(noncoherent_from)
     events = []

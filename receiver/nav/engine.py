@@ -103,10 +103,16 @@ class ChannelNav:
         bits_idx = (r["code_period"] - bit_offset) // BIT_MS
         nc_from = self.noncoherent_from
         nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
-        # collect complete bits: sum the prompt over the integration epochs of each bit
+        # per bit index: sums of the prompt and of the integration time over its epochs (vectorised),
+        # then the bits in order (a few per chunk), continuing the bit left incomplete by the last chunk
+        starts = np.flatnonzero(np.r_[True, bits_idx[1:] != bits_idx[:-1]])
+        seg = zip(bits_idx[starts].tolist(),
+                  np.add.reduceat(r["prompt_i"].astype(np.float64), starts).tolist(),
+                  np.add.reduceat(r["prompt_q"].astype(np.float64), starts).tolist(),
+                  np.add.reduceat(r["integration_ms"].astype(np.int64), starts).tolist(),
+                  (np.add.reduceat(nc.astype(np.int64), starts) > 0).tolist())
         out_bits, first = [], None
-        for b, pi, pq, ms, n in zip(bits_idx, r["prompt_i"], r["prompt_q"], r["integration_ms"], nc):
-            b = int(b)
+        for b, si, sq, ms, n in seg:
             if self.cur_bit is None or b != self.cur_bit:
                 if self.cur_bit is not None and self.cur_ms == BIT_MS:
                     v = self._soft_bit()
@@ -118,10 +124,10 @@ class ChannelNav:
                         self._feed(out_bits, first)
                         out_bits, first = [v], self.cur_bit
                 self.cur_bit, self.cur_sum, self.cur_sum_c, self.cur_ms, self.cur_nc = b, 0.0, 0j, 0, False
-            self.cur_sum += float(pi)
-            self.cur_sum_c += complex(float(pi), float(pq))
-            self.cur_ms += int(ms)
-            self.cur_nc |= bool(n)
+            self.cur_sum += si
+            self.cur_sum_c += complex(si, sq)
+            self.cur_ms += ms
+            self.cur_nc |= n
         if out_bits:
             self._feed(out_bits, first)
 
