@@ -5,7 +5,7 @@ Uses the third-party recording (../shared/data/gpssim_static_tokyo.bin) when pre
 2.6 MS/s int8-like signal with 8 satellites.  Acquisition, HDF5 output and navigation are excluded: only
 the channels' epoch loop (correlators, discriminators, loop filters) is timed.
 
-    python scripts/bench_tracking.py [--seconds 20] [--channels 8]
+    python scripts/bench_tracking.py [--seconds 20] [--channels 8] [--carrier pll|cpll_atan|ekf|pli_ekf|kf|adaptive_kf]
 """
 import argparse
 import os
@@ -43,6 +43,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--channels", type=int, default=8)
+    ap.add_argument("--carrier", default="pll", help="tracking.carrier.variant (default: the built-in pll)")
     args = ap.parse_args()
     sats = REF[:args.channels]
     if SHARED.exists():
@@ -52,7 +53,7 @@ def main():
     else:
         x = synthetic(args.seconds, sats)
         src = "synthetic signal"
-    cfg = load_receiver_config()
+    cfg = load_receiver_config(None, [("tracking.carrier.variant", args.carrier)])
     chans = [Channel(p, d, c, 0, cfg.tracking, FS, 0.0) for p, d, c in sats]
     warm = int(0.1 * FS)
     for ch in chans:                      # JIT warm-up (cached after the first run)
@@ -71,7 +72,8 @@ def main():
     cpu = time.process_time() - c0
     sig = (len(x) - warm - chunk) / FS
     locked = sum(not ch.lost for ch in chans)
-    print(f"source: {src}; {len(chans)} channels at {FS / 1e6:.1f} MS/s; {locked} still locked")
+    print(f"source: {src}; {len(chans)} channels at {FS / 1e6:.1f} MS/s; carrier loop {args.carrier}; "
+          f"{locked} still locked")
     print(f"signal {sig:.1f} s, wall {wall:.2f} s, {n_epochs} channel-epochs")
     print(f"tracking real-time factor: {sig / wall:.1f}x wall clock, {sig / cpu:.1f}x per CPU second "
           f"({cpu / n_epochs * 1e6:.1f} us CPU per channel-epoch; the two differ when the machine is shared)")

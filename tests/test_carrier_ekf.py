@@ -52,3 +52,23 @@ def test_ekf_converges_on_a_frequency_offset(variant):
     out = run(loop, sc)
     assert abs(out["doppler"][-1] - out["doppler_true"][-1]) < 1.0
     assert phase_error_std_deg(out["err_cycles"], per_s=2.5, t=out["t"])[0] < 6.0
+
+
+def test_compiled_ekf_step_equals_the_numpy_reference():
+    from receiver.tracking.loops.common import taylor_phi, white_last_q
+    from receiver.tracking.loops.ekf import ekf_step, ekf_step_numpy
+    rng = np.random.default_rng(7)
+    for T in (1e-3, 5e-3, 20e-3):
+        phi, Q = taylor_phi(4, T), white_last_q(4, T, 3e4)
+        M = rng.standard_normal((4, 4))
+        P0 = M @ M.T + np.diag([0.1, 10.0, 100.0, 1000.0])
+        s0 = rng.standard_normal(4) * [1.0, 600.0, 50.0, 5.0]
+        args = (rng.normal() * 20, rng.normal() * 20, rng.normal() * 3, rng.normal() * 3, 4.0)
+        s1, P1, post1 = s0.copy(), P0.copy(), np.zeros(4)
+        s2, P2, post2 = s0.copy(), P0.copy(), np.zeros(4)
+        ekf_step(s1, P1, phi, Q, *args, post1)
+        ekf_step_numpy(s2, P2, phi, Q, *args, post2)
+        assert np.allclose(s1, s2, rtol=1e-12, atol=1e-9)
+        assert np.allclose(post1, post2, rtol=1e-12, atol=1e-9)
+        assert np.allclose(P1, P2, rtol=1e-10, atol=1e-9 * np.abs(P2).max())
+        assert not np.allclose(post1, s0)                 # the update did something

@@ -66,3 +66,19 @@ def test_adaptive_kf_scales_q_and_tracks_cn0():
                                  carrier_hz=L1_HZ))
     assert loop.lam >= 1.0
     assert np.nanmean(out["cn0_est"][-200:]) == pytest.approx(32.0, abs=1.5)    # NWPR C/N0 -> R_k
+
+
+@pytest.mark.parametrize("first", [True, False])
+def test_compiled_kf_step_equals_the_numpy_reference(first):
+    from receiver.tracking.loops.kfpll import kf_step, kf_step_numpy
+    rng = np.random.default_rng(3)
+    for T in (1e-3, 10e-3):
+        phi, H, Q = kf_matrices(T, L1_HZ, 2e-19, 2e-20, 4.0)
+        M = rng.standard_normal((3, 3))
+        P0 = M @ M.T * 0.01 + np.diag([1e-4, 1.0, 100.0])
+        s0 = np.array([0.3, 1200.0, -3.0])
+        s1, P1, s2, P2 = s0.copy(), P0.copy(), s0.copy(), P0.copy()
+        kf_step(s1, P1, phi, H, Q, 0.02, 1e-3, 2.5, first)
+        kf_step_numpy(s2, P2, phi, H, Q, 0.02, 1e-3, 2.5, first)
+        assert np.allclose(s1, s2, rtol=1e-13, atol=1e-12)
+        assert np.allclose(P1, P2, rtol=1e-10, atol=1e-12 * np.abs(P2).max())

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .common import NWPR, PythonLoop, clock_q, q_for_bandwidth, taylor_phi, white_last_q
 
@@ -52,6 +53,70 @@ def jacobian(s, A, nco_mid):
     return H
 
 
+def ekf_step_numpy(s, P, phi, Q, h0, h1, e0, e1, sig2, post):
+    """Reference (numpy) of :func:`ekf_step`: update with H = [h0, h1]^T L, innovation (e0, e1) and
+    R = sig2 I (Joseph form), posterior state into ``post``, then prediction; s and P in place."""
+    H = np.zeros((2, len(s)))
+    H[0, 0], H[1, 0] = h0, h1
+    R = sig2 * np.eye(2)
+    Kg = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    s += Kg @ np.array([e0, e1])
+    IKH = np.eye(len(s)) - Kg @ H
+    P[:, :] = IKH @ P @ IKH.T + Kg @ R @ Kg.T
+    post[:] = s
+    s[:] = phi @ s
+    P[:, :] = phi @ P @ phi.T + Q
+
+
+@njit(cache=True)
+def ekf_step(s, P, phi, Q, h0, h1, e0, e1, sig2, post):
+    """Compiled :func:`ekf_step_numpy` (the loops' per-epoch linear algebra; H has one non-zero column)."""
+    n = s.shape[0]
+    p00 = P[0, 0]
+    S00 = h0 * h0 * p00 + sig2
+    S01 = h0 * h1 * p00
+    S11 = h1 * h1 * p00 + sig2
+    det = S00 * S11 - S01 * S01
+    i00, i01, i11 = S11 / det, -S01 / det, S00 / det
+    K = np.empty((n, 2))
+    for i in range(n):
+        a0 = P[i, 0] * h0
+        a1 = P[i, 0] * h1
+        K[i, 0] = a0 * i00 + a1 * i01
+        K[i, 1] = a0 * i01 + a1 * i11
+    for i in range(n):
+        s[i] += K[i, 0] * e0 + K[i, 1] * e1
+    g = np.empty(n)                     # (K H)[:, 0]; IKH = I - g e_0^T
+    for i in range(n):
+        g[i] = K[i, 0] * h0 + K[i, 1] * h1
+    A = P.copy()                        # IKH P
+    for j in range(n):
+        for i in range(n):
+            A[i, j] = P[i, j] - g[i] * P[0, j]
+    for i in range(n):                  # (IKH P) IKH^T + sig2 K K^T
+        for j in range(n):
+            P[i, j] = A[i, j] - A[i, 0] * g[j] + sig2 * (K[i, 0] * K[j, 0] + K[i, 1] * K[j, 1])
+    for i in range(n):
+        post[i] = s[i]
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += phi[i, k] * post[k]
+        s[i] = acc
+    B = np.zeros((n, n))                # phi P
+    for i in range(n):
+        for k in range(n):
+            if phi[i, k] != 0.0:
+                for j in range(n):
+                    B[i, j] += phi[i, k] * P[k, j]
+    for i in range(n):
+        for j in range(n):
+            acc = Q[i, j]
+            for k in range(n):
+                acc += B[i, k] * phi[j, k]
+            P[i, j] = acc
+
+
 class EKF(PythonLoop):
     name = "ekf"
     use_pli = False
@@ -71,7 +136,7 @@ class EKF(PythonLoop):
         self._mats = {}
 
     def matrices(self, T):
-        key = round(T, 9)
+        key = int(T * 1e9 + 0.5)            # ns (round(T, 9) is slow per epoch)
         m = self._mats.get(key)
         if m is None:
             phi = taylor_phi(4, T)
@@ -85,6 +150,7 @@ class EKF(PythonLoop):
         # prediction for the midpoint of the first epoch (NCO starts at phase 0 with the given Doppler)
         self.s = np.array([TWO_PI * doppler_hz * T / 2.0, TWO_PI * doppler_hz, TWO_PI * rate_hz_s, 0.0])
         self.P = np.diag([0.3 ** 2, (TWO_PI * 3.0) ** 2, (TWO_PI * 20.0) ** 2, (TWO_PI * 20.0) ** 2])
+        self._post = np.zeros(4)     # posterior state of the last epoch
         self.nwpr = NWPR(10 * math.log10(self.cn0_design), self.cn0_tau)
         self.p_fast = None
         self.p_slow = None
@@ -117,10 +183,10 @@ class EKF(PythonLoop):
         nco_mid = TWO_PI * (self.nco_phase + self.nco_freq * T / 2.0)
         pe = self.s[0] - nco_mid                          # predicted phase error phi_E^
         c, s_ = math.cos(pe), math.sin(pe)
-        x = np.array([ip, qp])
+        xi, xq = ip, qp
         if ip * c + qp * s_ < 0.0:                        # decision-directed data wipe-off
-            x = -x
-        H = jacobian(self.s, A, nco_mid)
+            xi, xq = -xi, -xq
+        h0, h1 = -A * s_, A * c                           # H = [h0, h1]^T L (jacobian())
         if self.use_pli:
             if self.pli_i2 is None:
                 self.pli_i2, self.pli_q2 = ip * ip, qp * qp
@@ -132,26 +198,19 @@ class EKF(PythonLoop):
             pli = min(max(pli, 0.0), 1.0)
             self.pli = pli
             if self.prev_x is not None:
-                ds = self.s - self.prev_post
-                ds[0] -= nco_mid - self.prev_nco_mid       # relative to the NCO
-                x0 = self.prev_x + self.prev_H @ ds
-                x = pli * x + (1.0 - pli) * x0
-            self.prev_H = H
+                # x0 = x_PLI(k-1) + H(k-1) ds, ds relative to the NCO; H has only its first column
+                ds0 = self.s[0] - self.prev_post[0] - (nco_mid - self.prev_nco_mid)
+                xi = pli * xi + (1.0 - pli) * (self.prev_x[0] + self.prev_H[0] * ds0)
+                xq = pli * xq + (1.0 - pli) * (self.prev_x[1] + self.prev_H[1] * ds0)
+            self.prev_H = (h0, h1)
             self.prev_nco_mid = nco_mid
-        hx = observation(self.s, A, nco_mid)
-        R = sig2 * np.eye(2)
-        S = H @ self.P @ H.T + R
-        Kg = self.P @ H.T @ np.linalg.inv(S)
-        self.s = self.s + Kg @ (x - hx)
-        IKH = np.eye(4) - Kg @ H
-        self.P = IKH @ self.P @ IKH.T + Kg @ R @ Kg.T
-        self.last_err = (self.s[0] - nco_mid) / TWO_PI
+        post = self._post
+        # update (innovation x - h(s), h(s) = A [cos, sin](phi_E^)), then predict to the next midpoint
+        ekf_step(self.s, self.P, phi, Q, h0, h1, xi - A * c, xq - A * s_, sig2, post)
+        self.last_err = (post[0] - nco_mid) / TWO_PI
         if self.use_pli:
-            self.prev_x = x
-            self.prev_post = self.s.copy()
-        # predict to the next epoch's midpoint (next epoch assumed as long as this one)
-        self.s = phi @ self.s
-        self.P = phi @ self.P @ phi.T + Q
+            self.prev_x = (xi, xq)
+            self.prev_post = post.copy()
         f = self.s[1] / TWO_PI
         return self._command(T, self.s[0] / TWO_PI - f * T / 2.0, f)
 

@@ -30,6 +30,7 @@ import math
 from collections import deque
 
 import numpy as np
+from numba import njit
 
 from ...signals import C_LIGHT
 from .common import NWPR, PythonLoop, atan_variance_cycles2, clock_q
@@ -44,6 +45,58 @@ def kf_matrices(T, fc, h0, h_2, jerk_psd):
                       [T ** 3 / 6, T ** 2 / 2, T]])
     Q[:2, :2] += clock_q(T, h0, h_2, fc)
     return phi, H, Q
+
+
+def kf_step_numpy(s, P, phi, H, Q, d, R, lam, first):
+    """Reference (numpy) of :func:`kf_step`: prior covariance (P itself on the first epoch, else
+    phi P phi^T + lam Q), scalar update with innovation d (Joseph form), prediction of s; in place."""
+    Pm = P.copy() if first else phi @ P @ phi.T + lam * Q
+    S = float(H @ Pm @ H) + R
+    Kg = Pm @ H / S
+    s += Kg * d
+    IKH = np.eye(len(s)) - np.outer(Kg, H)
+    P[:, :] = IKH @ Pm @ IKH.T + R * np.outer(Kg, Kg)
+    s[:] = phi @ s
+
+
+@njit(cache=True)
+def kf_prior_hph(P, phi, Q, H):
+    """H (phi P phi^T + Q) H^T (the unscaled prediction seen by the measurement; adaptive_kf)."""
+    n = P.shape[0]
+    Pm = phi @ P @ phi.T + Q
+    acc = 0.0
+    for i in range(n):
+        for j in range(n):
+            acc += H[i] * Pm[i, j] * H[j]
+    return acc
+
+
+@njit(cache=True)
+def kf_step(s, P, phi, H, Q, d, R, lam, first):
+    """Compiled :func:`kf_step_numpy`."""
+    n = s.shape[0]
+    if first:
+        Pm = P.copy()
+    else:
+        Pm = phi @ P @ phi.T + lam * Q
+    Ph = Pm @ H
+    S = R
+    for i in range(n):
+        S += H[i] * Ph[i]
+    Kg = Ph / S
+    for i in range(n):
+        s[i] += Kg[i] * d
+    IKH = np.eye(n)
+    for i in range(n):
+        for j in range(n):
+            IKH[i, j] -= Kg[i] * H[j]
+    Pn = IKH @ Pm @ IKH.T
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = Pn[i, j] + R * Kg[i] * Kg[j]
+    sn = phi @ s
+    for i in range(n):
+        s[i] = sn[i]
 
 
 class KFPLL(PythonLoop):
@@ -62,7 +115,7 @@ class KFPLL(PythonLoop):
         self._mats = {}
 
     def matrices(self, T):
-        key = round(T, 9)
+        key = int(T * 1e9 + 0.5)            # ns (round(T, 9) is slow per epoch)
         m = self._mats.get(key)
         if m is None:
             m = self._mats[key] = kf_matrices(T, self.carrier_hz, self.h0, self.h_2, self.jerk_psd)
@@ -90,23 +143,14 @@ class KFPLL(PythonLoop):
             R = atan_variance_cycles2(self.cn0, T)
         else:
             R = atan_variance_cycles2(self.cn0_design, T)
-        if self._pending_P:
-            Pm = self.P
-            self._pending_P = False
-        else:
-            base = phi @ self.P @ phi.T
-            if self.adaptive:
-                self.innov.append(d * d)
-                c_hat = sum(self.innov) / len(self.innov)
-                hph = float(H @ (base + Q) @ H)
-                self.lam = max(1.0, (c_hat - R) / hph) if hph > 0 else 1.0
-            Pm = base + self.lam * Q
-        S = float(H @ Pm @ H) + R
-        Kg = Pm @ H / S
-        self.s = self.s + Kg * d
-        IKH = np.eye(3) - np.outer(Kg, H)
-        self.P = IKH @ Pm @ IKH.T + R * np.outer(Kg, Kg)       # Joseph form
-        self.s = phi @ self.s                                   # prediction: start of the next epoch
+        first = self._pending_P
+        self._pending_P = False
+        if self.adaptive and not first:
+            self.innov.append(d * d)
+            c_hat = sum(self.innov) / len(self.innov)
+            hph = kf_prior_hph(self.P, phi, Q, H)
+            self.lam = max(1.0, (c_hat - R) / hph) if hph > 0 else 1.0
+        kf_step(self.s, self.P, phi, H, Q, d, R, self.lam, first)   # update, then predict to the next epoch
         return self._command(T, self.s[0], self.s[1] + self.s[2] * T / 2.0)
 
     # ---- analysis helpers
