@@ -115,6 +115,9 @@ def _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet=False):
 def run(cfg, quiet: bool = False, log=print) -> RunSummary:
     """Run the receiver on cfg.input.path; write cfg.output.path (HDF5)."""
     make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
+    if cfg.vector.enabled:
+        from .tracking.vector import make_filter
+        make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
     reader = open_input(cfg)
     out_path = default_output_path(cfg, cfg.input.path)
     ephemerides, iono = None, None

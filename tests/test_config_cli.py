@@ -79,6 +79,8 @@ def small_recording(tmp_path_factory):
     (["--input", "missing.bin"], "input file not found"),
     (["--set", "input.format=int16_iq", "--input", "odd.bin"], "truncated"),
     (["--set", "vector.variant=nonsense"], "'vector.variant' must be one of"),
+    (["--set", "vector.enabled=true", "--set", "vector.variant=polynomial", "--set", "vector.motion_model=ca"],
+     "vector.motion_model 'ca' applies to fixed_r and adaptive_r only"),
 ])
 def test_cli_errors_are_one_line_exit_2_no_output(small_recording, args, message):
     d, _, cfg = small_recording

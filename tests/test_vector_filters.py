@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from receiver.config import RECEIVER_SCHEMA, build
+from receiver.errors import UserError
 from receiver.correlator import correlate, extend_code
 from receiver.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ, ca_code
 from receiver.tracking.vector import REGISTRY, make_filter
@@ -174,7 +175,9 @@ def test_registry_and_state_sizes():
     assert make_filter("fixed_r", vcfg()).n == 9
     assert make_filter("fixed_r", vcfg(code_carrier_drift=False)).n == 8
     assert make_filter("adaptive_r", vcfg(motion_model="ca")).n == 12
-    assert make_filter("cv", vcfg(motion_model="ca")).n == 9            # cv is the constant-velocity baseline
+    for name in ("cv", "polynomial"):                   # models of their own: motion_model is an error
+        with pytest.raises(UserError, match="motion_model"):
+            make_filter(name, vcfg(motion_model="ca"))
     assert make_filter("polynomial", vcfg(code_carrier_drift=False)).n == 18
     cv = make_filter("cv", vcfg(cv={"q_velocity": 0.1}))
     _, Q, _ = cv.matrices()

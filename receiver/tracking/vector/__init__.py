@@ -49,7 +49,11 @@ def make_filter(name: str, vcfg) -> VectorFilter:
         cls = REGISTRY[name]
     except KeyError:
         raise UserError(f"unknown vector variant '{name}' (available: {', '.join(REGISTRY)})") from None
-    return cls(vcfg, int(vcfg.integration_ms) * 1e-3)
+    filt = cls(vcfg, int(vcfg.integration_ms) * 1e-3)
+    if vcfg.motion_model != "cv" and not filt.selectable_motion:
+        raise UserError(f"vector.motion_model '{vcfg.motion_model}' applies to fixed_r and adaptive_r only "
+                        f"(variant '{name}' has its own model)")
+    return filt
 
 
 def _log(msg):

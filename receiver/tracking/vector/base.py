@@ -36,6 +36,7 @@ def clock_psd(clock_class: str):
 class VectorFilter:
     """Base class of the vector-loop filters (see the module docstring)."""
     name = "base"
+    selectable_motion = False       # True: vector.motion_model chooses the kinematic model
 
     def __init__(self, vcfg, T: float):
         self.vcfg = vcfg
@@ -93,6 +94,10 @@ class KinematicFilter(VectorFilter):
     (1 = isotropic; a land vehicle's vertical dynamics are far smaller than its horizontal ones).
     """
     motion = None           # class override (cv: always constant velocity)
+
+    @property
+    def selectable_motion(self) -> bool:
+        return self.motion is None
 
     @property
     def model(self) -> str:
