@@ -15,25 +15,43 @@ FS = 2.6e6
 
 
 def _records(bits, freq_hz, phase0, cn0_dbhz=45.0, seed=0):
-    """1-ms prompt records of a BPSK data signal whose carrier phase rotates at freq_hz (a frequency-
-    locked channel's residual) - amplitude 1, complex noise for the given C/N0."""
+    """1-ms prompt records (and their half-ms halves) of a BPSK data signal whose carrier phase rotates
+    at freq_hz (a frequency-locked channel's residual) - amplitude 1, complex noise for the C/N0."""
     n = len(bits) * BIT_MS
-    k = np.arange(n)
-    d = 1.0 - 2.0 * np.repeat(bits.astype(float), BIT_MS)
+    k = np.arange(2 * n)                                   # half-ms steps
+    d = 1.0 - 2.0 * np.repeat(bits.astype(float), 2 * BIT_MS)
     rng = np.random.default_rng(seed)
-    sig = 1e-3 * 10 ** (cn0_dbhz / 10.0)                   # C/N0 T: SNR of one 1-ms prompt
-    noise = (rng.standard_normal(n) + 1j * rng.standard_normal(n)) / np.sqrt(2.0 * sig)
-    p = d * np.exp(1j * (2 * np.pi * freq_hz * k * 1e-3 + phase0)) + noise
+    sig = 0.5e-3 * 10 ** (cn0_dbhz / 10.0)                 # C/N0 T of a half-ms prompt (amplitude 1/2)
+    noise = 0.5 * (rng.standard_normal(2 * n) + 1j * rng.standard_normal(2 * n)) / np.sqrt(2.0 * sig)
+    h = 0.5 * d * np.exp(1j * (2 * np.pi * freq_hz * (k + 0.5) * 0.5e-3 + phase0)) + noise
+    p1, p2 = h[0::2], h[1::2]
+    p = p1 + p2
     rec = np.zeros(n, EPOCH_DTYPE)
-    rec["time_s"] = k * 1e-3
-    rec["sample_index"] = np.round(k * 1e-3 * FS).astype(np.int64)
-    rec["code_period"] = k
+    rec["time_s"] = np.arange(n) * 1e-3
+    rec["sample_index"] = np.round(np.arange(n) * 1e-3 * FS).astype(np.int64)
+    rec["code_period"] = np.arange(n)
     rec["prompt_i"], rec["prompt_q"] = p.real, p.imag
+    rec["prompt1_i"], rec["prompt1_q"] = p1.real, p1.imag
+    rec["prompt2_i"], rec["prompt2_q"] = p2.real, p2.imag
     rec["integration_ms"] = 1
     rec["state"] = STATE_BIT_SYNC
     rec["pll_lock"] = 1
     rec["cn0_dbhz"] = cn0_dbhz
     return rec
+
+
+def _merge_bits(rec):
+    """20-ms records (one per bit, as a phase-locked channel after bit sync) from 1-ms records."""
+    n = len(rec) // BIT_MS
+    out = rec[::BIT_MS][:n].copy()
+    for c in ("prompt_i", "prompt_q"):
+        out[c] = rec[c][:n * BIT_MS].reshape(n, BIT_MS).sum(axis=1)
+    for c, src in (("prompt1_i", "prompt_i"), ("prompt1_q", "prompt_q")):
+        out[c] = rec[src][:n * BIT_MS].reshape(n, BIT_MS)[:, :BIT_MS // 2].sum(axis=1)
+    for c, src in (("prompt2_i", "prompt_i"), ("prompt2_q", "prompt_q")):
+        out[c] = rec[src][:n * BIT_MS].reshape(n, BIT_MS)[:, BIT_MS // 2:].sum(axis=1)
+    out["integration_ms"] = BIT_MS
+    return out
 
 
 def _decode(rec, noncoherent_from=None, chunk=487):          # chunks end inside bits
@@ -79,13 +97,36 @@ def test_handover_from_phase_lock_to_frequency_lock_keeps_the_bit_stream(frames)
     n_bits = len(bits)
     half = (n_bits // 2) * BIT_MS + 7                       # the switch in the middle of a bit
     a = _records(bits, freq_hz=0.0, phase0=0.0, seed=1)      # phase-locked: I carries the bits
-    b = _records(bits, freq_hz=-9.0, phase0=2.5, seed=2)     # frequency-locked afterwards
+    # frequency-locked afterwards: the NCO keeps its phase at the switch, the residual starts there
+    b = _records(bits, freq_hz=-9.0, phase0=2 * np.pi * 9.0 * half * 1e-3, seed=2)
     rec = np.concatenate([a[:half], b[half:]])
     ch, events = _decode(rec, noncoherent_from=int(rec["sample_index"][half]))
     sf = [e for e in events if type(e).__name__ == "SubframeEvent"]
     # 2 frames = 10 subframes, every one decoded across the switch
     assert len(sf) == 10 and ch.decoder.parity_failures == 0
     assert ch.decoder.ephemeris.sqrt_a == eph.sqrt_a
+
+
+@pytest.mark.parametrize("freq_hz", [-20.0, 30.0, 45.0])
+def test_differential_detection_tolerates_large_frequency_residuals(frames, freq_hz):
+    """Adjacent half-bits (10 ms apart) with the rotation measured inside the bits: residuals beyond the
+    +/-12.5 Hz that a plain bit-to-bit comparison (20 ms) tolerates still decode."""
+    _, bits = frames
+    ch, events = _decode(_records(bits, freq_hz=freq_hz, phase0=0.7, seed=5), noncoherent_from=0)
+    assert sum(type(e).__name__ == "SubframeEvent" for e in events) == 10
+    assert ch.decoder.parity_failures == 0
+
+
+def test_twenty_ms_phase_locked_epochs_then_vector_epochs(frames):
+    """A phase-locked channel's 20-ms epochs (halves in prompt1/prompt2), then 1-ms vector epochs."""
+    eph, bits = frames
+    half = (len(bits) // 2) * BIT_MS
+    a = _merge_bits(_records(bits, freq_hz=0.0, phase0=0.0, seed=6)[:half])
+    b = _records(bits, freq_hz=15.0, phase0=-2 * np.pi * 15.0 * half * 1e-3, seed=7)[half:]
+    rec = np.concatenate([a, b])
+    ch, events = _decode(rec, noncoherent_from=int(b["sample_index"][0]), chunk=40)
+    assert sum(type(e).__name__ == "SubframeEvent" for e in events) == 10
+    assert ch.decoder.parity_failures == 0 and ch.decoder.ephemeris.sqrt_a == eph.sqrt_a
 
 
 def test_differential_detection_at_low_cn0_loses_little(frames):

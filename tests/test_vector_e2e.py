@@ -35,9 +35,12 @@ def test_vector_handover_tokyo(tmp_path, variant, extra):
     try:
         os.chdir(ROOT)
         messages = []
-        run(cfg, quiet=True, log=messages.append)
+        summary = run(cfg, quiet=True, log=messages.append)
     finally:
         os.chdir(cwd)
+    # LNAV keeps being decoded on the frequency-locked vector channels (differential bits): no word fails
+    # parity (the in-phase bit sums of the scalar loop gave ~120 failures here)
+    assert summary.parity_failures == 0
     with h5py.File(out, "r") as f:
         g = f["navigation"]
         mode = g["mode"][:]

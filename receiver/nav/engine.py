@@ -29,6 +29,7 @@ from .pvt import NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
 BIT_MS = 20
+ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
 
 
 class ChannelNav:
@@ -56,9 +57,10 @@ class ChannelNav:
         self.time_mismatches = 0
         # frequency-locked (vector) tracking from this sample on: bits by differential detection
         self.noncoherent_from = None
-        self.cur_sum_c = 0j         # complex prompt sum of the current bit
+        self.cur_a = self.cur_b = 0j    # prompt sums over the first / second half of the current bit
         self.cur_nc = False         # the current bit has frequency-locked epochs
-        self.prev_bit = None        # (bit index, complex sum, soft value) of the last complete bit
+        self.prev_bit = None        # (bit index, second-half sum, soft value) of the last complete bit
+        self.rot = 0j               # phase rotation over 10 ms (sum of B conj(A), decaying)
 
     def set_assisted_offset(self, tx_offset: float):
         """Transmit-time offset found by the assisted ambiguity search (until frame sync confirms)."""
@@ -103,16 +105,29 @@ class ChannelNav:
         bits_idx = (r["code_period"] - bit_offset) // BIT_MS
         nc_from = self.noncoherent_from
         nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
-        # per bit index: sums of the prompt and of the integration time over its epochs (vectorised),
-        # then the bits in order (a few per chunk), continuing the bit left incomplete by the last chunk
+        # per bit index: sums of the prompt, of its two 10-ms halves (differential detection) and of the
+        # integration time over the bit's epochs (vectorised), then the bits in order (a few per chunk),
+        # continuing the bit left incomplete by the last chunk.  An epoch's halves (prompt1/2) go to the
+        # half-bit their start lies in (epochs of 1-10 ms, or 20 ms split at the middle).
         starts = np.flatnonzero(np.r_[True, bits_idx[1:] != bits_idx[:-1]])
+        o = (r["code_period"] - bit_offset) % BIT_MS                 # epoch start within its bit (ms)
+        late1 = o >= BIT_MS // 2
+        late2 = 2 * o + r["integration_ms"] >= BIT_MS
+        p1 = r["prompt1_i"].astype(np.float64) + 1j * r["prompt1_q"].astype(np.float64)
+        p2 = r["prompt2_i"].astype(np.float64) + 1j * r["prompt2_q"].astype(np.float64)
+        ha = np.where(late1, 0.0, p1) + np.where(late2, 0.0, p2)
+        hb = (p1 + p2) - ha
+
+        def csum(x):
+            return (np.add.reduceat(x.real, starts) + 1j * np.add.reduceat(x.imag, starts)).tolist()
+
         seg = zip(bits_idx[starts].tolist(),
                   np.add.reduceat(r["prompt_i"].astype(np.float64), starts).tolist(),
-                  np.add.reduceat(r["prompt_q"].astype(np.float64), starts).tolist(),
+                  csum(ha), csum(hb),
                   np.add.reduceat(r["integration_ms"].astype(np.int64), starts).tolist(),
                   (np.add.reduceat(nc.astype(np.int64), starts) > 0).tolist())
         out_bits, first = [], None
-        for b, si, sq, ms, n in seg:
+        for b, si, a, bb, ms, n in seg:
             if self.cur_bit is None or b != self.cur_bit:
                 if self.cur_bit is not None and self.cur_ms == BIT_MS:
                     v = self._soft_bit()
@@ -123,9 +138,11 @@ class ChannelNav:
                     else:                   # gap: flush what we have
                         self._feed(out_bits, first)
                         out_bits, first = [v], self.cur_bit
-                self.cur_bit, self.cur_sum, self.cur_sum_c, self.cur_ms, self.cur_nc = b, 0.0, 0j, 0, False
+                self.cur_bit, self.cur_sum, self.cur_ms, self.cur_nc = b, 0.0, 0, False
+                self.cur_a = self.cur_b = 0j
             self.cur_sum += si
-            self.cur_sum_c += complex(si, sq)
+            self.cur_a += a
+            self.cur_b += bb
             self.cur_ms += ms
             self.cur_nc |= n
         if out_bits:
@@ -135,24 +152,29 @@ class ChannelNav:
         """The channel's carrier is frequency-locked (vector loop) from this sample on (None: phase-locked).
 
         A phase-locked channel's bit is the sign of the in-phase prompt sum.  A frequency-locked channel's
-        prompt phase wanders, so its bits are detected differentially: the sign of Re(S_k conj(S_k-1))
-        says whether bit k equals bit k-1 (the absolute polarity is resolved by the LNAV preamble and
-        parity as for a phase-locked channel).
+        prompt phase wanders, so its bits are detected differentially, between adjacent half-bits: with
+        A_k, B_k the prompt sums over the first and second 10 ms of bit k, the sign of
+        Re(A_k conj(B_k-1) conj(u)) says whether bit k equals bit k-1, u being the phase rotation over
+        10 ms measured inside the bits (B_k conj(A_k), data-free, averaged over a few bits).  Residual
+        frequencies up to +/-50 Hz are tolerated (+/-12.5 Hz for whole-bit products).  The absolute
+        polarity is resolved by the LNAV preamble and parity as for a phase-locked channel.
         """
         self.noncoherent_from = None if from_sample is None else int(from_sample)
 
     def _soft_bit(self) -> float:
         """Soft value of the completed current bit (negative = 1), coherent or differential."""
-        S = self.cur_sum_c
+        a, b = self.cur_a, self.cur_b
+        self.rot = ROT_KEEP * self.rot + b * a.conjugate()       # 10-ms rotation, |A|^2-weighted
         prev = self.prev_bit
         if not self.cur_nc:
             v = float(self.cur_sum)
-        elif prev is not None and prev[0] == self.cur_bit - 1 and abs(prev[1]) > 0.0:
-            same = (S * prev[1].conjugate()).real / abs(prev[1])
+        elif prev is not None and prev[0] == self.cur_bit - 1 and abs(prev[1]) > 0.0 and abs(self.rot) > 0:
+            u = self.rot / abs(self.rot)
+            same = (a * (prev[1] * u).conjugate()).real / abs(prev[1])
             v = same if prev[2] >= 0.0 else -same
         else:                                   # no previous bit to refer to: start a new chain
-            v = abs(S)
-        self.prev_bit = (self.cur_bit, S, v)
+            v = abs(a + b)
+        self.prev_bit = (self.cur_bit, b, v)
         return v
 
     def _feed(self, bits, first):
