@@ -42,7 +42,6 @@ class ChannelNav:
         self.fs = fs
         self.bit_offset = -1
         self.cur_bit = None
-        self.cur_sum = 0.0
         self.cur_ms = 0
         self.cp_ref = None          # code period at the start of a subframe with known TOW
         self.tow_ref = None
@@ -105,10 +104,10 @@ class ChannelNav:
         bits_idx = (r["code_period"] - bit_offset) // BIT_MS
         nc_from = self.noncoherent_from
         nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
-        # per bit index: sums of the prompt, of its two 10-ms halves (differential detection) and of the
-        # integration time over the bit's epochs (vectorised), then the bits in order (a few per chunk),
-        # continuing the bit left incomplete by the last chunk.  An epoch's halves (prompt1/2) go to the
-        # half-bit their start lies in (epochs of 1-10 ms, or 20 ms split at the middle).
+        # per bit index: the prompt sums over its two 10-ms halves (their sum decides a phase-locked bit,
+        # both enter the differential detection) and the integration time (vectorised), then the bits in
+        # order (a few per chunk), continuing the bit left incomplete by the last chunk.  An epoch's halves
+        # (prompt1/2) go to the half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
         starts = np.flatnonzero(np.r_[True, bits_idx[1:] != bits_idx[:-1]])
         o = (r["code_period"] - bit_offset) % BIT_MS                 # epoch start within its bit (ms)
         late1 = o >= BIT_MS // 2
@@ -121,13 +120,11 @@ class ChannelNav:
         def csum(x):
             return (np.add.reduceat(x.real, starts) + 1j * np.add.reduceat(x.imag, starts)).tolist()
 
-        seg = zip(bits_idx[starts].tolist(),
-                  np.add.reduceat(r["prompt_i"].astype(np.float64), starts).tolist(),
-                  csum(ha), csum(hb),
+        seg = zip(bits_idx[starts].tolist(), csum(ha), csum(hb),
                   np.add.reduceat(r["integration_ms"].astype(np.int64), starts).tolist(),
                   (np.add.reduceat(nc.astype(np.int64), starts) > 0).tolist())
         out_bits, first = [], None
-        for b, si, a, bb, ms, n in seg:
+        for b, a, bb, ms, n in seg:
             if self.cur_bit is None or b != self.cur_bit:
                 if self.cur_bit is not None and self.cur_ms == BIT_MS:
                     v = self._soft_bit()
@@ -138,9 +135,8 @@ class ChannelNav:
                     else:                   # gap: flush what we have
                         self._feed(out_bits, first)
                         out_bits, first = [v], self.cur_bit
-                self.cur_bit, self.cur_sum, self.cur_ms, self.cur_nc = b, 0.0, 0, False
+                self.cur_bit, self.cur_ms, self.cur_nc = b, 0, False
                 self.cur_a = self.cur_b = 0j
-            self.cur_sum += si
             self.cur_a += a
             self.cur_b += bb
             self.cur_ms += ms
@@ -167,7 +163,7 @@ class ChannelNav:
         self.rot = ROT_KEEP * self.rot + b * a.conjugate()       # 10-ms rotation, |A|^2-weighted
         prev = self.prev_bit
         if not self.cur_nc:
-            v = float(self.cur_sum)
+            v = (a + b).real
         elif prev is not None and prev[0] == self.cur_bit - 1 and abs(prev[1]) > 0.0 and abs(self.rot) > 0:
             u = self.rot / abs(self.rot)
             same = (a * (prev[1] * u).conjugate()).real / abs(prev[1])
