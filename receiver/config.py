@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -151,13 +152,29 @@ def _merge(schema: dict, user: dict, prefix: str) -> dict:
     return out
 
 
+class YamlLoader(yaml.SafeLoader):
+    """SafeLoader that also reads exponent floats without a dot (1e-3, 2e-19) as floats, as YAML 1.2 does;
+    PyYAML (YAML 1.1) would read them as strings."""
+
+
+YamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
+
+
+def yaml_load(stream):
+    """yaml.safe_load with :class:`YamlLoader` (every config, scenario and batch file goes through it)."""
+    return yaml.load(stream, Loader=YamlLoader)
+
+
 def parse_override(item: str) -> tuple[str, Any]:
     """Parse one ``--set dotted.key=value`` (value parsed as YAML)."""
     if "=" not in item:
         raise UserError(f"--set expects dotted.key=value, got '{item}'")
     key, text = item.split("=", 1)
     try:
-        value = yaml.safe_load(text) if text.strip() else None
+        value = yaml_load(text) if text.strip() else None
     except yaml.YAMLError:
         value = text
     return key.strip(), value
@@ -187,7 +204,7 @@ def read_yaml(path) -> dict:
         raise UserError(f"config file not found: {path}")
     try:
         with open(path) as fh:
-            raw = yaml.safe_load(fh)
+            raw = yaml_load(fh)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark else ""

@@ -17,6 +17,15 @@ def test_defaults_and_overrides():
     assert cfg.input.format == "int8_iq" and cfg.tracking.dll_bw_hz == 2.0
 
 
+def test_exponent_floats_without_a_dot(tmp_path):
+    """1e-3 / 2e-19 are floats in config files and --set (PyYAML alone reads them as strings)."""
+    p = tmp_path / "c.yaml"
+    p.write_text("tracking:\n  carrier:\n    clock_h0: 2e-19\n    kf: {cn0_dbhz: 3.5e1}\n")
+    cfg = load_receiver_config(p, ["vector.cv.q_velocity=1e-3", "tracking.carrier.clock_h_2=0e0"])
+    assert cfg.tracking.carrier.clock_h0 == 2e-19 and cfg.tracking.carrier.kf.cn0_dbhz == 35.0
+    assert cfg.vector.cv.q_velocity == 1e-3 and cfg.tracking.carrier.clock_h_2 == 0.0
+
+
 @pytest.mark.parametrize("raw,match", [
     ({"tracking": {"pll_bw": 10}}, "unknown config key 'tracking.pll_bw'"),
     ({"bogus": 1}, "unknown config key 'bogus'"),
