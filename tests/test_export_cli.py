@@ -71,7 +71,8 @@ def test_info_command(linked):
     assert res.exit_code == 0, res.output
     text = res.output
     for want in ("schema          gnssrx-run-1", "navigation mode assisted", "channels        10",
-                 "modes         scalar", "mean position lat 35.68", "config:", "  navigation:"):
+                 "modes         scalar", "mean position lat 35.68", "config:", "  navigation:",
+                 "iono/UTC        rinex: Klobuchar alpha 1.21e-08"):
         assert want in text, want
     res = CliRunner().invoke(main, ["info", str(linked), "--json", "--no-config"])
     assert res.exit_code == 0, res.output
@@ -86,6 +87,8 @@ def test_info_command(linked):
     assert d["navigation"]["first_fix"]["gps_time"].startswith("2022-01-01T01:59")
     assert d["navigation"]["mean_position"]["lat_deg"] == pytest.approx(35.681298, abs=1e-4)
     assert sorted(d["channels"]) == sorted(f"G{p:02d}" for p in d["acquisition"]["detected_prns"])
+    assert d["iono_utc"]["source"] == "rinex" and d["iono_utc"]["dt_ls"] == 18
+    assert d["iono_utc"]["beta"][0] == pytest.approx(0.1167e6)
 
 
 @pytest.mark.skipif(not TOKYO_REC.exists(), reason="../shared/data reference recording absent")

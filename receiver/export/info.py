@@ -55,6 +55,11 @@ def run_info(path) -> dict:
                             d["mean_cn0_dbhz"] = float(np.mean(c))
                     ch[name] = d
         info["channels"] = ch
+        if "iono_utc" in f:
+            a_io = f["iono_utc"].attrs
+            info["iono_utc"] = {k: (np.asarray(a_io[k]).tolist() if k in ("alpha", "beta") else
+                                    (a_io[k].item() if isinstance(a_io[k], np.generic) else a_io[k]))
+                                for k in ("source", "alpha", "beta", "dt_ls") if k in a_io}
         if "acquisition" in f and "prn" in f["acquisition"]:
             acq = f["acquisition"]
             det = acq["detected"][:] if "detected" in acq else np.zeros(0, bool)
@@ -146,6 +151,12 @@ def format_info(info: dict, show_config: bool = True) -> str:
     add(f"observables     {ob['rows']} rows, {ob['epochs']} epochs, satellites "
         + (" ".join(f"G{p:02d}" for p in ob["prns"]) or "none"))
     add("ephemerides     (decoded) " + (" ".join(f"G{p:02d}" for p in info["ephemerides"]) or "none"))
+    if "iono_utc" in info:
+        io = info["iono_utc"]
+        add(f"iono/UTC        {io.get('source', '?')}: Klobuchar alpha "
+            + " ".join(f"{v:.3g}" for v in io.get("alpha", []))
+            + ", beta " + " ".join(f"{v:.3g}" for v in io.get("beta", []))
+            + (f"; GPS-UTC {io['dt_ls']} s" if "dt_ls" in io else ""))
     if show_config:
         add("config:")
         L.extend("  " + ln for ln in str(info["config"]).rstrip().splitlines())
