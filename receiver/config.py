@@ -464,6 +464,8 @@ RECEIVER_SCHEMA = {
         "nmea": P(False, "bool", "write NMEA 0183 GGA/RMC/GSA/GSV sentences at the fix rate (<stem>.nmea)"),
         "kml": P(False, "bool", "write a KML track of the fixes (<stem>.kml)"),
         "gpx": P(False, "bool", "write a GPX track of the fixes (<stem>.gpx)"),
+        "vector_log_hz": P(100.0, "float", "rate of the vector-loop diagnostics in /vector (chi-square tags, "
+                                           "state sigmas, each channel's R); 0 = not written", lo=0.0),
     },
 }
 

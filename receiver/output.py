@@ -33,6 +33,14 @@ OBS_DTYPE = np.dtype([
     ("azimuth_deg", "f4"), ("residual_m", "f4"),
 ])
 
+#: vector-loop diagnostics (/vector), decimated to output.vector_log_hz; PRN-indexed columns (column prn-1)
+#: are NaN for satellites without a vector channel
+VECTOR_LOG_DTYPE = np.dtype([
+    ("time_s", "f8"), ("tag_code", "f4"), ("tag_carrier", "f4"), ("manoeuvre", "u1"), ("n_valid", "u1"),
+    ("n_lock", "u1"), ("sigma_pos_m", "f4", (3,)), ("sigma_vel_mps", "f4", (3,)), ("sigma_bias_m", "f4"),
+    ("sigma_drift_mps", "f4"), ("r_code_m2", "f4", (32,)), ("r_carrier_m2s2", "f4", (32,)),
+])
+
 
 def open_h5(path, what: str = "file") -> h5py.File:
     """Open an HDF5 file for reading; a missing or non-HDF5 file is a one-line UserError naming `what`."""
@@ -124,6 +132,13 @@ class RunWriter:
         g = self.f["navigation"]
         for name in FIX_DTYPE.names:
             _append(g, name, np.ascontiguousarray(fixes[name]))
+
+    def append_vector_log(self, rows: np.ndarray):
+        if len(rows) == 0:
+            return
+        g = self.f.require_group("vector")
+        for name in VECTOR_LOG_DTYPE.names:
+            _append(g, name, np.ascontiguousarray(rows[name]))
 
     def append_observables(self, obs: np.ndarray):
         if len(obs) == 0:

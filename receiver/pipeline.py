@@ -176,6 +176,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
         if vector is not None:
             block_recs, vfixes = vector.process(block, start)
             writer.append_fixes(vfixes)
+            writer.append_vector_log(vector.last_diag)
         else:
             block_recs = {prn: ch.process(block, start) for prn, ch in channels.items()}
         for prn, ch in list(channels.items()):

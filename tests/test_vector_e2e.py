@@ -57,6 +57,23 @@ def test_vector_handover_tokyo(tmp_path, variant, extra):
         # code clock bias does not run away
         assert np.all(np.abs(g["clock_drift_mps"][:][vec] - 150.0) < 10.0)
         assert np.ptp(g["clock_bias_m"][:][vec]) < 20.0
+        # /vector diagnostics (100 Hz): the adaptive R follows the signal strength, the tags the detector
+        d = f["vector"]
+        tv = d["time_s"][:]
+        assert tv[0] == pytest.approx(15.0, abs=0.05) and np.allclose(np.diff(tv), 0.01, atol=1e-6)
+        rf = d["r_carrier_m2s2"][:]
+        tracked = sorted(int(n[1:]) for n in f["channels"])
+        assert np.all(np.isnan(np.delete(rf, [p - 1 for p in tracked], axis=1)))
+        assert np.all(np.isfinite(d["sigma_vel_mps"][:])) and np.all(d["sigma_pos_m"][:] > 0)
+        if variant == "adaptive_r":
+            late = slice(len(tv) // 2, None)
+            mean_r = np.array([np.nanmean(rf[late, p - 1]) for p in tracked])
+            cn0 = np.array([np.mean(f["channels"][f"G{p:02d}"]["cn0_dbhz"][-5000:]) for p in tracked])
+            rank = lambda x: np.argsort(np.argsort(x))                    # noqa: E731
+            assert np.corrcoef(rank(mean_r), rank(cn0))[0, 1] < -0.9     # weaker signal, larger R
+            assert mean_r.max() > 5 * mean_r.min()
+        if variant == "polynomial":
+            assert np.median(d["tag_carrier"][:]) > 0.0                   # chi-square detection is on
         # every channel tracked at the handover is still tracked (in vector lock) at the end
         for name, c in f["channels"].items():
             tt = c["time_s"][:]

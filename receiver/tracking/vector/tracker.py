@@ -27,7 +27,7 @@ import numpy as np
 from .. import kernel as K
 from ...geodesy import ecef2lla, enu_matrix
 from ...nav.ephemeris import select
-from ...output import FIX_DTYPE
+from ...output import FIX_DTYPE, VECTOR_LOG_DTYPE
 from ...signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
 from ..scalar import Channel, to_records
 from . import loop as L
@@ -68,6 +68,7 @@ class VectorTracker:
         self.rate = float(cfg.navigation.rate_hz)
         self.next_fix = None
         self.stats = {"epochs": 0, "fired": 0}
+        self.last_diag = None                # decimated diagnostics of the last chunk (see diagnostics())
         self.last_log = None
         self._arrays_dirty = True
         self._refresh_ephemerides(self._gps_time(0.0))
@@ -317,6 +318,7 @@ class VectorTracker:
                 nep += 1
         if nep:
             self.tau_state = float(LOG[nep - 1, L.L_TAU])
+        self.last_diag = self._diagnostics(LOG[:nep], LPD[:nep], LR[:nep], self.stats["epochs"])
         self.stats["epochs"] += nep
         self.stats["fired"] += int(LOG[:nep, L.L_FIRED].sum())
         lock_min = float(self.v.lock_cn0_dbhz)
@@ -334,6 +336,31 @@ class VectorTracker:
                 self.log(f"vector: G{prn:02d} set below {self.v.drop_elevation_deg:g} deg, channel closed")
                 self._remove(prn, True)
         return recs, fixes
+
+    # ================================================================== diagnostics
+    def _diagnostics(self, LOG, LPD, LR, first_epoch):
+        """VECTOR_LOG_DTYPE rows of this chunk's epochs, every round(1 / (output.vector_log_hz T)) epochs."""
+        hz = float(self.cfg.output.vector_log_hz)
+        if hz <= 0 or not len(LOG):
+            return np.zeros(0, VECTOR_LOG_DTYPE)
+        step = max(1, int(round(1000.0 / (hz * self.T_ms))))
+        k = np.flatnonzero((first_epoch + np.arange(len(LOG))) % step == 0)
+        out = np.zeros(len(k), VECTOR_LOG_DTYPE)
+        out["time_s"] = (self.s_ref + LOG[k, L.L_TAU] * self.fs) / self.fs
+        out["tag_code"], out["tag_carrier"] = LOG[k, L.L_TAGP], LOG[k, L.L_TAGV]
+        out["manoeuvre"], out["n_valid"] = LOG[k, L.L_FIRED], LOG[k, L.L_NVALID]
+        out["n_lock"] = LOG[k, L.L_NLOCK]
+        ip, iv, ib, idd, _ = self.lay
+        sd = np.sqrt(np.maximum(LPD[k], 0.0))
+        out["sigma_pos_m"], out["sigma_vel_mps"] = sd[:, ip:ip + 3], sd[:, iv:iv + 3]
+        out["sigma_bias_m"], out["sigma_drift_mps"] = sd[:, ib], sd[:, idd]
+        out["r_code_m2"] = np.nan
+        out["r_carrier_m2s2"] = np.nan
+        for j, prn in enumerate(list(getattr(self, "_arr_prns", self.prns))[:LR.shape[1]]):
+            if 1 <= prn <= 32:
+                out["r_code_m2"][:, prn - 1] = LR[k, j, 0]
+                out["r_carrier_m2s2"][:, prn - 1] = LR[k, j, 1]
+        return out
 
     # ================================================================== fixes
     def _fixes(self, LOG, LX, LPD):
