@@ -92,3 +92,38 @@ def test_report_of_a_run_without_fixes(tokyo_run, tmp_path):
     out = tmp_path / "nofix.png"
     write_report(run, out)
     assert _png_size(out) == (1700, 2100)
+
+
+def test_vector_panels_from_the_vector_log(tokyo_run, tmp_path):
+    """A run with /vector gets a sixth row: each channel's carrier R and the filter sigmas."""
+    import shutil
+
+    import h5py
+    from receiver.output import VECTOR_LOG_DTYPE
+    path = tmp_path / "vec.h5"
+    shutil.copy(tokyo_run, path)
+    run = load_run(path)
+    prns = sorted({int(p) for p in run.obs["prn"]})
+    n = 400
+    rows = np.zeros(n, VECTOR_LOG_DTYPE)
+    rows["time_s"] = np.linspace(36.0, 43.9, n)
+    rows["r_code_m2"] = rows["r_carrier_m2s2"] = np.nan
+    for i, p in enumerate(prns):
+        rows["r_carrier_m2s2"][:, p - 1] = 300.0 * (1 + i)
+    rows["sigma_pos_m"], rows["sigma_vel_mps"] = 1.0, 0.5
+    with h5py.File(path, "a") as f:
+        g = f.create_group("vector")
+        for name in VECTOR_LOG_DTYPE.names:
+            g.create_dataset(name, data=rows[name])
+    fig = make_figure(load_run(path))
+    try:
+        titles = [ax.get_title() for ax in fig.axes]
+        rax = fig.axes[[t.startswith("vector loop: carrier-discriminator R") for t in titles].index(True)]
+        assert len(rax.get_lines()) == len(prns) and rax.get_yscale() == "log"
+        assert "vector filter standard deviation" in titles
+    finally:
+        import matplotlib.pyplot as plt
+        plt.close(fig)
+    out = tmp_path / "vec.png"
+    write_report(load_run(path), out)
+    assert _png_size(out) == (1700, 2520)

@@ -28,6 +28,19 @@ VECTOR_COLOR = "#c9b3e6"
 
 
 # -------------------------------------------------------------------------------------------------- data
+def read_vector_log(path, max_points: int = MAX_POINTS):
+    """The /vector diagnostics (time_s, r_carrier_m2s2, sigma_pos_m, sigma_vel_mps), at most ``max_points``
+    rows (every k-th), or None when the run has none."""
+    import h5py
+    with h5py.File(path, "r") as f:
+        if "vector" not in f or "time_s" not in f["vector"] or not f["vector"]["time_s"].shape[0]:
+            return None
+        g = f["vector"]
+        step = max(1, -(-g["time_s"].shape[0] // max_points))
+        return {k: g[k][::step] for k in ("time_s", "r_carrier_m2s2", "sigma_pos_m", "sigma_vel_mps")
+                if k in g}
+
+
 def read_channels(path, max_points: int = MAX_POINTS) -> dict:
     """prn -> dict(time_s, t_end, cn0, doppler, state, unlocked, gap) in at most ``max_points`` time bins.
 
@@ -179,9 +192,12 @@ def make_figure(run: RunData, truth=None, channels=None):
     colors = _prn_colors(prns)
     stats = summary_stats(run, truth)
 
-    fig = plt.figure(figsize=(17, 21), dpi=100)
-    gs = fig.add_gridspec(5, 3, width_ratios=[1, 1, 0.82], height_ratios=[1, 1, 1, 1, 1],
-                          hspace=0.38, wspace=0.36, left=0.05, right=0.955, top=0.935, bottom=0.035)
+    vlog = read_vector_log(run.path)
+    rows = 6 if vlog is not None else 5
+    fig = plt.figure(figsize=(17, 4.2 * rows), dpi=100)
+    gs = fig.add_gridspec(rows, 3, width_ratios=[1, 1, 0.82], height_ratios=[1] * rows,
+                          hspace=0.38, wspace=0.36, left=0.05, right=0.955, top=1.0 - 0.065 * 5 / rows,
+                          bottom=0.035 * 5 / rows)
     ax_cn0 = fig.add_subplot(gs[0, :2])
     ax_sky = fig.add_subplot(gs[0, 2], projection="polar")
     ax_dop = fig.add_subplot(gs[1, :2], sharex=ax_cn0)
@@ -389,6 +405,33 @@ def make_figure(run: RunData, truth=None, channels=None):
         _robust_ylim(ax_vel, venu)
     for ax in (ax_cn0, ax_dop, ax_lock, ax_pos):
         ax.tick_params(labelbottom=True)
+
+    # ---- vector loop: each channel's carrier R and the filter's standard deviations
+    if vlog is not None:
+        ax_vr = fig.add_subplot(gs[5, :2], sharex=ax_cn0)
+        ax_vs = fig.add_subplot(gs[5, 2])
+        tv = vlog["time_s"]
+        for prn in prns:
+            if 1 <= prn <= 32:
+                r = vlog["r_carrier_m2s2"][:, prn - 1]
+                if np.isfinite(r).any():
+                    ax_vr.plot(tv, r, lw=0.9, color=colors[prn], label=f"G{prn:02d}")
+        ax_vr.set_yscale("log")
+        ax_vr.set_ylabel("(m/s)$^2$")
+        ax_vr.set_xlabel("time since the first sample of the file (s)")
+        ax_vr.set_title("vector loop: carrier-discriminator R per channel (adaptive R: grows as the signal fades)")
+        ax_vr.grid(alpha=0.3, which="both")
+        ax_vr.legend(ncol=8, fontsize=7, loc="upper left", framealpha=0.85)
+        ax_vs.plot(tv, np.linalg.norm(vlog["sigma_pos_m"], axis=1), color="#1f77b4", lw=1.0,
+                   label="3D position (m)")
+        ax_vs.plot(tv, np.linalg.norm(vlog["sigma_vel_mps"], axis=1), color="#ff7f0e", lw=1.0,
+                   label="3D velocity (m/s)")
+        ax_vs.set_yscale("log")
+        ax_vs.set_xlabel("time (s)")
+        ax_vs.set_title("vector filter standard deviation")
+        ax_vs.grid(alpha=0.3, which="both")
+        ax_vs.legend(fontsize=8, loc="best")
+        ax_vel.tick_params(labelbottom=True)
 
     # ---- summary text
     ax_txt.axis("off")
