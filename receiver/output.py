@@ -126,26 +126,22 @@ class RunWriter:
             _append(g, name, np.ascontiguousarray(records[name]))
 
     # ------------------------------------------------------------------ navigation
-    def append_fixes(self, fixes: np.ndarray):
-        if len(fixes) == 0:
+    def _append_table(self, group: str, rows: np.ndarray):
+        """Append structured rows to /group, one dataset per field."""
+        if rows is None or len(rows) == 0:
             return
-        g = self.f["navigation"]
-        for name in FIX_DTYPE.names:
-            _append(g, name, np.ascontiguousarray(fixes[name]))
-
-    def append_vector_log(self, rows: np.ndarray):
-        if len(rows) == 0:
-            return
-        g = self.f.require_group("vector")
-        for name in VECTOR_LOG_DTYPE.names:
+        g = self.f.require_group(group)
+        for name in rows.dtype.names:
             _append(g, name, np.ascontiguousarray(rows[name]))
 
+    def append_fixes(self, fixes: np.ndarray):
+        self._append_table("navigation", fixes)             # FIX_DTYPE
+
+    def append_vector_log(self, rows: np.ndarray):
+        self._append_table("vector", rows)                  # VECTOR_LOG_DTYPE
+
     def append_observables(self, obs: np.ndarray):
-        if len(obs) == 0:
-            return
-        g = self.f.require_group("observables")
-        for name in OBS_DTYPE.names:
-            _append(g, name, np.ascontiguousarray(obs[name]))
+        self._append_table("observables", obs)              # OBS_DTYPE
 
     def write_ephemerides(self, ephs: dict):
         """ephs: prn -> Ephemeris (dataclass); stored as one compound-free table of fields."""
