@@ -119,26 +119,15 @@ class _Base:
     def P(self, value):
         self._P = np.asarray(value, float)
 
-
-class KalmanFilter(_Base):
-    """Linear Kalman filter: x_k = F x_{k-1} + w, z = H x + v."""
-
-    def predict(self, F, Q=None, B=None, u=None):
-        F = np.asarray(F, float)
-        self.x = F @ self.x
-        if B is not None and u is not None:
-            self.x = self.x + np.asarray(B, float) @ np.asarray(u, float)
+    def _propagate(self, F, Q):
+        """P <- F P F^T (+ Q), symmetrised (KF and EKF)."""
         P = F @ self._P @ F.T
         if Q is not None:
             P = P + _cov(Q, self.n)
         self._P = 0.5 * (P + P.T)
-        return self.x
 
-    def update(self, z, H, R):
-        H = np.atleast_2d(np.asarray(H, float))
-        z = np.atleast_1d(np.asarray(z, float))
-        R = _cov(R, z.size)
-        y = z - H @ self.x
+    def _correct(self, y, H, R):
+        """Measurement update with innovation y, (linearised) H and R (KF and EKF)."""
         S = H @ self._P @ H.T + R
         K = np.linalg.solve(S, H @ self._P).T           # P H^T S^-1 (S symmetric)
         self.x = self.x + K @ y
@@ -148,6 +137,23 @@ class KalmanFilter(_Base):
         return self.x
 
 
+class KalmanFilter(_Base):
+    """Linear Kalman filter: x_k = F x_{k-1} + w, z = H x + v."""
+
+    def predict(self, F, Q=None, B=None, u=None):
+        F = np.asarray(F, float)
+        self.x = F @ self.x
+        if B is not None and u is not None:
+            self.x = self.x + np.asarray(B, float) @ np.asarray(u, float)
+        self._propagate(F, Q)
+        return self.x
+
+    def update(self, z, H, R):
+        H = np.atleast_2d(np.asarray(H, float))
+        z = np.atleast_1d(np.asarray(z, float))
+        return self._correct(z - H @ self.x, H, _cov(R, z.size))
+
+
 class ExtendedKalmanFilter(_Base):
     """EKF: nonlinear f, h linearised at the current estimate (Jacobians F, H)."""
 
@@ -155,24 +161,14 @@ class ExtendedKalmanFilter(_Base):
         n = self.n
         Fm = np.eye(n) if F is None else _as_matrix(F, self.x)
         self.x = np.asarray(f(self.x), float) if f is not None else Fm @ self.x
-        P = Fm @ self._P @ Fm.T
-        if Q is not None:
-            P = P + _cov(Q, self.n)
-        self._P = 0.5 * (P + P.T)
+        self._propagate(Fm, Q)
         return self.x
 
     def update(self, z, h, H, R):
         z = np.atleast_1d(np.asarray(z, float))
         Hm = np.atleast_2d(_as_matrix(H, self.x))
         zp = np.atleast_1d(np.asarray(h(self.x), float)) if h is not None else Hm @ self.x
-        y = z - zp
-        S = Hm @ self._P @ Hm.T + _cov(R, z.size)
-        K = np.linalg.solve(S, Hm @ self._P).T
-        self.x = self.x + K @ y
-        P = self._P - K @ S @ K.T
-        self._P = 0.5 * (P + P.T)
-        self.innovation, self.innovation_cov = y, S
-        return self.x
+        return self._correct(z - zp, Hm, _cov(R, z.size))
 
 
 class CubatureKalmanFilter(_Base):

@@ -38,18 +38,22 @@ from .common import NWPR, PythonLoop, clock_q, q_for_bandwidth, taylor_phi, whit
 TWO_PI = 2.0 * math.pi
 
 
+def obs_and_jacobian(pe, A):
+    """(h, H column) at the predicted phase error pe: h = A [cos pe, sin pe], dh/dtheta = A [-sin pe, cos pe]
+    (the only non-zero column of H = dh/ds, L = [1 0 0 0])."""
+    c, s_ = math.cos(pe), math.sin(pe)
+    return (A * c, A * s_), (-A * s_, A * c)
+
+
 def observation(s, A, nco_mid):
     """h(s) = [A cos(L s - phi_nco), A sin(L s - phi_nco)]."""
-    pe = s[0] - nco_mid
-    return np.array([A * math.cos(pe), A * math.sin(pe)])
+    return np.array(obs_and_jacobian(s[0] - nco_mid, A)[0])
 
 
 def jacobian(s, A, nco_mid):
     """H = dh/ds = [-A sin(phi_E), A cos(phi_E)]^T L, L = [1 0 0 0]."""
-    pe = s[0] - nco_mid
     H = np.zeros((2, 4))
-    H[0, 0] = -A * math.sin(pe)
-    H[1, 0] = A * math.cos(pe)
+    H[:, 0] = obs_and_jacobian(s[0] - nco_mid, A)[1]
     return H
 
 
@@ -181,12 +185,10 @@ class EKF(PythonLoop):
         phi, Q = self.matrices(T)
         A, sig2 = self._amplitude(ip, qp, T, p1, p2)
         nco_mid = TWO_PI * (self.nco_phase + self.nco_freq * T / 2.0)
-        pe = self.s[0] - nco_mid                          # predicted phase error phi_E^
-        c, s_ = math.cos(pe), math.sin(pe)
+        (hc, hs), (h0, h1) = obs_and_jacobian(self.s[0] - nco_mid, A)    # at phi_E^, H = [h0, h1]^T L
         xi, xq = ip, qp
-        if ip * c + qp * s_ < 0.0:                        # decision-directed data wipe-off
+        if ip * hc + qp * hs < 0.0:                       # decision-directed data wipe-off
             xi, xq = -xi, -xq
-        h0, h1 = -A * s_, A * c                           # H = [h0, h1]^T L (jacobian())
         if self.use_pli:
             if self.pli_i2 is None:
                 self.pli_i2, self.pli_q2 = ip * ip, qp * qp
@@ -205,8 +207,8 @@ class EKF(PythonLoop):
             self.prev_H = (h0, h1)
             self.prev_nco_mid = nco_mid
         post = self._post
-        # update (innovation x - h(s), h(s) = A [cos, sin](phi_E^)), then predict to the next midpoint
-        ekf_step(self.s, self.P, phi, Q, h0, h1, xi - A * c, xq - A * s_, sig2, post)
+        # update (innovation x - h(s)), then predict to the next midpoint
+        ekf_step(self.s, self.P, phi, Q, h0, h1, xi - hc, xq - hs, sig2, post)
         self.last_err = (post[0] - nco_mid) / TWO_PI
         if self.use_pli:
             self.prev_x = (xi, xq)
