@@ -292,9 +292,31 @@ RECEIVER_SCHEMA = {
         "lock_cn0_min_dbhz": P(25.0, "float", "C/N0 below which lock is declared lost", lo=0.0),
         "lock_ratio_min": P(1.5, "float", "PLL lock detector: lock while low-passed |I| exceeds this "
                                           "times low-passed |Q|", lo=1.0),
-        "lost_ms": P(1000, "int", "time below the lock thresholds before a channel is dropped", lo=10),
-        "reacquire_s": P(5.0, "float", "interval between re-acquisition attempts for missing PRNs",
-                         lo=0.1),
+        "lost_ms": P(200, "int", "time below the lock thresholds before a channel declares the signal lost "
+                                "(its satellite is then re-acquired around the prediction, README: outages)",
+                     lo=10),
+        "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
+                                       "or no longer predictable", lo=0.1),
+        "reacquisition": {
+            "doppler_hz": P(40.0, "float", "Doppler half-window of the hot search right after a loss (error of "
+                                           "the Doppler extrapolated from the last tracked state)", lo=0.0),
+            "code_chips": P(1.5, "float", "code-phase half-window of the hot search right after a loss",
+                            lo=0.0),
+            "accel_mps2": P(5.0, "float", "receiver acceleration bound along the line of sight: the windows "
+                                          "widen by accel t / lambda (Doppler) and accel t^2 / 2 (code) with "
+                                          "the outage length t (warm start)", lo=0.0),
+            "speed_mps": P(60.0, "float", "receiver speed bound: caps the widening at 2 speed / lambda "
+                                          "(Doppler) and 2 speed t (code)", lo=0.0),
+            "max_age_s": P(300.0, "float", "outages longer than this fall back to the cold full-grid search",
+                           lo=0.0),
+            "coherent_ms": P(2, "int", "coherent integration of the narrow search (ms)", lo=1, hi=10),
+            "noncoherent": P(10, "int", "non-coherent sums of the narrow search", lo=1, hi=100),
+            "pfa": P(1e-4, "float", "false-alarm probability over the narrow search window", lo=1e-12,
+                     hi=0.5),
+            "pull_in_ms": P(100, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
+            "settle_s": P(0.3, "float", "a re-acquired channel's measurements are used this long after its "
+                                        "pull-in", lo=0.0),
+        },
         "carrier": {
             "variant": P("pll", "str", "carrier loop variant: pll (built-in FLL-assisted PLL), cpll_atan "
                                        "(ATAN Costas PLL, loop filter of order `order`), ekf (I/Q extended "

@@ -68,6 +68,7 @@ class VectorTracker:
         self.rate = float(cfg.navigation.rate_hz)
         self.next_fix = None
         self.stats = {"epochs": 0, "fired": 0}
+        self.reinit_needed = False           # the filter cannot bridge the current outage (see process)
         self.last_diag = None                # decimated diagnostics of the last chunk (see diagnostics())
         self.last_log = None
         self._arrays_dirty = True
