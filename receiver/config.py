@@ -441,6 +441,13 @@ RECEIVER_SCHEMA = {
         "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, tracking.cn0_window_ms) above which a "
                                           "vector channel counts as tracked (records' pll_lock, fixes' "
                                           "n_sats and DOPs; M2M4 on noise alone reads 20-30 dB-Hz)"),
+        "coast_mask": P(True, "bool", "while fewer than 4 channels carry signal (C/N0 above lock_cn0_dbhz) the "
+                                      "channels without signal are predicted only (no measurement update): "
+                                      "the filter coasts on its motion model instead of on noise"),
+        "reinit_sigma_m": P(30.0, "float", "an outage the filter cannot bridge: when its 3D position standard "
+                                           "deviation passes this while coasting, the channels fall back to "
+                                           "scalar tracking and the handover starts again from the next scalar "
+                                           "fix (0 = never)", lo=0.0),
         "drop_elevation_deg": P(-2.0, "float", "vector channels whose satellite sets below this elevation are "
                                                "dropped", lo=-90.0, hi=90.0),
         "add_predicted": P(True, "bool", "open channels predicted from the navigation solution for "

@@ -16,13 +16,16 @@ from . import __version__
 from .errors import UserError
 from .record import EPOCH_DTYPE, STATE_NAMES
 
-MODE_NAMES = {0: "scalar", 1: "vector"}
+# fix mode: 0 scalar least squares; 1 vector loop with >= 4 channels carrying signal; 2 coast (vector filter
+# propagated through an outage: fewer than 4 channels carry signal, n_sats = those that do)
+MODE_NAMES = {0: "scalar", 1: "vector", 2: "coast"}
 
 FIX_DTYPE = np.dtype([
     ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("ecef", "f8", (3,)),
     ("velocity_ecef", "f8", (3,)), ("clock_bias_m", "f8"), ("clock_drift_mps", "f8"),
     ("n_sats", "i4"), ("pdop", "f8"), ("hdop", "f8"), ("vdop", "f8"), ("gdop", "f8"),
-    ("mode", "u1"), ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
+    ("mode", "u1"),                 # MODE_NAMES: 0 scalar, 1 vector, 2 coast
+    ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
 ])
 
 OBS_DTYPE = np.dtype([
@@ -84,7 +87,7 @@ class RunWriter:
             a[k] = v
         self.f.create_group("channels")
         g = self.f.create_group("navigation")
-        g.attrs["mode_mapping"] = "0=scalar,1=vector"
+        g.attrs["mode_mapping"] = "0=scalar,1=vector,2=coast"
 
     # ------------------------------------------------------------------ acquisition
     def write_acquisition(self, results, attrs: dict | None = None):
