@@ -5,7 +5,7 @@ the predicted Doppler and a code-phase window around the predicted code phase.  
 code phases of one code period is one FFT per coherent block and Doppler bin (circular correlation); only
 the cells inside the window can be detected, so the detection threshold (false-alarm probability over the
 window's cells) is lower than a full-grid search's and a false peak elsewhere in the code is impossible.
-A detected peak is refined: the code phase by a parabola through the peak and its neighbours, the Doppler
+A detected peak is refined: the code phase by a triangle through the peak and its neighbours, the Doppler
 from the phase advance of 1-ms prompt correlations at that code phase over the whole search block (data-bit
 flips cost 1 product in 20).
 
@@ -90,10 +90,11 @@ def narrow_search(samples: np.ndarray, start_index: int, fs: float, if_hz: float
     thr = float(gamma.isf(pfa / n_cells, K, scale=1.0 / K))
     if ptm < thr:
         return None
-    # code phase: parabola through the peak and its neighbours (circular lags)
-    y0, y1, y2 = power[di, (li - 1) % n1], power[di, li], power[di, (li + 1) % n1]
-    den = y0 - 2 * y1 + y2
-    frac = 0.5 * (y0 - y2) / den if den < 0 else 0.0
+    # code phase: a triangle (the code's correlation function) through the peak and its neighbours, in
+    # amplitude; exact for an unfiltered signal sampled at least twice per chip
+    y0, y1, y2 = (math.sqrt(max(power[di, (li + k) % n1], 0.0)) for k in (-1, 0, 1))
+    den = 2.0 * (y1 - min(y0, y2))
+    frac = (y2 - y0) / den if den > 0 else 0.0
     lag = li + max(-0.5, min(0.5, frac))
     code_phase = (code_phase_chips - lag * sig.chip_rate / fs) % code_len
     dop = refine(samples[:n * K], fs, if_hz, prn, code_phase, float(dopplers[di]), sig)
