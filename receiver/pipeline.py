@@ -55,6 +55,8 @@ class RunSummary:
                  + " ".join(f"G{p:02d}({self.mean_cn0[p]:.1f})" for p in self.tracked)]
         if self.mean_cn0:
             lines.append(f"mean C/N0       {np.mean(list(self.mean_cn0.values())):.1f} dB-Hz")
+        if self.reacquisitions:
+            lines.append(f"re-acquisitions {self.reacquisitions} (signal lost and found again)")
         if self.n_fixes:
             lat, lon, h = self.mean_llh
             lines += [f"first fix       {self.first_fix_s:.2f} s after the first sample",
@@ -153,9 +155,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     if cfg.navigation.enabled and cfg.signal == "gps_l1ca":      # no B1I navigation decoding
         nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
                                cfg.input.start_gps_tow_s)
-    manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer,
-                             log=None if quiet else (lambda msg: print(msg, file=sys.stderr))
-                             if os.environ.get("GNSSRX_DEBUG_CHANNELS") else None)
+    manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
     manager.start(acq_start)
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
     cn0_sum: dict[int, list] = {}
