@@ -7,8 +7,10 @@ is 2 (vector loop bridging an epoch with fewer than four measured satellites); s
 are *measured* fixes.  A *good* fix is a measured fix within ``good_m`` (10 m) of the truth.
 
 Total outages
-    The intervals during which the truth shows no satellite visible (``/satellites/Gnn/visible`` all false,
-    at the truth rate, at least 50 ms), e.g. ``blockage.total`` windows.  For outage k = [a_k, b_k), whose
+    The truth's ``/blockage`` windows of kind *total* (``blockage.total`` and ``prn: all`` outages; random
+    blockages that happen to coincide are not total outages), overlapping ones merged; for truth files
+    without a ``/blockage`` table, the intervals during which no satellite is visible
+    (``/satellites/Gnn/visible`` all false, at the truth rate, at least 50 ms).  For outage k = [a_k, b_k), whose
     *window* runs to the next outage's start a_{k+1} (or the end of the truth):
 
     ``first_fix_s``  time from the signal's return b_k to the first measured fix in the window;
@@ -19,8 +21,11 @@ Total outages
                      receiver that measures nothing should report none).
 
     Over the whole run: ``max_err_m`` / ``max_err_all_m`` (measured / all fixes), ``n_coast`` (coast
-    fixes), and ``fixes_to_end``: true when the last measured fix is at most ``end_tol_s`` (2 s) before
-    the end of the truth.
+    fixes).
+
+Fixes to the end (any blockage)
+    ``fixes_to_end``: true when the last measured fix is at most ``end_tol_s`` (2 s) before the end of the
+    truth (``end_gap_s``).
 
 Random blockage (urban canyon)
     Over the truth's ``/blockage`` attributes ``random_start_s`` .. ``random_end_s``: the window is cut into
@@ -39,6 +44,7 @@ import numpy as np
 
 from .errors import UserError
 from .output import open_h5
+from .sim.blockage import KIND_TOTAL
 
 MODE_COAST = 2
 GOOD_M = 10.0
@@ -71,20 +77,35 @@ class Fixes:
 
 @dataclass
 class Visibility:
-    """Truth visibility: t (truth time_s), n_visible per row; random-blockage window (or None)."""
+    """Truth visibility: t (truth time_s), n_visible per row; random-blockage window (or None); the total
+    windows [(start, end)] of the truth's /blockage table (None: the truth has no table)."""
     t: np.ndarray
     n_visible: np.ndarray
     random_window: tuple | None = None
+    total_windows: list | None = None
 
 
 # ------------------------------------------------------------------------------------------ pure math
 def total_outages(vis: Visibility, min_s: float = MIN_OUTAGE_S) -> list:
-    """[(start, end)] of the runs of truth rows with no satellite visible (end: first row with one)."""
+    """[(start, end)]: the /blockage total windows (merged, clipped to the truth span) when the truth has
+    the table, else the runs of truth rows with no satellite visible (end: first row with one)."""
+    step = float(np.median(np.diff(vis.t))) if vis.t.size > 1 else 0.0
+    if vis.total_windows is not None:
+        t0, t1 = float(vis.t[0]), float(vis.t[-1]) + step
+        out = []
+        for a, b in sorted(vis.total_windows):
+            a, b = max(a, t0), min(b, t1)
+            if b <= a:
+                continue
+            if out and a <= out[-1][1]:
+                out[-1] = (out[-1][0], max(out[-1][1], b))
+            else:
+                out.append((a, b))
+        return out
     dark = np.concatenate(([0], (vis.n_visible == 0).astype(np.int8), [0]))
     starts = np.nonzero(np.diff(dark) == 1)[0]
     ends = np.nonzero(np.diff(dark) == -1)[0]
     t = vis.t
-    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     out = []
     for a, e in zip(starts, ends):
         ta = float(t[a])
@@ -120,15 +141,20 @@ def outage_report(fx: Fixes, outages: list, t_end: float, good_m: float = GOOD_M
                      "n_coast": int(np.count_nonzero(win & fx.coast)),
                      "n_inside": int(np.count_nonzero(meas & (fx.t >= a) & (fx.t < b)))})
     out = {"outages": rows}
-    t_meas = fx.t[meas]
-    out["end_gap_s"] = float(t_end - t_meas[-1]) if t_meas.size else math.inf
-    out["fixes_to_end"] = bool(out["end_gap_s"] <= end_tol_s)
+    out.update(end_report(fx, t_end, end_tol_s))
     e_m, e_a = fx.err[meas], fx.err
     e_m, e_a = e_m[np.isfinite(e_m)], e_a[np.isfinite(e_a)]
     out["max_err_m"] = float(e_m.max()) if e_m.size else math.nan
     out["max_err_all_m"] = float(e_a.max()) if e_a.size else math.nan
     out["n_coast"] = int(np.count_nonzero(fx.coast))
     return out
+
+
+def end_report(fx: Fixes, t_end: float, end_tol_s: float = END_TOL_S) -> dict:
+    """{"end_gap_s": end of the truth - last measured fix, "fixes_to_end": gap <= end_tol_s}."""
+    t_meas = fx.t[~fx.coast]
+    gap = float(t_end - t_meas[-1]) if t_meas.size else math.inf
+    return {"end_gap_s": gap, "fixes_to_end": bool(gap <= end_tol_s)}
 
 
 def canyon_report(fx: Fixes, vis: Visibility, rate_hz: float, min_visible: int = 4) -> dict | None:
@@ -178,8 +204,8 @@ def batch_metrics(rep: dict) -> dict:
         m["outage_max_err_m"] = o["max_err_m"]
         m["outage_max_err_all_m"] = o["max_err_all_m"]
         m["outage_coast_fixes"] = float(o["n_coast"])
-    if o is not None:
-        m["fixes_to_end"] = float(o["fixes_to_end"])
+    if "fixes_to_end" in rep and has_outages(rep):
+        m["fixes_to_end"] = float(rep["fixes_to_end"])
     if c is not None:
         m["canyon_epochs"] = float(c["counted"])
         m["canyon_availability"] = c["availability"]
@@ -199,11 +225,15 @@ def read_visibility(truth_h5) -> Visibility:
         for g in f["satellites"].values():
             if "visible" in g and g["visible"].shape[0] == t.size:
                 n += g["visible"][:].astype(np.int32)
-        win = None
-        if "blockage" in f and "random_start_s" in f["blockage"].attrs:
-            a = f["blockage"].attrs
-            win = (float(a["random_start_s"]), float(a["random_end_s"]))
-    return Visibility(t=t, n_visible=n, random_window=win)
+        win, total = None, None
+        if "blockage" in f:
+            b = f["blockage"]
+            if "random_start_s" in b.attrs:
+                win = (float(b.attrs["random_start_s"]), float(b.attrs["random_end_s"]))
+            if "kind" in b:
+                sel = b["kind"][:] == KIND_TOTAL
+                total = [(float(x), float(y)) for x, y in zip(b["start_s"][:][sel], b["end_s"][:][sel])]
+    return Visibility(t=t, n_visible=n, random_window=win, total_windows=total)
 
 
 def read_fixes(run_h5, truth_h5):
@@ -248,7 +278,8 @@ def report(run_h5, truth_h5, good_m: float = GOOD_M) -> dict:
     fx, rate, t_end = read_fixes(run_h5, truth_h5)
     outs = total_outages(vis)
     return {"total": outage_report(fx, outs, t_end, good_m) if outs else None,
-            "canyon": canyon_report(fx, vis, rate), "rate_hz": rate, "good_m": good_m}
+            "canyon": canyon_report(fx, vis, rate), "rate_hz": rate, "good_m": good_m,
+            **end_report(fx, t_end)}
 
 
 def has_outages(rep: dict) -> bool:
@@ -276,8 +307,6 @@ def format_report(rep: dict) -> str:
                          f"{r['n_coast']:>8d}{r['n_inside']:>8d}")
         lines.append(f"whole run: max error {_f(o['max_err_m'], '{:.1f}')} m (measured fixes), "
                      f"{_f(o['max_err_all_m'], '{:.1f}')} m (all); coast fixes {o['n_coast']}")
-        lines.append(f"fixes continue to the end: {'yes' if o['fixes_to_end'] else 'NO'} "
-                     f"(last measured fix {_f(o['end_gap_s'])} s before the end)")
     c = rep.get("canyon")
     if c is not None:
         lines += ["", "random blockage (urban canyon)", "-" * 52,
@@ -287,4 +316,7 @@ def format_report(rep: dict) -> str:
                   f"availability (measured fix in those epochs)  {_f(100 * c['availability'], '{:.1f}')} %",
                   f"measured fixes in all epochs                 {_f(100 * c['fix_fraction_all'], '{:.1f}')} %",
                   f"3D RMS / max of the measured fixes           {_f(c['rms_3d_m'])} / {_f(c['max_err_m'])} m"]
+    if has_outages(rep) and "fixes_to_end" in rep:
+        lines.append(f"fixes continue to the end: {'yes' if rep['fixes_to_end'] else 'NO'} "
+                     f"(last measured fix {_f(rep['end_gap_s'])} s before the end)")
     return "\n".join(lines)

@@ -95,7 +95,7 @@ def total_table(name, groups) -> list:
 
 def canyon_table(name, groups) -> list:
     head = ["variant", "runs", "epochs with >= 4 visible", "availability % (worst)", "3D RMS m (worst)",
-            "max err m", "acceptance"]
+            "max err m", "fixes to end", "acceptance"]
     lines = [f"### {name}: random blockage -- measured fixes in the epochs with >= 4 satellites visible", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for variant, rows in groups.items():
@@ -107,7 +107,8 @@ def canyon_table(name, groups) -> list:
                  f"{_fmt(100 * np.mean(_finite(av) or [math.nan]), 1)} "
                  f"({_fmt(100 * min(_finite(av), default=math.nan), 1)})",
                  f"{_fmt(np.mean(_finite(rms) or [math.nan]))} ({_fmt(max(_finite(rms), default=math.nan))})",
-                 _fmt(max(_finite([r["canyon_max_err_m"] for r in rows]), default=math.nan), 1)]
+                 _fmt(max(_finite([r["canyon_max_err_m"] for r in rows]), default=math.nan), 1),
+                 f"{sum(r['fixes_to_end'] == 1.0 for r in rows)}/{len(rows)}"]
         if vec:
             cells.append("(reported)")
         else:

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from receiver.batch.metrics import METRIC_KEYS, compute_metrics
 from receiver.cli import main
 from receiver.evaluate_outages import (OUTAGE_METRIC_KEYS, Fixes, Visibility, batch_metrics, canyon_report,
-                                       outage_report, report, total_outages)
+                                       end_report, outage_report, report, total_outages)
 
 OFF = 1e-4            # receiver clock bias: fixes at round GPS times sit 0.1 ms late on the truth axis
 
@@ -70,7 +70,8 @@ def test_outage_report_by_hand():
 
 def test_batch_metrics_keys_and_values():
     fx = _outage_fixes()
-    rep = {"total": outage_report(fx, [(10.0, 11.0), (20.0, 23.0), (30.0, 38.0)], 60.0), "canyon": None}
+    rep = {"total": outage_report(fx, [(10.0, 11.0), (20.0, 23.0), (30.0, 38.0)], 60.0), "canyon": None,
+           **end_report(fx, 60.0)}
     m = batch_metrics(rep)
     assert set(m) == set(OUTAGE_METRIC_KEYS) and set(OUTAGE_METRIC_KEYS) <= set(METRIC_KEYS)
     assert m["outage_n"] == 3.0 and m["outage2_dur_s"] == 3.0
@@ -79,6 +80,16 @@ def test_batch_metrics_keys_and_values():
     assert m["fixes_to_end"] == 0.0 and m["outage_coast_fixes"] == 35.0
     assert math.isnan(m["canyon_availability"])
     assert all(math.isnan(v) for v in batch_metrics({"total": None, "canyon": None}).values())
+
+
+def test_total_outages_from_the_blockage_table():
+    t = np.arange(0, 3000) * 0.01
+    n = np.full(t.size, 7)
+    n[(t >= 5.0) & (t < 6.0)] = 0                               # e.g. random blockages coinciding
+    vis = Visibility(t, n, total_windows=[(20.0, 23.0), (8.0, 9.0), (22.0, 25.0), (29.0, 40.0)])
+    out = total_outages(vis)
+    assert len(out) == 3 and out[:2] == [(8.0, 9.0), (20.0, 25.0)] and out[2] == pytest.approx((29.0, 30.0))
+    assert total_outages(Visibility(t, n, total_windows=[])) == []
 
 
 def test_total_outages_from_visibility():
@@ -142,10 +153,17 @@ def _files(tmp_path, outage=True):
                 v[(t >= 10.0) & (t < 13.0)] = False
             if i < 2:
                 v[(t >= 30.0) & (t < 32.0)] = False
+            v[(t >= 24.0) & (t < 24.5)] = False
             s = f.create_group(f"satellites/G{p:02d}")
             s["time_s"], s["visible"] = t, v
         b = f.create_group("blockage")
         b.attrs["random_start_s"], b.attrs["random_end_s"] = 20.0, 40.0
+        rows = [(0, 10.0, 13.0, 1)] if outage else []
+        rows += [(p, 24.0, 24.5, 2) for p in (1, 7, 11, 14, 15)]       # a coinciding random blockage
+        b["prn"] = np.array([r[0] for r in rows], np.int32)
+        b["start_s"] = np.array([r[1] for r in rows], float)
+        b["end_s"] = np.array([r[2] for r in rows], float)
+        b["kind"] = np.array([r[3] for r in rows], np.uint8)
     tf = np.round(np.arange(1.0, 40.0, 0.1), 6)
     tf = tf[(tf < 10.0) | (tf >= 14.0)]
     e = np.array([3.0, 0.0, 0.0]) @ enu_matrix(lat, lon)
@@ -168,7 +186,8 @@ def test_report_from_files_cli_and_batch_metrics(tmp_path):
     assert o["ttgf_s"] == pytest.approx(1.0) and o["max_err_m"] == pytest.approx(3.0)
     assert rep["total"]["fixes_to_end"] is True
     c = rep["canyon"]
-    assert c["epochs"] == 199 and c["counted"] == 199 - 20 and c["availability"] == 1.0   # truth ends 39.99
+    # 2 s with 3 visible, 0.5 s with none: 25 epochs with < 4; the truth ends at 39.99 s
+    assert c["epochs"] == 199 and c["counted"] == 199 - 25 and c["availability"] == 1.0
     assert c["rms_3d_m"] == pytest.approx(3.0)
     m = compute_metrics(run, truth)
     assert m["outage_n"] == 1.0 and m["outage1_ttgf_s"] == pytest.approx(1.0)
@@ -182,8 +201,13 @@ def test_report_from_files_cli_and_batch_metrics(tmp_path):
 
 def test_eval_outages_without_outages_is_a_user_error(tmp_path):
     run, truth = _files(tmp_path, outage=False)
+    assert report(run, truth)["total"] is None             # the coinciding random blockage is no outage
     with h5py.File(truth, "a") as f:
         del f["blockage"]
+        for g in f["satellites"].values():                   # no table, no dark spell: nothing to score
+            v = g["visible"][:]
+            v[(f["receiver/time_s"][:] >= 24.0) & (f["receiver/time_s"][:] < 24.5)] = True
+            g["visible"][...] = v
     res = CliRunner().invoke(main, ["eval", str(run), str(truth), "--outages"])
     assert res.exit_code == 2
     assert "no total outage" in res.output and "Traceback" not in res.output
