@@ -100,8 +100,8 @@ def fix_enu_errors(nav: dict, truth: dict):
 
     truth: {"week", "gps_tow" (M,), "ecef" (M,3), "velocity_ecef" (M,3)}; a static reference has M = 2
     rows spanning everything.  Returns (enu, vel_err, scored_mask_over_all_fixes)."""
-    from ..geodesy import ecef2lla, enu_matrix
-    from ..nav.ephemeris import WEEK_S
+    from ..gnss.geodesy import ecef2lla, enu_matrix
+    from ..gnss.ephemeris import WEEK_S
     tow = np.asarray(nav["gps_tow"], dtype=float)
     week = np.asarray(nav.get("gps_week", np.full(tow.shape, truth["week"])), dtype=float)
     t = (week - truth["week"]) * WEEK_S + tow
@@ -137,8 +137,8 @@ def _read_truth_receiver(truth_h5):
 
 
 def _static_truth(reference_llh, nav):
-    from ..geodesy import lla2ecef
-    from ..nav.ephemeris import WEEK_S
+    from ..gnss.geodesy import lla2ecef
+    from ..gnss.ephemeris import WEEK_S
     ref = np.asarray(lla2ecef(*reference_llh), dtype=float).reshape(3)
     week = int(np.asarray(nav.get("gps_week", [0]))[0]) if len(nav["gps_tow"]) else 0
     return {"week": week, "gps_tow": np.array([-2 * WEEK_S, 3 * WEEK_S]), "ecef": np.tile(ref, (2, 1)),
