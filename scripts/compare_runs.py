@@ -8,12 +8,15 @@ unchanged.
 
 Ignored: attributes that depend on the wall clock or on the invocation (``command``, ``created_utc``,
 ``wall_time_s``, ``realtime_factor``).  In string attributes and text files the directory of each side is
-replaced by a placeholder first, so ``-o /tmp/a/run.h5`` and ``-o /tmp/b/run.h5`` compare equal.
+replaced by a placeholder first, so ``-o /tmp/a/run.h5`` and ``-o /tmp/b/run.h5`` compare equal, and a
+string attribute naming an existing file is compared as its real path (the same input reached through a
+symlink).
 Prints each difference on one line; exit 1 on any difference, 2 on bad arguments, 0 when identical.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -29,6 +32,8 @@ def _norm(value, root: str):
     if isinstance(value, bytes):
         value = value.decode("utf-8", "replace")
     if isinstance(value, str):
+        if "\n" not in value and len(value) < 4096 and os.path.isabs(value) and os.path.exists(value):
+            value = os.path.realpath(value)      # the same input reached through a symlinked directory
         return value.replace(root, "<DIR>")
     return value
 
