@@ -41,6 +41,15 @@ Every metric is a float (NaN when it cannot be computed, e.g. no fix or no truth
     Mean over channels of each channel's mean C/N0 over its locked epochs (as the run summary).
 ``vector_fix_fraction``
     Fraction of the fixes produced by a vector loop (``/navigation/mode`` == 1).
+``outage_*``, ``fixes_to_end``, ``canyon_*`` (need a simulator truth file with outages)
+    From :mod:`receiver.evaluate_outages` (see its docstring): ``outage_n`` total outages; for the first
+    four, ``outageK_dur_s`` (length), ``outageK_ttgf_s`` (signal return to the first good fix: measured,
+    3D error <= 10 m; NaN if none before the next outage) and ``outageK_max_err_m`` (largest error of the
+    measured fixes from its start to the next outage); ``outage_max_err_m`` / ``outage_max_err_all_m``
+    (measured / all fixes of the whole run), ``outage_coast_fixes``, ``fixes_to_end`` (1: the
+    last measured fix is <= 2 s before the end); random blockage: ``canyon_epochs`` (epochs with >= 4
+    satellites visible), ``canyon_availability`` (fraction of them with a measured fix), ``canyon_rms_3d_m``
+    and ``canyon_max_err_m`` (measured fixes in the blockage window).
 ``signal_s``, ``run_wall_s``, ``realtime_factor``
     Seconds of signal processed, and the run file's ``wall_time_s`` / ``realtime_factor`` attributes.
 ``job_wall_s``, ``job_cpu_s`` (set by the batch runner)
@@ -54,8 +63,9 @@ import os
 import numpy as np
 
 from ..errors import UserError
+from ..evaluate_outages import OUTAGE_METRIC_KEYS
 
-METRICS_VERSION = 1
+METRICS_VERSION = 2
 
 #: metric columns in summary order
 METRIC_KEYS = (
@@ -65,6 +75,7 @@ METRIC_KEYS = (
     "loss_of_lock", "channels_dropped", "n_channels_locked",
     "carrier_phase_err_std_cyc", "carrier_phase_epochs", "carrier_disc_std_cyc",
     "cn0_mean_dbhz", "vector_fix_fraction", "n_sats_mean", "pdop_mean",
+) + OUTAGE_METRIC_KEYS + (
     "signal_s", "run_wall_s", "realtime_factor", "job_wall_s", "job_cpu_s",
 )
 #: metrics that depend on the machine / load, not on the receiver's result
@@ -291,4 +302,7 @@ def compute_metrics(run_h5, truth_h5=None, reference_llh=None, carrier_settle_s:
             out["n_fixes"] = float(n_fix)
             _channel_metrics(out, f, truth_h5, carrier_settle_s)
         _position_metrics(out, run_h5, nav, truth_h5, reference_llh)
+        if truth_h5:
+            from ..evaluate_outages import batch_metrics, report
+            out.update(batch_metrics(report(run_h5, truth_h5)))
     return out

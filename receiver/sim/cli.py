@@ -40,11 +40,24 @@ def simulate(scenario, out, sets, quiet):
 @click.argument("run_h5", type=str)
 @click.argument("truth_h5", type=str)
 @click.option("--json", "as_json", is_flag=True, help="print the statistics as JSON")
-def evaluate_cmd(run_h5, truth_h5, as_json):
+@click.option("--outages", is_flag=True,
+              help="score continuity through the truth's outages (total outages: time to the first good fix "
+                   "after each, max errors, fixes to the end; random blockage: availability, 3D RMS); "
+                   "automatic when the truth has outages, an error when it has none")
+def evaluate_cmd(run_h5, truth_h5, as_json, outages):
     """Compare a receiver run file with a simulator truth file (position, velocity, clock, TTFF)."""
+    from ..errors import UserError
     from ..evaluate import evaluate, format_table
+    from ..evaluate_outages import format_report, has_outages, report
     stats = evaluate(run_h5, truth_h5)
+    rep = report(run_h5, truth_h5)
+    if outages and not has_outages(rep):
+        raise UserError(f"--outages: the truth file {truth_h5} shows no total outage and no random blockage")
     if as_json:
+        if has_outages(rep):
+            stats = {**stats, "outages": rep}
         click.echo(json.dumps(stats, indent=2, default=float))
     else:
         click.echo(format_table(stats))
+        if has_outages(rep):
+            click.echo(format_report(rep))
