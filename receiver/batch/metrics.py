@@ -42,7 +42,7 @@ Every metric is a float (NaN when it cannot be computed, e.g. no fix or no truth
 ``vector_fix_fraction``
     Fraction of the fixes produced by a vector loop (``/navigation/mode`` == 1).
 ``outage_*``, ``fixes_to_end``, ``canyon_*`` (need a simulator truth file with outages)
-    From :mod:`receiver.evaluate_outages` (see its docstring): ``outage_n`` total outages; for the first
+    From :mod:`receiver.evaluate.outages` (see its docstring): ``outage_n`` total outages; for the first
     four, ``outageK_dur_s`` (length), ``outageK_ttgf_s`` (signal return to the first good fix: measured,
     3D error <= 10 m; NaN if none before the next outage) and ``outageK_max_err_m`` (largest error of the
     measured fixes from its start to the next outage); ``outage_max_err_m`` / ``outage_max_err_all_m``
@@ -63,7 +63,7 @@ import os
 import numpy as np
 
 from ..errors import UserError
-from ..evaluate_outages import OUTAGE_METRIC_KEYS
+from ..evaluate.outages import OUTAGE_METRIC_KEYS
 
 METRICS_VERSION = 2
 
@@ -303,6 +303,6 @@ def compute_metrics(run_h5, truth_h5=None, reference_llh=None, carrier_settle_s:
             _channel_metrics(out, f, truth_h5, carrier_settle_s)
         _position_metrics(out, run_h5, nav, truth_h5, reference_llh)
         if truth_h5:
-            from ..evaluate_outages import batch_metrics, report
+            from ..evaluate.outages import batch_metrics, report
             out.update(batch_metrics(report(run_h5, truth_h5)))
     return out
