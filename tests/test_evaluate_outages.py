@@ -33,6 +33,7 @@ def _outage_fixes():
     add(_grid(11.7, 20), 3.0)                   # good from 11.7 s
     add(_grid(20, 23.5), 40.0, True)            # coasting through [20, 23) and 0.5 s beyond
     add([21.0 + OFF], 90.0)                     # a measured fix INSIDE the outage (claims what it lacks)
+    add([10.2 + OFF], 6.0)                      # a measured fix 0.2 s into outage 1: loss not yet noticed
     add(_grid(23.5, 23.8), 12.0)                # measured, > 10 m
     add(_grid(23.8, 30), 4.0)                   # good from 23.8 s
     # third outage [30, 38): nothing after it (fixes stop)
@@ -56,7 +57,7 @@ def test_outage_report_by_hand():
     assert o2["n_coast"] == 35 and o2["n_inside"] == 1
     assert math.isnan(o3["ttgf_s"]) and math.isnan(o3["first_fix_s"]) and math.isnan(o3["max_err_m"])
     assert rep["fixes_to_end"] is False and rep["end_gap_s"] == pytest.approx(60.0 - 29.9 - OFF)
-    assert rep["max_err_m"] == 90.0 and rep["n_coast"] == 35
+    assert rep["max_err_m"] == 90.0 and rep["n_coast"] == 35 and rep["n_inside"] == 1
     # without the lying fix the worst measured error is the 15 m of the pull-in
     keep = ~((fx.t > 20.9) & (fx.t < 21.1) & ~fx.coast)
     rep2 = outage_report(Fixes(fx.t[keep], fx.err[keep], fx.coast[keep]), [(10.0, 11.0), (20.0, 23.0)], 30.05)
@@ -77,7 +78,7 @@ def test_batch_metrics_keys_and_values():
     assert m["outage_n"] == 3.0 and m["outage2_dur_s"] == 3.0
     assert m["outage1_ttgf_s"] == pytest.approx(0.7 + OFF) and m["outage2_max_err_m"] == 90.0
     assert math.isnan(m["outage3_ttgf_s"]) and math.isnan(m["outage4_dur_s"])
-    assert m["fixes_to_end"] == 0.0 and m["outage_coast_fixes"] == 35.0
+    assert m["fixes_to_end"] == 0.0 and m["outage_coast_fixes"] == 35.0 and m["outage_fixes_inside"] == 1.0
     assert math.isnan(m["canyon_availability"])
     assert all(math.isnan(v) for v in batch_metrics({"total": None, "canyon": None}).values())
 

@@ -16,7 +16,7 @@ NAN = math.nan
 def _row(vector, ttgf, max_meas, max_all, to_end=1.0, avail=NAN, rms=NAN):
     r = {"config_yaml": f"vector:\n  enabled: {str(vector).lower()}\n", "outage_n": 4.0,
          "outage_max_err_m": max_meas, "outage_max_err_all_m": max_all, "outage_coast_fixes": 0.0,
-         "fixes_to_end": to_end, "canyon_availability": avail, "canyon_rms_3d_m": rms,
+         "fixes_to_end": to_end, "outage_fixes_inside": 0.0, "canyon_availability": avail, "canyon_rms_3d_m": rms,
          "canyon_max_err_m": rms, "canyon_epochs": 700.0}
     for k, (d, t) in enumerate(zip((1.0, 3.0, 8.0, 30.0), ttgf), start=1):
         r[f"outage{k}_dur_s"], r[f"outage{k}_ttgf_s"], r[f"outage{k}_max_err_m"] = d, t, max_meas
@@ -43,6 +43,8 @@ def test_vector_limits_ignore_coast_errors_and_the_30s_outage():
     lines = ot.total_table("x", {"cv": [v]})
     assert _verdict(lines) == ["met"] and "cv (vector)" in lines[4]
     assert "1.50 (1.50)" in lines[4] and "25.00 (25.00)" in lines[4]
+    liar = dict(v, outage_fixes_inside=12.0)                     # coasting not flagged
+    assert _verdict(ot.total_table("x", {"cv": [v, liar]})) == ["NOT met: unflagged fixes in outages"]
     slow = _row(True, (1.5, 2.5, 2.0, 5.0), 29.0, 29.0)
     assert _verdict(ot.total_table("x", {"cv": [slow]})) == ["NOT met: 3 s > 2 s"]
 

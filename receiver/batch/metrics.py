@@ -46,7 +46,8 @@ Every metric is a float (NaN when it cannot be computed, e.g. no fix or no truth
     four, ``outageK_dur_s`` (length), ``outageK_ttgf_s`` (signal return to the first good fix: measured,
     3D error <= 10 m; NaN if none before the next outage) and ``outageK_max_err_m`` (largest error of the
     measured fixes from its start to the next outage); ``outage_max_err_m`` / ``outage_max_err_all_m``
-    (measured / all fixes of the whole run), ``outage_coast_fixes``, ``fixes_to_end`` (1: the
+    (measured / all fixes of the whole run), ``outage_coast_fixes``, ``outage_fixes_inside`` (measured
+    fixes more than 0.3 s into an outage: unflagged coasting), ``fixes_to_end`` (1: the
     last measured fix is <= 2 s before the end); random blockage: ``canyon_epochs`` (epochs with >= 4
     satellites visible), ``canyon_availability`` (fraction of them with a measured fix), ``canyon_rms_3d_m``
     and ``canyon_max_err_m`` (measured fixes in the blockage window).

@@ -17,11 +17,13 @@ Total outages
     ``ttgf_s``       time from b_k to the first good fix in the window (NaN: none);
     ``max_err_m``    largest 3D error of the measured fixes in [a_k, a_{k+1});
     ``max_err_all_m`` the same over every fix, coast fixes included;
-    ``n_coast``      coast fixes in [a_k, a_{k+1});  ``n_inside``: measured fixes inside [a_k, b_k) (a
-                     receiver that measures nothing should report none).
+    ``n_coast``      coast fixes in [a_k, a_{k+1});
+    ``n_inside``     measured fixes more than ``grace_s`` (0.3 s: the time a receiver may take to notice
+                     the loss) into the outage, [a_k + grace_s, b_k): a receiver that measures nothing
+                     should claim no measured fix there (vector: such epochs must be flagged coast).
 
     Over the whole run: ``max_err_m`` / ``max_err_all_m`` (measured / all fixes), ``n_coast`` (coast
-    fixes).
+    fixes), ``n_inside`` (summed over the outages).
 
 Fixes to the end (any blockage)
     ``fixes_to_end``: true when the last measured fix is at most ``end_tol_s`` (2 s) before the end of the
@@ -49,6 +51,7 @@ from ..sim.blockage import KIND_TOTAL
 MODE_COAST = 2
 GOOD_M = 10.0
 END_TOL_S = 2.0
+LOSS_GRACE_S = 0.3
 MIN_OUTAGE_S = 0.05
 N_OUTAGE_KEYS = 4            # outages reported one by one in the batch metrics
 
@@ -56,7 +59,7 @@ N_OUTAGE_KEYS = 4            # outages reported one by one in the batch metrics
 OUTAGE_METRIC_KEYS = (
     ("outage_n",)
     + tuple(f"outage{k}_{m}" for k in range(1, N_OUTAGE_KEYS + 1) for m in ("dur_s", "ttgf_s", "max_err_m"))
-    + ("outage_max_err_m", "outage_max_err_all_m", "outage_coast_fixes", "fixes_to_end",
+    + ("outage_max_err_m", "outage_max_err_all_m", "outage_coast_fixes", "outage_fixes_inside", "fixes_to_end",
        "canyon_epochs", "canyon_availability", "canyon_rms_3d_m", "canyon_max_err_m")
 )
 
@@ -116,7 +119,7 @@ def total_outages(vis: Visibility, min_s: float = MIN_OUTAGE_S) -> list:
 
 
 def outage_report(fx: Fixes, outages: list, t_end: float, good_m: float = GOOD_M,
-                  end_tol_s: float = END_TOL_S) -> dict:
+                  end_tol_s: float = END_TOL_S, grace_s: float = LOSS_GRACE_S) -> dict:
     """Per-outage recovery and error statistics (see the module docstring)."""
     meas = ~fx.coast
     good = meas & (fx.err <= good_m)
@@ -139,7 +142,7 @@ def outage_report(fx: Fixes, outages: list, t_end: float, good_m: float = GOOD_M
                      "first_fix_s": first(after & meas), "ttgf_s": first(after & good),
                      "max_err_m": vmax(win & meas), "max_err_all_m": vmax(win),
                      "n_coast": int(np.count_nonzero(win & fx.coast)),
-                     "n_inside": int(np.count_nonzero(meas & (fx.t >= a) & (fx.t < b)))})
+                     "n_inside": int(np.count_nonzero(meas & (fx.t >= a + grace_s) & (fx.t < b)))})
     out = {"outages": rows}
     out.update(end_report(fx, t_end, end_tol_s))
     e_m, e_a = fx.err[meas], fx.err
@@ -147,6 +150,7 @@ def outage_report(fx: Fixes, outages: list, t_end: float, good_m: float = GOOD_M
     out["max_err_m"] = float(e_m.max()) if e_m.size else math.nan
     out["max_err_all_m"] = float(e_a.max()) if e_a.size else math.nan
     out["n_coast"] = int(np.count_nonzero(fx.coast))
+    out["n_inside"] = int(sum(r["n_inside"] for r in rows))
     return out
 
 
@@ -204,6 +208,7 @@ def batch_metrics(rep: dict) -> dict:
         m["outage_max_err_m"] = o["max_err_m"]
         m["outage_max_err_all_m"] = o["max_err_all_m"]
         m["outage_coast_fixes"] = float(o["n_coast"])
+        m["outage_fixes_inside"] = float(o["n_inside"])
     if "fixes_to_end" in rep and has_outages(rep):
         m["fixes_to_end"] = float(rep["fixes_to_end"])
     if c is not None:
@@ -299,12 +304,13 @@ def format_report(rep: dict) -> str:
                   f"{'window (s)':<16}{'length':>8}{'1st fix':>10}{'good fix':>10}{'max err':>10}"
                   f"{'max incl.':>11}{'coast':>8}{'fixes':>8}",
                   f"{'':<16}{'(s)':>8}{'after (s)':>10}{'after (s)':>10}{'(m)':>10}{'coast (m)':>11}"
-                  f"{'fixes':>8}{'inside':>8}"]
+                  f"{'fixes':>8}{'inside*':>8}"]
         for r in o["outages"]:
             lines.append(f"{r['start_s']:7.2f}-{r['end_s']:<8.2f}{r['dur_s']:8.2f}"
                          f"{_f(r['first_fix_s']):>10}{_f(r['ttgf_s']) if np.isfinite(r['ttgf_s']) else 'never':>10}"
                          f"{_f(r['max_err_m'], '{:.1f}'):>10}{_f(r['max_err_all_m'], '{:.1f}'):>11}"
                          f"{r['n_coast']:>8d}{r['n_inside']:>8d}")
+        lines.append(f"* measured (non-coast) fixes more than {LOSS_GRACE_S:g} s into the outage")
         lines.append(f"whole run: max error {_f(o['max_err_m'], '{:.1f}')} m (measured fixes), "
                      f"{_f(o['max_err_all_m'], '{:.1f}')} m (all); coast fixes {o['n_coast']}")
     c = rep.get("canyon")

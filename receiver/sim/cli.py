@@ -33,6 +33,24 @@ def simulate(scenario, out, sets, quiet):
             click.echo(f"wrote {paths['if']} ({a['n_samples'] / a['sample_rate_hz']:.1f} s, {a['format']}, "
                        f"{a['sample_rate_hz'] / 1e6:g} MS/s, IF {a['if_hz']:g} Hz)")
             click.echo(f"truth {paths['truth']}: {len(vis)} satellites with signal: {' '.join(vis)}")
+            if "blockage" in f and f["blockage/kind"].size:
+                from .blockage import KIND_OUTAGE, KIND_RANDOM, KIND_TOTAL
+                b = f["blockage"]
+                kind, start, end = b["kind"][:], b["start_s"][:], b["end_s"][:]
+                parts = []
+                tot = kind == KIND_TOTAL
+                if tot.any():
+                    parts.append(f"{int(tot.sum())} total outages (" + ", ".join(
+                        f"{x:g}-{y:g} s" for x, y in zip(start[tot], end[tot])) + ")")
+                if (kind == KIND_OUTAGE).any():
+                    parts.append(f"{int((kind == KIND_OUTAGE).sum())} satellite outages")
+                if (kind == KIND_RANDOM).any():
+                    ra = b.attrs
+                    parts.append(f"{int((kind == KIND_RANDOM).sum())} random blockages in "
+                                 f"{ra['random_start_s']:g}-{ra['random_end_s']:g} s, >= "
+                                 f"{int(ra['random_min_visible'])} satellites visible "
+                                 f"{100 * ra['random_fraction']:.1f} % of that time")
+                click.echo("blockage: " + "; ".join(parts))
             click.echo(f"receiver input section: {paths['yaml']}")
 
 
