@@ -4,7 +4,7 @@
     python scripts/outage_table.py out/batch/outages/summary.h5 [--out tables.md]
 
 For every input with total outages: per variant, the time from the signal's return to the first good fix
-(measured fix within 10 m; receiver/evaluate_outages.py) per outage length -- mean over the seeds, the
+(measured fix within 10 m; receiver/evaluate/outages.py) per outage length -- mean over the seeds, the
 worst seed in brackets, and how many seeds never got one --, the largest 3D error of the measured fixes and
 of all fixes (coast included), coast fixes, and whether fixes continued to the end.  For every input with a
 random blockage: availability (measured fix in the epochs with >= 4 satellites visible) and 3D RMS.  The
@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from receiver.batch.compare import read_summary  # noqa: E402
-from receiver.evaluate_outages import N_OUTAGE_KEYS  # noqa: E402
+from receiver.evaluate.outages import N_OUTAGE_KEYS  # noqa: E402
 
 
 def _is_vector(row) -> bool:

@@ -1,4 +1,4 @@
-"""Outage metrics (receiver/evaluate_outages.py) on hand-made fix tables and files with known answers."""
+"""Outage metrics (receiver/evaluate/outages.py) on hand-made fix tables and files with known answers."""
 import json
 import math
 
@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from receiver.batch.metrics import METRIC_KEYS, compute_metrics
 from receiver.cli import main
-from receiver.evaluate_outages import (OUTAGE_METRIC_KEYS, Fixes, Visibility, batch_metrics, canyon_report,
+from receiver.evaluate.outages import (OUTAGE_METRIC_KEYS, Fixes, Visibility, batch_metrics, canyon_report,
                                        end_report, outage_report, report, total_outages)
 
 OFF = 1e-4            # receiver clock bias: fixes at round GPS times sit 0.1 ms late on the truth axis
@@ -137,7 +137,7 @@ def test_canyon_availability_by_hand(offset):
 def _files(tmp_path, outage=True):
     """Truth: static point, 40 s at 100 Hz, 5 satellites, total outage [10, 13) (if outage) and a random
     window [20, 40) with 3 satellites at 30-32 s; run: 10 Hz fixes, 3 m east, none during [10, 14)."""
-    from receiver.geodesy import enu_matrix, lla2ecef
+    from receiver.gnss.geodesy import enu_matrix, lla2ecef
     lat, lon, h, week, t0 = 35.68, 139.77, 40.0, 2300, 345598.0
     ref = np.asarray(lla2ecef(lat, lon, h), float).reshape(3)
     t = np.arange(0, 4000) * 0.01

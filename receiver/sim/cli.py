@@ -66,7 +66,7 @@ def evaluate_cmd(run_h5, truth_h5, as_json, outages):
     """Compare a receiver run file with a simulator truth file (position, velocity, clock, TTFF)."""
     from ..errors import UserError
     from ..evaluate import evaluate, format_table
-    from ..evaluate_outages import format_report, has_outages, report
+    from ..evaluate.outages import format_report, has_outages, report
     stats = evaluate(run_h5, truth_h5)
     rep = report(run_h5, truth_h5)
     if outages and not has_outages(rep):

@@ -12,8 +12,8 @@ import time
 import h5py
 import numpy as np
 
-from . import __version__
-from .errors import UserError
+from .. import __version__
+from ..errors import UserError
 from .record import EPOCH_DTYPE, STATE_NAMES
 
 MODE_NAMES = {0: "scalar", 1: "vector"}
