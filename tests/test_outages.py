@@ -15,7 +15,7 @@ import yaml
 
 from receiver.config import load_receiver_config
 from receiver.pipeline import run
-from receiver.signals import C_LIGHT, CA_CHIP_RATE
+from receiver.gnss.signals import C_LIGHT, CA_CHIP_RATE
 from receiver.sim.simulate import simulate
 
 from synth import make_signal

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..signals import C_LIGHT
+from ..gnss.signals import C_LIGHT
 from . import kernel as K
 from .reacq import narrow_search
 from .scalar import Channel

@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 from ...errors import UserError
-from ...signals import C_LIGHT, CA_CHIP_RATE
+from ...gnss.signals import C_LIGHT, CA_CHIP_RATE
 from .. import kernel as K
 from .adaptive_r import AdaptiveR
 from .base import VectorFilter

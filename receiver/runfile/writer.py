@@ -12,8 +12,8 @@ import time
 import h5py
 import numpy as np
 
-from . import __version__
-from .errors import UserError
+from .. import __version__
+from ..errors import UserError
 from .record import EPOCH_DTYPE, STATE_NAMES
 
 # fix mode: 0 scalar least squares; 1 vector loop with >= 4 channels carrying signal; 2 coast (vector filter

@@ -20,11 +20,11 @@ from collections import deque
 
 import numpy as np
 
-from ..geodesy import ecef2lla
-from ..output import FIX_DTYPE, OBS_DTYPE
-from ..record import STATE_BIT_SYNC
-from ..signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
-from .lnav import LnavDecoder, SubframeEvent
+from ..gnss.geodesy import ecef2lla
+from ..runfile.writer import FIX_DTYPE, OBS_DTYPE
+from ..runfile.record import STATE_BIT_SYNC
+from ..gnss.signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
+from ..gnss.lnav import LnavDecoder, SubframeEvent
 from .pvt import NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
@@ -403,7 +403,7 @@ class NavigationEngine:
     def ephemerides(self, t):
         """prn -> Ephemeris valid at GPS time t: the RINEX file's (assisted mode) or the decoded ones, for
         every satellite met during the run (tracked now or not)."""
-        from .ephemeris import select
+        from ..gnss.ephemeris import select
         out = {}
         if self.assisted:
             for prn, lst in self.rinex_ephs.items():
@@ -421,7 +421,7 @@ class NavigationEngine:
 
     def _ephemerides(self, t):
         """The ephemerides of the satellites with navigation memory (the fixes' candidates)."""
-        from .ephemeris import select
+        from ..gnss.ephemeris import select
         out = {}
         for prn, ch in self.channels.items():
             if self.assisted and prn in self.rinex_ephs:
@@ -464,7 +464,7 @@ class NavigationEngine:
     def satellite_los(self, prn: int, s: float):
         """(range rate m/s of a receiver standing at the last fix, elevation deg, range m) of prn at sample s,
         from its ephemeris; None without a fix or an ephemeris."""
-        from .ephemeris import sat_state
+        from ..gnss.ephemeris import sat_state
         t = self.gps_time(s)
         if t is None:
             return None
@@ -521,7 +521,7 @@ class NavigationEngine:
         of 60..95 ms at the approximate receiver time and keeping the assignment whose least-squares fix
         has the smallest residuals and a clock bias within 10 ms.  Later channels: the ambiguity is taken
         from the current fix.  Frame sync, when it comes, replaces (and checks) the assisted value."""
-        from .ephemeris import select
+        from ..gnss.ephemeris import select
         pending = [ch for ch in self.channels.values()
                    if not ch.has_time and ch.bit_offset >= 0 and ch.locked
                    and ch.settled(s, self.cfg.settle_s)]
@@ -570,7 +570,7 @@ class NavigationEngine:
         fix (receiver position and clock) and the satellite's ephemeris: the 20-ms ambiguity is the multiple of
         20 ms (bit edges) nearest the prediction (valid while the prediction is within +/-10 ms, i.e. the
         receiver within ~3000 km of the last fix).  Frame sync, when it comes, checks it."""
-        from .ephemeris import sat_state
+        from ..gnss.ephemeris import sat_state
         if pending is None:
             pending = [ch for ch in self.channels.values()
                        if ch.active and not ch.has_time and ch.bit_offset >= 0 and ch.locked
