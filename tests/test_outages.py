@@ -151,3 +151,18 @@ def test_vector_coast_is_flagged_and_fixes_resume(drive, tmp_path):
     assert err[mode != 2].max() < 30.0, err[mode != 2].max()
     good = t[(t >= OUT_B) & (mode != 2) & (err <= 10.0)]
     assert len(good) and good[0] - OUT_B <= 2.0
+
+
+def test_vector_reinitialises_after_an_outage_it_cannot_bridge(drive, tmp_path):
+    """With vector.reinit_sigma_m below the position sigma the 1.5-s outage reaches, the vector loop falls
+    back to scalar tracking: after the signal's return the fixes are scalar (mode 0, re-acquired channels)
+    until a new handover, then vector again; none of the measured fixes is worse than 30 m."""
+    out = _run(drive, tmp_path / "reinit.h5", [("vector.enabled", True), ("vector.start_s", 23.0),
+                                               ("vector.reinit_sigma_m", 2.0)])
+    t, err, mode, _ = _fix_errors(out, drive["truth"])
+    after = t >= OUT_B
+    assert np.any(mode[after] == 0)                          # scalar fixes after the fall-back
+    first_scalar = t[after & (mode == 0)][0]
+    assert first_scalar - OUT_B <= 2.0
+    assert np.any(mode[t > first_scalar] == 1)               # handed over again
+    assert err[mode != 2].max() < 30.0, err[mode != 2].max()

@@ -22,7 +22,9 @@ Per satellite (:class:`SatTrack`)::
 * Hot start: the new channel continues the old channel's code-period count (the predicted transmit time
   fixes the integer milliseconds: its error is far below 0.5 ms for any outage below minutes), so the
   bit alignment and the navigation engine's transmit-time reference stay valid (ChannelNav.resume); the
-  bit-sync histogram is seeded with the known bit offset and the pull-in is ``reacquisition.pull_in_ms``.
+  bit-sync histogram is seeded with the known bit offset and the pull-in is ``reacquisition.pull_in_ms``;
+  its DLL runs 1st order for the first chunk (no rate wind-up on the initial code error), then as configured
+  with the old channel's rate integrator.
 
 The pipeline calls ``start`` once, then per chunk ``note(prn, recs)`` for every channel's records and
 ``after_chunk(start, next_start)``.  ``channels`` (prn -> Channel) is the dict the vector tracker shares.
@@ -41,6 +43,7 @@ from .scalar import Channel
 
 REACQ_PER_ATTEMPT = 4           # cold searches per attempt
 GOOD_KEEP_S = 1.5               # good-state history used for the Doppler rate
+HOT_DLL_FIRST_ORDER_S = 0.4     # a hot-started channel's DLL is 1st order this long (then per the config)
 GOOD_MARGIN_S = 0.1             # lock detectors lag: the prediction starts this long before the last good epoch
 
 
@@ -53,6 +56,8 @@ class SatTrack:
     lost_at: float | None = None        # sample of the last good state (outage start)
     ref: tuple | None = None            # (sample, txrel, doppler, rate, bit_offset) the prediction starts from
     bit_offset: int = -1
+    dll_rate: float = 0.0               # the DLL rate integrator of the last good state (code/carrier mismatch)
+    restore_at: float | None = None     # sample from which a hot channel's DLL is 2nd order again
     reacquisitions: int = 0
     searches: int = 0
 
@@ -156,6 +161,8 @@ class ChannelManager:
         ch = self.channels.get(prn)
         if ch is not None and ch.bit_offset >= 0:
             sat.bit_offset = ch.bit_offset
+        if ch is not None and sat.restore_at is None and ch.st[K.S_LOCK] > 0:
+            sat.dll_rate = float(ch.st[K.S_DLL_RATE])
 
     def after_chunk(self, start: int, next_start: int):
         """Lost channels -> re-acquiring; narrow searches at next_start; the periodic cold search."""
@@ -163,6 +170,14 @@ class ChannelManager:
             if ch.lost:
                 del self.channels[prn]
                 self._lost(prn)
+                continue
+            sat = self._sat(prn)
+            if sat.restore_at is not None and ch.next_sample >= sat.restore_at:
+                # the hot channel's code error has converged (1st-order DLL): back to the configured order,
+                # its rate integrator starting from the old channel's value
+                ch.cfg[K.C_DLL_ORDER] = self.cfg.tracking.dll_order
+                ch.st[K.S_DLL_RATE] = sat.dll_rate
+                sat.restore_at = None
         if next_start + 0.05 * self.fs >= self.reader.end:
             return
         for prn, sat in list(self.sats.items()):
@@ -172,6 +187,7 @@ class ChannelManager:
 
     def _lost(self, prn):
         sat = self._sat(prn)
+        sat.restore_at = None
         if self.nav is not None:
             self.nav.suspend(prn)
         g = list(sat.good)
@@ -272,6 +288,10 @@ class ChannelManager:
             st[K.S_BIT_OFFSET] = bit_off
             ch.hist[bit_off % bit_ms] = 12        # bit sync known: the histogram confirms it at once
         ch.cfg[K.C_PULL_IN_MS] = rc.pull_in_ms
+        # a 2nd-order DLL would wind its rate integrator up on the search's initial code error (metres, at
+        # the pull-in bandwidth) and ring for seconds: 1st order until the error has converged
+        ch.cfg[K.C_DLL_ORDER] = 1
+        sat.restore_at = s + HOT_DLL_FIRST_ORDER_S * self.fs
         sat.reacquisitions += 1
         if self.nav is not None:
             self.nav.resume(prn, continuous=bit_off >= 0, settle_s=rc.settle_s)
