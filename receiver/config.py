@@ -438,7 +438,9 @@ RECEIVER_SCHEMA = {
                                                  "exceeds this many standard deviations (0 = off, the papers' "
                                                  "setting); the innovation still feeds the adaptive R",
                                    lo=0.0),
-        "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, tracking.cn0_window_ms) above which a "
+        "cn0_window_ms": P(100, "int", "C/N0 (M2M4) window of the vector channels: it decides vector lock and "
+                                       "coasting, so it sets how fast a lost signal is noticed", lo=20),
+        "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, vector.cn0_window_ms) above which a "
                                           "vector channel counts as tracked (records' pll_lock, fixes' "
                                           "n_sats and DOPs; M2M4 on noise alone reads 20-30 dB-Hz)"),
         "coast_mask": P(True, "bool", "while fewer than 4 channels carry signal (C/N0 above lock_cn0_dbhz) the "
