@@ -13,7 +13,7 @@ from receiver.export.run import load_run
 from receiver.gnss.ephemeris import select
 from receiver.navigation.pvt import NavSolver, Observation
 from receiver.gnss.rinex import read_rinex_nav
-from receiver.runfile.writer import OBS_DTYPE
+from receiver.runfile.record import OBS_DTYPE
 from receiver.gnss.signals import C_LIGHT
 
 from conftest import TOKYO_NAV
