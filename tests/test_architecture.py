@@ -45,8 +45,6 @@ ALLOWED_EXCEPTIONS: set[tuple[str, str]] = {
     # pipeline.run writes the configured exports (output.exports) from its `finally`; the continuity work
     # owns pipeline.py -- to go when the CLI/batch call export_all after run()
     ("receiver.pipeline", "receiver.export"),
-    # batch metrics interpolate truth with the simulator's Hermite helper -- to go when it moves down
-    ("receiver.batch.metrics", "receiver.sim.simulate"),
 }
 
 

@@ -206,7 +206,7 @@ def _truth_sats(truth_h5):
 
 def carrier_phase_errors(ch: dict, tr: dict, fs: float, if_hz: float, settle_s: float) -> np.ndarray:
     """Wrapped carrier phase errors (cycles) of one channel against its truth (see the module docstring)."""
-    from ..sim.simulate import hermite
+    from ..estimation.interpolation import hermite
     t = ch["time_s"]
     lock = ch["pll_lock"] > 0
     if not lock.any():
