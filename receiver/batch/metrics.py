@@ -113,10 +113,10 @@ def fix_enu_errors(nav: dict, truth: dict):
     truth: {"week", "gps_tow" (M,), "ecef" (M,3), "velocity_ecef" (M,3)}; a static reference has M = 2
     rows spanning everything.  Returns (enu, vel_err, scored_mask_over_all_fixes)."""
     from ..gnss.geodesy import ecef2lla, enu_matrix
-    from ..gnss.ephemeris import WEEK_S
+    from ..gnss.time import week_seconds_since
     tow = np.asarray(nav["gps_tow"], dtype=float)
     week = np.asarray(nav.get("gps_week", np.full(tow.shape, truth["week"])), dtype=float)
-    t = (week - truth["week"]) * WEEK_S + tow
+    t = week_seconds_since(week, tow, truth["week"])
     ecef = np.asarray(nav["ecef"], dtype=float).reshape(-1, 3)
     t_tr = truth["gps_tow"]
     ok = np.all(np.isfinite(ecef), axis=1) & np.isfinite(t) & (t >= t_tr[0]) & (t <= t_tr[-1])
@@ -150,7 +150,7 @@ def _read_truth_receiver(truth_h5):
 
 def _static_truth(reference_llh, nav):
     from ..gnss.geodesy import lla2ecef
-    from ..gnss.ephemeris import WEEK_S
+    from ..gnss.time import WEEK_S
     ref = np.asarray(lla2ecef(*reference_llh), dtype=float).reshape(3)
     week = int(np.asarray(nav.get("gps_week", [0]))[0]) if len(nav["gps_tow"]) else 0
     return {"week": week, "gps_tow": np.array([-2 * WEEK_S, 3 * WEEK_S]), "ecef": np.tile(ref, (2, 1)),

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import UserError
 from ..runfile.writer import open_h5
 from ..gnss.geodesy import ecef2lla, enu_matrix
-from ..gnss.ephemeris import WEEK_S
+from ..gnss.time import week_seconds_since
 
 
 def _open(path, what):
@@ -67,7 +67,7 @@ def evaluate(run_h5, truth_h5) -> dict:
         return _fill_nan(out)
     tow = nav["gps_tow"].astype(float)
     week = nav.get("gps_week", np.full(tow.shape, truth["week"])).astype(float)
-    t = (week - truth["week"]) * WEEK_S + tow            # seconds of the truth's week
+    t = week_seconds_since(week, tow, truth["week"])     # seconds of the truth's week
     ecef = np.asarray(nav["ecef"], dtype=float).reshape(-1, 3)
     ok = np.all(np.isfinite(ecef), axis=1) & np.isfinite(t)
     out["n_fixes"] = int(np.count_nonzero(ok))

@@ -21,7 +21,8 @@ def _walk(f):
 def run_info(path) -> dict:
     """A JSON-friendly description of the run file."""
     import h5py
-    from .run import load_run, gps_datetime
+    from ..gnss.time import gps_datetime, week_seconds_since
+    from .run import load_run
     run = load_run(path)          # validates the file
     info: dict = {"file": os.path.abspath(run.path), "size_bytes": os.path.getsize(run.path)}
     a = run.attrs
@@ -75,7 +76,7 @@ def run_info(path) -> dict:
             "first_fix": {"gps_week": w0, "gps_tow": t0, "gps_time": gps_datetime(w0, t0).isoformat(),
                           "utc": run.utc(w0, t0).isoformat(), "time_s": float(fx["time_s"][0])},
             "last_fix": {"gps_week": w1, "gps_tow": t1, "gps_time": gps_datetime(w1, t1).isoformat()},
-            "span_s": float((w1 - w0) * 604800.0 + t1 - t0),
+            "span_s": float(week_seconds_since(w1, t1, w0) - t0),
             "rate_hz": (float(1.0 / np.median(np.diff(fx["time_s"]))) if len(fx) > 1 else None),
             "modes": {"scalar": int(np.count_nonzero(fx["mode"] == 0)),
                       "vector": int(np.count_nonzero(fx["mode"] == 1))},

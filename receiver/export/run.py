@@ -7,13 +7,12 @@ configuration.  The Klobuchar/UTC parameters (:meth:`RunData.iono`) are taken, i
 RINEX navigation file of an assisted run (``navigation.ephemeris``, when it can still be read), or by decoding
 the LNAV message again from the stored prompt correlator outputs of ``/channels``.
 
-Time helpers turn GPS week/seconds into UTC with the leap seconds broadcast in the message (or the table
-below when they were not decoded).
+GPS week/seconds become UTC with the leap seconds broadcast in the message (or the table in
+:mod:`receiver.gnss.time` when they were not decoded).
 """
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import os
 from dataclasses import dataclass, field
 
@@ -22,50 +21,10 @@ import yaml
 
 from ..errors import UserError
 from ..gnss.ephemeris import Ephemeris, IonoUtc
-from ..runfile.writer import FIX_DTYPE, OBS_DTYPE, open_h5
+from ..runfile.record import FIX_DTYPE, OBS_DTYPE
+from ..runfile.writer import open_h5
 from ..gnss.signals import C_LIGHT
-
-GPS_EPOCH = _dt.datetime(1980, 1, 6)
-WEEK_S = 604800.0
-
-# GPS - UTC (s) in force from each UTC date on (the leap seconds inserted since the GPS epoch)
-_LEAP_TABLE = (
-    (_dt.datetime(1981, 7, 1), 1), (_dt.datetime(1982, 7, 1), 2), (_dt.datetime(1983, 7, 1), 3),
-    (_dt.datetime(1985, 7, 1), 4), (_dt.datetime(1988, 1, 1), 5), (_dt.datetime(1990, 1, 1), 6),
-    (_dt.datetime(1991, 1, 1), 7), (_dt.datetime(1992, 7, 1), 8), (_dt.datetime(1993, 7, 1), 9),
-    (_dt.datetime(1994, 7, 1), 10), (_dt.datetime(1996, 1, 1), 11), (_dt.datetime(1997, 7, 1), 12),
-    (_dt.datetime(1999, 1, 1), 13), (_dt.datetime(2006, 1, 1), 14), (_dt.datetime(2009, 1, 1), 15),
-    (_dt.datetime(2012, 7, 1), 16), (_dt.datetime(2015, 7, 1), 17), (_dt.datetime(2017, 1, 1), 18),
-)
-
-
-def leap_seconds_at(gps_time: _dt.datetime) -> int:
-    """GPS - UTC (s) from the built-in table (used when the message's value is not known)."""
-    n = 0
-    for since, value in _LEAP_TABLE:
-        if gps_time >= since + _dt.timedelta(seconds=value):
-            n = value
-    return n
-
-
-def gps_datetime(week: int, tow: float) -> _dt.datetime:
-    """GPS week + seconds of week -> naive datetime on the GPS time scale (microsecond resolution)."""
-    whole = math.floor(tow)
-    return (GPS_EPOCH + _dt.timedelta(days=7 * int(week), seconds=int(whole))
-            + _dt.timedelta(microseconds=round((tow - whole) * 1e6)))
-
-
-def split_gps_time(week: int, tow: float, decimals: int):
-    """GPS week + seconds of week -> (datetime to the whole second, fractional seconds rounded to
-    ``decimals``) without losing precision (a datetime keeps only microseconds)."""
-    whole = math.floor(tow)
-    scale = 10 ** decimals
-    frac = round((tow - whole) * scale)
-    if frac >= scale:
-        whole, frac = whole + 1, frac - scale
-    t = GPS_EPOCH + _dt.timedelta(days=7 * int(week), seconds=int(whole))
-    return t, frac / scale
-
+from ..gnss.time import WEEK_S, gps_datetime, leap_seconds_at
 
 @dataclass
 class RunData:

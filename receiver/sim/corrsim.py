@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..gnss.clock import OSCILLATORS
 from ..gnss.signals import C_LIGHT
 
 DT = 0.5e-3
@@ -39,8 +40,8 @@ class CorrScenario:
     s4: float = 0.0
     sigma_phi: float = 0.0
     tau0_s: float = 0.5
-    h0: float = 2e-19                          # receiver oscillator (TCXO)
-    h_2: float = 2e-20
+    h0: float = OSCILLATORS["tcxo"][0]         # receiver oscillator (TCXO)
+    h_2: float = OSCILLATORS["tcxo"][2]
     dynamics: str = "static"                   # static | manoeuvre
     accel_g: float = 2.0
     doppler_hz: float = 0.0
