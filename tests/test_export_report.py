@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from receiver.export.report import make_figure, read_channels, summary_stats, write_report
-from receiver.export.run import load_run, load_truth
+from receiver.runfile.reader import load_run
+from receiver.runfile.truth import load_truth
 
 from conftest import TOKYO_META
 

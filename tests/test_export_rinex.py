@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from receiver.export.rinex_obs import LLI_HALF_CYCLE, LLI_LOSS, lli_flags, ssi_from_cn0
-from receiver.export.run import load_run
+from receiver.runfile.reader import load_run
 from receiver.gnss.ephemeris import select
 from receiver.navigation.pvt import NavSolver, Observation
 from receiver.gnss.rinex import read_rinex_nav

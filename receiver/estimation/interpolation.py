@@ -23,3 +23,12 @@ def hermite(xn, yn, dyn, x, deriv=False):
     hh = h[extra]
     out = c[0] * yn[k] + c[1] * hh * dyn[k] + c[2] * yn[k + 1] + c[3] * hh * dyn[k + 1]
     return out / hh if deriv else out
+
+
+def interp_columns(xn, yn, x):
+    """Linear interpolation (``np.interp``, end values held) of every column of ``yn`` (n,) or (n, k) at
+    ``x``; returns (m,) or (m, k)."""
+    yn = np.asarray(yn, dtype=float)
+    if yn.ndim == 1:
+        return np.interp(x, xn, yn)
+    return np.stack([np.interp(x, xn, yn[:, k]) for k in range(yn.shape[1])], axis=1)

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..runfile.writer import open_h5
+from ..runfile.reader import open_h5
 from ..sim.blockage import KIND_TOTAL
 
 MODE_COAST = 2

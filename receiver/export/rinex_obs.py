@@ -24,7 +24,7 @@ import numpy as np
 
 from .. import __version__
 from ..gnss.time import split_gps_time
-from .run import RunData
+from ..runfile.reader import RunData
 
 OBS_TYPES = ("C1C", "L1C", "D1C", "S1C")
 LLI_LOSS = 1

@@ -16,8 +16,8 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from .. import __version__
+from ..runfile.reader import RunData
 from ..runfile.record import MODE_NAMES
-from .run import RunData
 
 
 def _points(run: RunData):

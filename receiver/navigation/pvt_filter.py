@@ -391,13 +391,12 @@ def replay_run(run_h5, ephemerides, iono_utc=None, nav_cfg=None, kinds=("ekf", "
     Returns dict: ``time_s`` (epochs of the run), ``wls`` (list of Fix or None), and one list of Fix (or
     None where the WLS failed) per kind.
     """
-    import h5py
-
+    from ..runfile.reader import RunFile
     from .pvt import NavSolver, Observation
-    with h5py.File(run_h5, "r") as f:
-        nav = {k: f["navigation"][k][:] for k in ("gps_week", "gps_tow", "time_s", "clock_bias_m")}
-        obs = {k: f["observables"][k][:] for k in ("time_s", "prn", "pseudorange_m", "doppler_hz",
-                                                   "cn0_dbhz", "carrier_phase_cycles")}
+    with RunFile(run_h5) as rf:
+        nav = rf.fix_columns(("gps_week", "gps_tow", "time_s", "clock_bias_m"))
+        obs = rf.observable_columns(("time_s", "prn", "pseudorange_m", "doppler_hz", "cn0_dbhz",
+                                     "carrier_phase_cycles"))
     # receiver clock: rx_tow = tow0 + (s - s0) / fs is affine in time_s; the median removes rounding
     week0 = int(nav["gps_week"][0])
     rx = week_seconds_since(nav["gps_week"], nav["gps_tow"], week0) + nav["clock_bias_m"] / C_LIGHT

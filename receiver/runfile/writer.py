@@ -13,19 +13,7 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from ..errors import UserError
 from .record import EPOCH_DTYPE, STATE_NAMES
-
-def open_h5(path, what: str = "file") -> h5py.File:
-    """Open an HDF5 file for reading; a missing or non-HDF5 file is a one-line UserError naming `what`."""
-    path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise UserError(f"{what} not found: {path}")
-    try:
-        return h5py.File(path, "r")
-    except OSError:
-        raise UserError(f"{path} is not an HDF5 file") from None
-
 
 def _append(group: h5py.Group, name: str, data: np.ndarray):
     if name not in group:
