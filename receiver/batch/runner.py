@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 from concurrent.futures.process import BrokenProcessPool
-import contextlib
 import copy
 import hashlib
 import io
@@ -58,6 +57,7 @@ from pathlib import Path
 
 from ..config import RECEIVER_SCHEMA, apply_overrides, build, read_yaml
 from ..errors import UserError
+from ..logs import capture
 from .config import REPO_ROOT, Batch, load_batch
 from .metrics import METRICS_VERSION, compute_metrics
 
@@ -356,14 +356,6 @@ def write_nav_for_scenario(scenario: dict, path: str):
     os.replace(tmp, path)
 
 
-def _capture_stdout(buf):
-    """Redirect print() into buf - only on the main thread (process workers, inline): sys.stdout is global,
-    so tasks on threads (a threaded Dask worker) leave it alone."""
-    if threading.current_thread() is threading.main_thread():
-        return contextlib.redirect_stdout(buf)
-    return contextlib.nullcontext()
-
-
 def simulate_recording(task: dict) -> dict:
     """Worker: simulate one recording (IF, truth, input fragment, RINEX nav, then the JSON marker)."""
     t0 = time.perf_counter()
@@ -373,7 +365,7 @@ def simulate_recording(task: dict) -> dict:
         os.makedirs(os.path.dirname(paths["if"]), exist_ok=True)
         if os.path.exists(paths["meta"]):
             os.remove(paths["meta"])
-        with _capture_stdout(io.StringIO()):
+        with capture(io.StringIO()):
             simulate(task["scenario"], paths["if"], progress=False)
         write_nav_for_scenario(task["scenario"], paths["nav"])
         wall = time.perf_counter() - t0
@@ -394,7 +386,7 @@ def execute_run(task: dict) -> dict:
     try:
         from ..pipeline import run
         cfg = build(RECEIVER_SCHEMA, task["config"])
-        with _capture_stdout(log):                    # messages of the stages go to the run's record
+        with capture(log):                            # log records of the stages go to the run's record
             run(cfg, quiet=True, log=lambda *a, **k: None)
         m = compute_metrics(task["h5"], task["truth"], task["reference_llh"], task["carrier_settle_s"])
         m["job_wall_s"] = time.perf_counter() - t0
