@@ -108,10 +108,7 @@ def _vector_handover(cfg, channels, nav, fs, quiet=False):
     vector.start_s is reached (or 5 s after the first fix), else None.  The tracker's
     ``process(block, start)`` returns ({prn: EPOCH_DTYPE records}, FIX_DTYPE fixes, mode 1 or 2 = coast)
     and drives the channels' NCOs; ``tracker.reinit_needed`` asks for a fall-back to scalar tracking."""
-    try:
-        from .tracking.vector import Handover
-    except ImportError:
-        raise UserError("vector tracking is not available in this build") from None
+    from .tracking.vector import Handover
     return Handover(cfg, channels, nav, fs, log=(lambda msg: None) if quiet else None)
 
 
