@@ -438,7 +438,7 @@ RECEIVER_SCHEMA = {
                                                  "exceeds this many standard deviations (0 = off, the papers' "
                                                  "setting); the innovation still feeds the adaptive R",
                                    lo=0.0),
-        "cn0_window_ms": P(100, "int", "C/N0 (M2M4) window of the vector channels: it decides vector lock and "
+        "cn0_window_ms": P(200, "int", "C/N0 (M2M4) window of the vector channels: it decides vector lock and "
                                        "coasting, so it sets how fast a lost signal is noticed", lo=20),
         "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, vector.cn0_window_ms) above which a "
                                           "vector channel counts as tracked (records' pll_lock, fixes' "
