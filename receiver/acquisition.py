@@ -34,6 +34,11 @@ def _threshold(pfa: float, n_cells: int, k: int) -> float:
     return float(gamma.isf(pfa / n_cells, k, scale=1.0 / k))
 
 
+def _has_energy(x: np.ndarray) -> bool:
+    """False when the block is constant (all zero or pure DC): no correlation peak can be a signal."""
+    return bool(np.any(x != x[0])) if len(x) else False
+
+
 def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns, coherent_ms: int = 4,
            noncoherent: int = 10, doppler_max_hz: float = 10000.0, doppler_step_hz: float | None = None,
            pfa: float = 1e-3, threshold: float = 1.0, fine: bool = True, signal=None) -> list[AcqResult]:
@@ -56,6 +61,10 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     if len(samples) < need:
         raise ValueError(f"acquisition needs {need} samples, got {len(samples)}")
     T = m * 1e-3
+    if not _has_energy(samples[:need]):
+        # all-zero or constant input: no signal energy once the mean is removed -> nothing detected
+        cn0_floor = float(10 * np.log10(1e-3 / T))
+        return [AcqResult(prn, False, 0.0, 0.0, start_index, 0.0, 0.0, cn0_floor) for prn in prns]
     step = doppler_step_hz or 1.0 / (2.0 * T)
     dopplers = np.arange(-doppler_max_hz, doppler_max_hz + step / 2, step)
     # carrier offsets in FFT bins (1/T): integer shift + one of a few fractional parts
@@ -87,7 +96,7 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
                 power[sel] += corr.real ** 2 + corr.imag ** 2
         mean = float(power.mean())
         di, si = np.unravel_index(int(np.argmax(power)), power.shape)
-        ptm = float(power[di, si]) / mean
+        ptm = float(power[di, si]) / mean if mean > 0 and np.isfinite(mean) else 0.0
         metric = ptm / thr / threshold
         # the replica starts at sample si: the signal's code phase at sample 0 is -si samples
         code_phase = (-si * sig.chip_rate / fs) % sig.code_len
