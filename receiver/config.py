@@ -493,4 +493,29 @@ def load_receiver_config(path=None, overrides=None) -> Section:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
             raw[sec][key] = resolve_path(raw[sec][key], path)
     cfg = build(RECEIVER_SCHEMA, raw, overrides)
+    validate_receiver(cfg)
+    return cfg
+
+
+def validate_receiver(cfg: Section) -> Section:
+    """Checks of meaning that span several keys (one-line UserErrors): the IF inside the sampled band,
+    a non-empty PRN list (duplicates are removed with a warning)."""
+    i = cfg.input
+    half = i.sample_rate_hz / 2
+    if i.format.endswith("_real"):
+        if not 0.0 < i.if_hz < half:
+            raise UserError(f"config key 'input.if_hz' must be in (0, sample_rate_hz/2 = {half:g}) for the "
+                            f"real format {i.format}, got {i.if_hz:g}")
+    elif abs(i.if_hz) >= half:
+        raise UserError(f"config key 'input.if_hz' must be within +/- sample_rate_hz/2 = {half:g}, "
+                        f"got {i.if_hz:g}")
+    prns = cfg.acquisition.prns
+    if not prns:
+        raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
+    unique = list(dict.fromkeys(prns))
+    if len(unique) < len(prns):
+        from .errors import warn
+        dup = sorted({p for p in prns if prns.count(p) > 1})
+        warn(f"acquisition.prns lists PRN {', '.join(map(str, dup))} more than once; each is searched once")
+        cfg.acquisition._values["prns"] = unique
     return cfg

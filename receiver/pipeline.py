@@ -151,7 +151,10 @@ def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
 
 
 def check_meaning(cfg, reader):
-    """Checks that need the input file: vector.start_s inside the processed span (else a warning)."""
+    """Checks of meaning (receiver.config.validate_receiver: IF, PRN list) and those that need the input
+    file: vector.start_s inside the processed span (else a warning)."""
+    from .config import validate_receiver
+    validate_receiver(cfg)
     v = cfg.vector
     if v.enabled and v.start_s is not None and v.start_s >= reader.duration_s:
         warn(f"vector.start_s={v.start_s:g} s is after the end of the processed span "
