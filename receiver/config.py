@@ -197,14 +197,31 @@ def apply_overrides(raw: dict, overrides) -> dict:
     return raw
 
 
+def read_utf8(path, what: str = "file") -> str:
+    """The text of a UTF-8 file; another encoding (or binary data) is a one-line UserError naming the
+    first bad byte and its line."""
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise UserError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise UserError(f"{what} {path} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                        f"save it as UTF-8") from None
+
+
 def read_yaml(path) -> dict:
     """Read a YAML mapping; errors become one-line UserErrors."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise UserError(f"config file not found: {path}")
+    text = read_utf8(path, "config file")
     try:
-        with open(path) as fh:
-            raw = yaml_load(fh)
+        raw = yaml_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark else ""

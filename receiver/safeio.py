@@ -149,6 +149,8 @@ def write_error_message(what: str, path: str, exc: BaseException) -> str:
     reason = getattr(exc, "strerror", None) or str(exc)
     if getattr(exc, "errno", None) in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT):
         reason += " (disk full or file size limit)"
+    elif "requested and" in reason:                    # numpy's short write (no errno)
+        reason = f"short write, {reason} bytes (disk full or file size limit)"
     return f"writing the {what} {path} failed: {reason}"
 
 
