@@ -19,6 +19,7 @@ import numpy as np
 
 from .errors import UserError
 from .output import open_h5
+from .runcheck import check_run_file, check_truth_file
 from .geodesy import ecef2lla, enu_matrix
 from .nav.ephemeris import WEEK_S
 
@@ -41,6 +42,7 @@ def _read_truth(path):
     with _open(path, "truth file") as f:
         if "receiver" not in f:
             raise UserError(f"truth file {path} has no /receiver group (not a gnssrx simulator truth file)")
+        check_truth_file(f, path)
         g = f["receiver"]
         t = {k: g[k][:] for k in ("gps_tow", "ecef", "velocity_ecef", "clock_bias_m", "clock_drift_mps")}
         t["week"] = int(f.attrs.get("gps_week", 0))
@@ -49,6 +51,7 @@ def _read_truth(path):
 
 def _read_run(path):
     with _open(path, "run file") as f:
+        check_run_file(f, path)
         if "navigation" not in f or "gps_tow" not in f["navigation"]:
             return None
         g = f["navigation"]

@@ -444,3 +444,45 @@ def test_non_utf8_scenario_batch_and_trajectory(tmp_path):
     rc, out, err = cli(["simulate", sc, "-o", tmp_path / "s.bin", "-q"])
     assert rc == 2 and "trajectory CSV" in one_error_line(err) and "not UTF-8" in err
     assert sorted(os.listdir(tmp_path)) == ["b.yaml", "sc.yaml", "t.csv"]
+
+
+# ---------------------------------------------------------------------------------------- 5. run/truth files
+def _replace(f, name, data):
+    del f[name]
+    f[name] = data
+
+
+@pytest.mark.parametrize("damage,named", [
+    (lambda f: _replace(f, "navigation/gps_tow", np.array([b"monday"] * len(f["navigation/gps_tow"]))),
+     "/navigation/gps_tow has type |S6, expected numbers"),
+    (lambda f: _replace(f, "navigation/ecef", f["navigation/ecef"][:, 0]), "/navigation/ecef has shape"),
+    (lambda f: _replace(f, "navigation/n_sats", f["navigation/n_sats"][:-3]), "/navigation/n_sats has"),
+    (lambda f: _replace(f, "observables/prn", np.zeros((len(f["observables/prn"]), 2))),
+     "/observables/prn has shape"),
+    (lambda f: f.attrs.__setitem__("sample_rate_hz", "fast"), "attribute /sample_rate_hz is 'fast'"),
+])
+def test_run_file_with_wrong_dataset_types(nan_runs, tmp_path, damage, named):
+    """info / export / report / eval on a damaged run file: one line naming the dataset, exit code 2."""
+    p = tmp_path / "bad.h5"
+    p.write_bytes((nan_runs["dir"] / "clean.h5").read_bytes())
+    with h5py.File(p, "a") as f:
+        damage(f)
+    before = sha(p)
+    for args in (["info", p], ["export", p, "--nmea", "--kml"], ["report", p, "-o", tmp_path / "r.png"],
+                 ["eval", p, nan_runs["truth"]]):
+        rc, out, err = cli(args)
+        line = one_error_line(err)
+        assert rc == 2 and named in line and str(p) in line, (args, line)
+    assert sha(p) == before and sorted(os.listdir(tmp_path)) == ["bad.h5"]
+
+
+def test_truth_file_with_wrong_dataset_types(nan_runs, tmp_path):
+    p = tmp_path / "truth.h5"
+    p.write_bytes(Path(nan_runs["truth"]).read_bytes())
+    with h5py.File(p, "a") as f:
+        _replace(f, "receiver/ecef", np.array(["here"] * len(f["receiver/ecef"])).astype("S"))
+    rc, out, err = cli(["eval", nan_runs["dir"] / "clean.h5", p])
+    assert rc == 2 and "/receiver/ecef has type" in one_error_line(err)
+    rc, out, err = cli(["report", nan_runs["dir"] / "clean.h5", "--truth", p, "-o", tmp_path / "r.png"])
+    assert rc == 2 and "/receiver/ecef has type" in one_error_line(err)
+    assert not (tmp_path / "r.png").exists()

@@ -23,6 +23,7 @@ import yaml
 from ..errors import UserError
 from ..nav.ephemeris import Ephemeris, IonoUtc
 from ..output import FIX_DTYPE, OBS_DTYPE, open_h5
+from ..runcheck import check_run_file, check_truth_file
 from ..signals import C_LIGHT
 
 GPS_EPOCH = _dt.datetime(1980, 1, 6)
@@ -297,6 +298,7 @@ def load_run(path) -> RunData:
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
         if "config" not in attrs and "navigation" not in f and "channels" not in f:
             raise UserError(f"{path} is not a gnssrx run file (no config attribute, no /navigation, /channels)")
+        check_run_file(f, path)               # dataset types and shapes, offending dataset named
         try:
             config = yaml.safe_load(attrs.get("config", "")) or {}
         except yaml.YAMLError:
@@ -399,6 +401,7 @@ def load_truth(path):
     with f:
         if "receiver" not in f:
             raise UserError(f"truth file {path} has no /receiver group (not a gnssrx simulator truth file)")
+        check_truth_file(f, path)
         g = f["receiver"]
         out = {"week": int(f.attrs.get("gps_week", 0)), "gps_tow": g["gps_tow"][:].astype(float),
                "ecef": g["ecef"][:].astype(float),
