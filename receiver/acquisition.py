@@ -15,7 +15,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.stats import gamma
 
-from .signals import GPS_L1CA, sample_code
+from .gnss.signals import GPS_L1CA, sample_code
 
 
 @dataclass

@@ -312,7 +312,7 @@ def test_nan_burst_keeps_the_fixes(nan_runs):
 
 
 def test_reader_counts_each_nonfinite_sample_once(tmp_path):
-    from receiver.io import SampleReader
+    from receiver.source.io import SampleReader
     x = np.ones(10_000, np.complex64)
     x[100:110] = np.nan
     x[5000] = np.inf + 0j

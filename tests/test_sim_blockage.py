@@ -149,3 +149,20 @@ def test_outage_scenarios_as_documented():
     prn, a, e, _ = canyon.blockage.table()
     assert a.min() >= 45.0 and np.all(e - a <= 5.0 + 1e-9)
     assert set(prn) == set(PRNS)
+
+
+def test_simulate_cli_summarises_the_blockage(tmp_path, monkeypatch):
+    import yaml
+    from click.testing import CliRunner
+    from receiver.cli import main
+    monkeypatch.chdir(tmp_path)
+    sc = _scenario(3.0, {"total": [{"start_s": 0.5, "end_s": 1.0}],
+                         "outages": [{"prn": 7, "start_s": 0.2, "end_s": 0.4}],
+                         "random": {"enabled": True, "start_s": 1.5, "min_duration_s": 0.1,
+                                    "max_duration_s": 0.5}})
+    (tmp_path / "sc.yaml").write_text(yaml.safe_dump(sc))
+    res = CliRunner().invoke(main, ["simulate", "sc.yaml", "-o", "x.bin"])
+    assert res.exit_code == 0, res.output
+    line = next(x for x in res.output.splitlines() if x.startswith("blockage:"))
+    assert "1 total outages (0.5-1 s)" in line and "1 satellite outages" in line
+    assert "random blockages in 1.5-3 s, >= 4 satellites visible" in line

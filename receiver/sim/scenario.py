@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..config import P, Section, build, defaults_doc, read_yaml
 from ..errors import UserError
-from ..io import FORMATS, is_complex
+from ..source.io import FORMATS, is_complex
 from .clock import CLOCK_PRESETS
 from .trajectory import TRAJECTORY_KINDS
 

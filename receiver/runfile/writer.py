@@ -12,10 +12,10 @@ import time
 import h5py
 import numpy as np
 
-from . import __version__
-from . import interrupt
-from .errors import UserError
-from .safeio import AtomicH5
+from .. import __version__
+from .. import interrupt
+from ..errors import UserError
+from ..safeio import AtomicH5
 from .record import EPOCH_DTYPE, STATE_NAMES
 
 MODE_NAMES = {0: "scalar", 1: "vector"}

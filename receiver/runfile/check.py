@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import UserError
+from ..errors import UserError
 
 _NUMERIC = "biuf"
 
@@ -21,8 +21,8 @@ def _fields(dtype: np.dtype) -> dict:
 
 
 def _run_tables():
-    from .output import FIX_DTYPE, OBS_DTYPE, VECTOR_LOG_DTYPE
     from .record import EPOCH_DTYPE
+    from .writer import FIX_DTYPE, OBS_DTYPE, VECTOR_LOG_DTYPE
     acq = {"prn": (), "doppler_hz": (), "code_phase_chips": (), "metric": (), "detected": (),
            "cn0_dbhz_est": (), "time_s": ()}
     return {"navigation": _fields(FIX_DTYPE), "observables": _fields(OBS_DTYPE),

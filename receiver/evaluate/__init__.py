@@ -17,11 +17,11 @@ import os
 
 import numpy as np
 
-from .errors import UserError
-from .output import open_h5
-from .runcheck import check_run_file, check_truth_file
-from .geodesy import ecef2lla, enu_matrix
-from .nav.ephemeris import WEEK_S
+from ..errors import UserError
+from ..runfile.check import check_run_file, check_truth_file
+from ..runfile.writer import open_h5
+from ..gnss.geodesy import ecef2lla, enu_matrix
+from ..gnss.ephemeris import WEEK_S
 
 
 def _open(path, what):
