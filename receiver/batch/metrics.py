@@ -139,8 +139,8 @@ def fix_enu_errors(nav: dict, truth: dict):
 
 
 def _read_truth_receiver(truth_h5):
-    import h5py
-    with h5py.File(truth_h5, "r") as f:
+    from ..runfile.check import open_checked
+    with open_checked(truth_h5, "truth file") as f:
         if "receiver" not in f:
             raise UserError(f"truth file {truth_h5} has no /receiver group")
         g = f["receiver"]
@@ -276,13 +276,13 @@ def _channel_metrics(out, f, truth_h5, settle_s):
 def compute_metrics(run_h5, truth_h5=None, reference_llh=None, carrier_settle_s: float = 1.0) -> dict:
     """Metrics of one run (see the module docstring); truth_h5: simulator truth file or None;
     reference_llh: [lat, lon, h] of a static antenna when there is no truth file."""
-    import h5py
+    from ..runfile.check import open_checked
     run_h5 = os.fspath(run_h5)
     if not os.path.isfile(run_h5):
         raise UserError(f"run file not found: {run_h5}")
     out = _nan_dict()
     with np.errstate(all="ignore"):
-        with h5py.File(run_h5, "r") as f:
+        with open_checked(run_h5, "run file") as f:        # dataset types checked
             a = f.attrs
             fs = float(a.get("sample_rate_hz", math.nan))
             t0 = float(a.get("first_sample", 0)) / fs

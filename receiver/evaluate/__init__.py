@@ -18,14 +18,13 @@ import os
 import numpy as np
 
 from ..errors import UserError
-from ..runfile.check import check_run_file, check_truth_file
-from ..runfile.writer import open_h5
+from ..runfile.check import open_checked
 from ..gnss.geodesy import ecef2lla, enu_matrix
 from ..gnss.ephemeris import WEEK_S
 
 
 def _open(path, what):
-    return open_h5(path, what)
+    return open_checked(path, what)         # run / truth files: dataset types checked
 
 
 def _rms(x):
@@ -42,7 +41,6 @@ def _read_truth(path):
     with _open(path, "truth file") as f:
         if "receiver" not in f:
             raise UserError(f"truth file {path} has no /receiver group (not a gnssrx simulator truth file)")
-        check_truth_file(f, path)
         g = f["receiver"]
         t = {k: g[k][:] for k in ("gps_tow", "ecef", "velocity_ecef", "clock_bias_m", "clock_drift_mps")}
         t["week"] = int(f.attrs.get("gps_week", 0))
@@ -51,7 +49,6 @@ def _read_truth(path):
 
 def _read_run(path):
     with _open(path, "run file") as f:
-        check_run_file(f, path)
         if "navigation" not in f or "gps_tow" not in f["navigation"]:
             return None
         g = f["navigation"]

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..runfile.writer import open_h5
+from ..runfile.check import open_checked
 from ..sim.blockage import KIND_TOTAL
 
 MODE_COAST = 2
@@ -221,7 +221,7 @@ def batch_metrics(rep: dict) -> dict:
 
 # ------------------------------------------------------------------------------------------ files
 def read_visibility(truth_h5) -> Visibility:
-    with open_h5(os.fspath(truth_h5), "truth file") as f:
+    with open_checked(os.fspath(truth_h5), "truth file") as f:
         if "receiver" not in f or "satellites" not in f:
             raise UserError(f"truth file {truth_h5} has no /receiver or /satellites group "
                             "(not a gnssrx simulator truth file)")
@@ -245,12 +245,12 @@ def read_fixes(run_h5, truth_h5):
     """(Fixes on the truth's time axis, navigation rate (Hz) or NaN, truth end time)."""
     import yaml
     from ..gnss.ephemeris import WEEK_S
-    with open_h5(os.fspath(truth_h5), "truth file") as f:
+    with open_checked(os.fspath(truth_h5), "truth file") as f:
         g = f["receiver"]
         tr = {k: g[k][:] for k in ("time_s", "gps_tow", "ecef")}
         week0 = int(f.attrs.get("gps_week", 0))
     rate = math.nan
-    with open_h5(os.fspath(run_h5), "run file") as f:
+    with open_checked(os.fspath(run_h5), "run file") as f:
         try:
             rate = float(yaml.safe_load(f.attrs["config"])["navigation"]["rate_hz"])
         except Exception:          # older or foreign run files: estimated from the fix spacing below

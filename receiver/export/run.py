@@ -22,8 +22,8 @@ import yaml
 
 from ..errors import UserError
 from ..gnss.ephemeris import Ephemeris, IonoUtc
-from ..runfile.check import check_run_file, check_truth_file
-from ..runfile.writer import FIX_DTYPE, OBS_DTYPE, open_h5
+from ..runfile.check import check_truth_file, open_checked
+from ..runfile.writer import FIX_DTYPE, OBS_DTYPE
 from ..gnss.signals import C_LIGHT
 
 GPS_EPOCH = _dt.datetime(1980, 1, 6)
@@ -293,12 +293,11 @@ def _ephemerides(group) -> list:
 def load_run(path) -> RunData:
     """Read a run file.  Raises UserError when it is missing or not a gnssrx run file."""
     path = os.fspath(path)
-    f = open_h5(path, "run file")
+    f = open_checked(path, "run file")        # dataset types and shapes checked, offending one named
     with f:
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
         if "config" not in attrs and "navigation" not in f and "channels" not in f:
             raise UserError(f"{path} is not a gnssrx run file (no config attribute, no /navigation, /channels)")
-        check_run_file(f, path)               # dataset types and shapes, offending dataset named
         try:
             config = yaml.safe_load(attrs.get("config", "")) or {}
         except yaml.YAMLError:

@@ -5,7 +5,8 @@ A file with a dataset of the wrong type (text where numbers belong, a group wher
 names the file and the offending dataset or attribute -- before any reader indexes into it.
 
 :func:`check_run_file` and :func:`check_truth_file` take an open h5py.File; the readers (the run-file and
-truth readers, ``evaluate``, ``info``/``export``/``report``) call them right after opening.
+truth readers, ``evaluate``, ``info``/``export``/``report``, batch metrics) open run and truth files with
+:func:`open_checked`.
 """
 from __future__ import annotations
 
@@ -74,6 +75,21 @@ def _check_attrs(obj, path: str, names, what: str):
         if arr.dtype.kind not in _NUMERIC:
             raise UserError(f"{path}: attribute {obj.name.rstrip('/')}/{name} is {v!r}, expected a number "
                             f"({what})")
+
+
+def open_checked(path, what: str):
+    """open_h5 (missing / non-HDF5 file: one line) plus the dataset checks of a "run file" or a
+    "truth file"; returns the open h5py.File."""
+    import os
+    from .writer import open_h5
+    path = os.fspath(path)
+    f = open_h5(path, what)
+    try:
+        (check_run_file if what == "run file" else check_truth_file)(f, path)
+    except BaseException:
+        f.close()
+        raise
+    return f
 
 
 def check_run_file(f, path: str):

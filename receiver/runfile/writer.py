@@ -45,7 +45,8 @@ VECTOR_LOG_DTYPE = np.dtype([
 
 
 def open_h5(path, what: str = "file") -> h5py.File:
-    """Open an HDF5 file for reading; a missing or non-HDF5 file is a one-line UserError naming `what`."""
+    """Open an HDF5 file for reading; a missing or non-HDF5 file is a one-line UserError naming `what`.
+    (Run and truth files: receiver/runfile/check.py ``open_checked`` also checks the datasets.)"""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise UserError(f"{what} not found: {path}")
