@@ -476,6 +476,15 @@ def test_run_file_with_wrong_dataset_types(nan_runs, tmp_path, damage, named):
     assert sha(p) == before and sorted(os.listdir(tmp_path)) == ["bad.h5"]
 
 
+def test_report_must_not_overwrite_the_run_file(nan_runs, tmp_path):
+    p = tmp_path / "run.h5"
+    p.write_bytes((nan_runs["dir"] / "clean.h5").read_bytes())
+    before = sha(p)
+    rc, out, err = cli(["report", p, "-o", p])
+    assert rc == 2 and "same file as the input" in one_error_line(err)
+    assert sha(p) == before
+
+
 def test_truth_file_with_wrong_dataset_types(nan_runs, tmp_path):
     p = tmp_path / "truth.h5"
     p.write_bytes(Path(nan_runs["truth"]).read_bytes())
