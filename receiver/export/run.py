@@ -295,7 +295,7 @@ def load_run(path) -> RunData:
     path = os.fspath(path)
     f = open_checked(path, "run file")        # dataset types and shapes checked, offending one named
     with f:
-        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+        attrs = {k: (v.decode(errors="replace") if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
         if "config" not in attrs and "navigation" not in f and "channels" not in f:
             raise UserError(f"{path} is not a gnssrx run file (no config attribute, no /navigation, /channels)")
         try:
