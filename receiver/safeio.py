@@ -18,6 +18,7 @@ from __future__ import annotations
 import errno
 import io
 import os
+import re
 
 from .errors import UserError
 
@@ -149,8 +150,11 @@ def write_error_message(what: str, path: str, exc: BaseException) -> str:
     reason = getattr(exc, "strerror", None) or str(exc)
     if getattr(exc, "errno", None) in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT):
         reason += " (disk full or file size limit)"
-    elif "requested and" in reason:                    # numpy's short write (no errno)
-        reason = f"short write, {reason} bytes (disk full or file size limit)"
+    else:
+        m = re.match(r"(\d+) requested and (\d+) written", reason)     # numpy's short write (no errno)
+        if m:
+            reason = (f"short write ({m.group(1)} bytes requested, {m.group(2)} written; disk full or file "
+                      f"size limit)")
     return f"writing the {what} {path} failed: {reason}"
 
 

@@ -191,7 +191,7 @@ def test_simulate_disk_full(tmp_path):
         resource.setrlimit(resource.RLIMIT_FSIZE, (300_000, 300_000))
     r = subprocess_cli(["simulate", SCENARIO, "-o", tmp_path / "s.bin", "-q", "--set", "time.duration_s=0.5",
                         "--set", f"frontend.sample_rate_hz={FS}"], tmp_path, preexec_fn=limit)
-    assert r.returncode == 2 and "(disk full or file size limit)" in one_error_line(r.stderr)
+    assert r.returncode == 2 and "disk full or file size limit" in one_error_line(r.stderr)
     assert os.listdir(tmp_path) == []
 
 

@@ -405,8 +405,8 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
     for kind, p in paths.items():
-        check_output(p, reads, what={"if": "output", "truth": "truth file", "yaml": "receiver input "
-                                     "file"}[kind], make_dirs=False)
+        check_output(p, reads, what={"if": "output", "truth": "truth file",
+                                     "yaml": "receiver-input fragment"}[kind], make_dirs=False)
     sim = _Simulator(sc)                 # input errors surface here, before any file is touched
     lock = OutputLock(paths["if"]).acquire()
     tmp = {k: v + TMP_SUFFIX for k, v in paths.items()}
