@@ -7,12 +7,14 @@ files and exit with 130 / 143 and one line.
 """
 from __future__ import annotations
 
+import logging
 import sys
 
 import click
 
 from . import __version__, interrupt
 from .errors import UserError
+from .logs import setup_cli
 
 
 class _Group(click.Group):
@@ -48,10 +50,30 @@ class _Group(click.Group):
             ctx.exit(sig.exit_code)
 
 
+class _StderrWarnings(logging.Handler):
+    """receiver.errors.warn -> one line ``gnssrx: warning: ...`` on the current sys.stderr."""
+
+    def emit(self, record):
+        try:
+            sys.stderr.write(f"gnssrx: warning: {record.getMessage()}\n")
+            sys.stderr.flush()
+        except Exception:  # noqa: BLE001 - logging must not break the run
+            self.handleError(record)
+
+
+def _warnings_to_stderr():
+    lg = logging.getLogger("receiver.warnings")
+    if not any(isinstance(h, _StderrWarnings) for h in lg.handlers):
+        lg.addHandler(_StderrWarnings())
+    lg.propagate = False
+
+
 @click.group(cls=_Group)
 @click.version_option(__version__, prog_name="gnssrx")
 def main():
     """gnssrx - GNSS software receiver for recorded IF samples."""
+    setup_cli()
+    _warnings_to_stderr()
 
 
 def _load(config, input_path, sets, output=None):
@@ -74,7 +96,7 @@ def run(config, input_path, output, sets, quiet):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
     from .pipeline import run as run_pipeline
     cfg = _load(config, input_path, sets, output)
-    summary = run_pipeline(cfg, quiet=quiet, reads=[config])
+    summary = run_pipeline(cfg, quiet=quiet, log=logging.getLogger("receiver.pipeline").info, reads=[config])
     if not quiet:
         click.echo(summary.text())
 
@@ -98,34 +120,17 @@ def acquire(config, input_path, sets):
     click.echo(f"detected: {' '.join(str(r.prn) for r in res if r.detected) or 'none'}")
 
 
-def _register_optional():
-    """Commands that live in their own packages (registered when present)."""
-    try:
-        from .sim.cli import simulate, evaluate_cmd
-        main.add_command(simulate)
-        main.add_command(evaluate_cmd)
-    except ImportError:
-        pass
-    try:
-        from .leo.cli import leo
-        main.add_command(leo)
-    except ImportError:
-        pass
-    try:
-        from .export.cli import export, info, report
-        for cmd in (export, report, info):
-            main.add_command(cmd)
-    except ImportError:
-        pass
-    try:
-        from .batch.cli import batch, compare
-        main.add_command(batch)
-        main.add_command(compare)
-    except ImportError:
-        pass
+def _register_commands():
+    """Commands that live in their own packages (a failing import is a real error and shows)."""
+    from .batch.cli import batch, compare
+    from .export.cli import export, info, report
+    from .leo.cli import leo
+    from .sim.cli import evaluate_cmd, simulate
+    for cmd in (simulate, evaluate_cmd, leo, export, report, info, batch, compare):
+        main.add_command(cmd)
 
 
-_register_optional()
+_register_commands()
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

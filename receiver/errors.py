@@ -2,7 +2,7 @@
 
 The CLI turns it into a one-line message and exit code 2, without traceback.
 """
-import sys
+import logging
 
 
 class UserError(Exception):
@@ -10,5 +10,6 @@ class UserError(Exception):
 
 
 def warn(msg: str):
-    """One warning line on stderr (for input that is accepted but probably not what the user meant)."""
-    print(f"gnssrx: warning: {msg}", file=sys.stderr, flush=True)
+    """One warning (input that is accepted but probably not what the user meant), logged to
+    ``receiver.warnings``; the CLI shows it as one line ``gnssrx: warning: ...`` on stderr."""
+    logging.getLogger("receiver.warnings").warning(msg)

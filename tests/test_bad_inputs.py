@@ -372,11 +372,20 @@ def test_if_inside_the_band_is_accepted():
     assert load_receiver_config(None, ["input.if_hz=-1.29e6"]).input.if_hz == -1.29e6
 
 
-def test_duplicate_prns_are_searched_once(capsys):
-    cfg = load_receiver_config(None, ["acquisition.prns=[3, 5, 3, 7, 5]"])
+def test_duplicate_prns_are_searched_once():
+    import logging
+    records = []
+    h = logging.Handler()
+    h.emit = records.append
+    lg = logging.getLogger("receiver.warnings")
+    lg.addHandler(h)
+    try:
+        cfg = load_receiver_config(None, ["acquisition.prns=[3, 5, 3, 7, 5]"])
+    finally:
+        lg.removeHandler(h)
     assert cfg.acquisition.prns == [3, 5, 7]
-    err = capsys.readouterr().err
-    assert "gnssrx: warning: acquisition.prns lists PRN 3, 5 more than once" in err
+    assert [r.getMessage() for r in records] == ["acquisition.prns lists PRN 3, 5 more than once; each is "
+                                                 "searched once"]
 
 
 def test_rinex_without_usable_records(rec, tmp_path):

@@ -4,9 +4,9 @@ A file with a dataset of the wrong type (text where numbers belong, a group wher
 (N,) array where (N, 3) belongs) or tables whose columns differ in length is a one-line UserError that
 names the file and the offending dataset or attribute -- before any reader indexes into it.
 
-:func:`check_run_file` and :func:`check_truth_file` take an open h5py.File; the readers (the run-file and
-truth readers, ``evaluate``, ``info``/``export``/``report``, batch metrics) open run and truth files with
-:func:`open_checked`.
+:func:`check_run_file` and :func:`check_truth_file` take an open h5py.File; the one run-file reader
+(:class:`receiver.runfile.reader.RunFile`) and the one truth reader (:class:`receiver.runfile.truth.TruthFile`)
+call them on opening, so every command that reads these files (info, export, report, eval, batch) is covered.
 """
 from __future__ import annotations
 
@@ -22,8 +22,7 @@ def _fields(dtype: np.dtype) -> dict:
 
 
 def _run_tables():
-    from .record import EPOCH_DTYPE
-    from .writer import FIX_DTYPE, OBS_DTYPE, VECTOR_LOG_DTYPE
+    from .record import EPOCH_DTYPE, FIX_DTYPE, OBS_DTYPE, VECTOR_LOG_DTYPE
     acq = {"prn": (), "doppler_hz": (), "code_phase_chips": (), "metric": (), "detected": (),
            "cn0_dbhz_est": (), "time_s": ()}
     return {"navigation": _fields(FIX_DTYPE), "observables": _fields(OBS_DTYPE),
@@ -75,21 +74,6 @@ def _check_attrs(obj, path: str, names, what: str):
         if arr.dtype.kind not in _NUMERIC:
             raise UserError(f"{path}: attribute {obj.name.rstrip('/')}/{name} is {v!r}, expected a number "
                             f"({what})")
-
-
-def open_checked(path, what: str):
-    """open_h5 (missing / non-HDF5 file: one line) plus the dataset checks of a "run file" or a
-    "truth file"; returns the open h5py.File."""
-    import os
-    from .writer import open_h5
-    path = os.fspath(path)
-    f = open_h5(path, what)
-    try:
-        (check_run_file if what == "run file" else check_truth_file)(f, path)
-    except BaseException:
-        f.close()
-        raise
-    return f
 
 
 def check_run_file(f, path: str):
