@@ -37,7 +37,7 @@ def cli(args, cwd, preexec_fn=None):
 
 def main():
     sys.path.insert(0, str(ROOT))
-    from receiver.batch.runner import write_nav_for_scenario
+    from receiver.batch.tasks import write_nav_for_scenario
     from receiver.sim.scenario import load_scenario
     from receiver.sim.simulate import simulate
     base = Path(tempfile.mkdtemp(prefix="bad_inputs_"))

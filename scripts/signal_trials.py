@@ -62,7 +62,7 @@ def main():
     a = ap.parse_args()
     rng = random.Random(a.seed)
     sys.path.insert(0, str(ROOT))
-    from receiver.batch.runner import write_nav_for_scenario
+    from receiver.batch.tasks import write_nav_for_scenario
     from receiver.sim.scenario import load_scenario
     from receiver.sim.simulate import simulate
     import yaml

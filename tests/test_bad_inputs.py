@@ -75,7 +75,7 @@ def subprocess_cli(args, cwd, preexec_fn=None, timeout=600):
 @pytest.fixture(scope="module")
 def rec(tmp_path_factory):
     """3 s int8_iq recording at 2 MS/s, its receiver config (fragment) and the broadcast RINEX nav file."""
-    from receiver.batch.runner import write_nav_for_scenario
+    from receiver.batch.tasks import write_nav_for_scenario
     from receiver.sim.scenario import load_scenario
     from receiver.sim.simulate import simulate
     d = tmp_path_factory.mktemp("rec")
@@ -269,7 +269,7 @@ def test_search_on_zero_power_returns_no_detection():
 @pytest.fixture(scope="module")
 def nan_runs(tmp_path_factory):
     """A 6 s complex64 recording with and without a burst of 200 NaN samples at 3 s, both run assisted."""
-    from receiver.batch.runner import write_nav_for_scenario
+    from receiver.batch.tasks import write_nav_for_scenario
     from receiver.pipeline import run
     from receiver.sim.scenario import load_scenario
     from receiver.sim.simulate import simulate

@@ -17,6 +17,7 @@ import os
 
 import numpy as np
 
+from ..errors import UserError
 from ..estimation.interpolation import interp_columns
 from ..gnss.geodesy import ecef2lla, enu_matrix
 from ..gnss.time import week_seconds_since
