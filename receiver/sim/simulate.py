@@ -49,6 +49,7 @@ from ..signals import CA_CHIP_RATE, C_LIGHT, L1_HZ, OMEGA_E, ca_code, get_signal
 from ..signals_bds import data_signs
 from .clock import ClockGenerator
 from .constellation import load_constellation, quantize_iono
+from .impairments import Impairments
 from .kernel import quantize_fast, synth_block
 from .scenario import clock_h, load_scenario, noise_sigma, resolve_path
 from .scintillation import Scintillation
@@ -472,6 +473,7 @@ class _Simulator:
             aging_per_s=sc.clock.aging_ppb_per_s * 1e-9, white_fm_corner_hz=sc.clock.white_fm_corner_hz).take)
         self.scint = self._scintillation(sc.scintillation, tm.seed)
         self.cn0 = _Cn0(sc.cn0)
+        self.impair = Impairments(sc.impairments, self.fs, self.if_hz, self.sigma, self.cplx)
         self.outages = _outages(sc.blockage.outages)
         self.vis_count = _visible_count(sc.blockage.visible_count)
         self.nav = {p: _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
@@ -685,6 +687,7 @@ class _Simulator:
                     view += np.float32(self.sigma) * self.rng.standard_normal(view.size, dtype=np.float32)
                 else:
                     view[0::2] += np.float32(self.sigma) * self.rng.standard_normal(n_samp, dtype=np.float32)
+            out = self.impair.apply(out, first)          # front-end impairments (sim/impairments.py)
             quantize_fast(out, self.fmt).tofile(self.fh)
 
         if rows.size:
