@@ -91,10 +91,27 @@ SCENARIO_SCHEMA = {
                                   "C/N0 linear between the points, constant outside"),
     },
     "blockage": {
-        "outages": P([], "list", "outage windows: list of {prn, start_s, end_s} (time since the first "
-                                 "sample), no signal inside"),
+        "outages": P([], "list", "outage windows: list of {prn, start_s, end_s} (receiver time since the "
+                                 "first sample), no signal inside; prn: all blocks every satellite"),
+        "total": P([], "list", "total outages (bridges, tunnels): list of {start_s, end_s}, no satellite "
+                               "carries a signal inside"),
         "visible_count": P([], "list", "schedule of [t_s, n]: from t_s on at most n satellites carry a "
                                        "signal (the lowest elevations are dropped first)"),
+        "random": {
+            "enabled": P(False, "bool", "urban canyon: random per-satellite blockages (receiver/sim/blockage.py; "
+                                        "the realised windows go to the truth file's /blockage)"),
+            "seed": P(None, "int", "seed of the pattern (empty: time.seed)", nullable=True, lo=0),
+            "start_s": P(0.0, "float", "random blockages from this receiver time on (s since the first "
+                                       "sample)", lo=0.0),
+            "end_s": P(None, "float", "... until this time (empty: the end of the recording)", nullable=True,
+                       lo=0.0),
+            "min_duration_s": P(0.2, "float", "shortest blockage (and shortest visible gap)", lo=0.001),
+            "max_duration_s": P(5.0, "float", "longest blockage (lengths log-uniform in between)", lo=0.001),
+            "min_visible": P(4, "int", "the pattern is calibrated on this many satellites visible ...",
+                             lo=1, hi=32),
+            "target_fraction": P(0.7, "float", "... during this fraction of the window (after the elevation "
+                                               "mask, outages and total windows)", lo=0.01, hi=0.99),
+        },
     },
     "scintillation": {
         "enabled": P(False, "bool", "apply ionospheric scintillation (Cornell model + phase)"),

@@ -47,6 +47,7 @@ from ..nav.ephemeris import IonoUtc, WEEK_S, earth_rotation, sat_state
 from ..nav.lnav import encode_subframes
 from ..signals import CA_CHIP_RATE, C_LIGHT, L1_HZ, OMEGA_E, ca_code, get_signal  # noqa: F401
 from ..signals_bds import data_signs
+from .blockage import Blockage
 from .clock import ClockGenerator
 from .constellation import load_constellation, quantize_iono
 from .impairments import Impairments
@@ -175,32 +176,6 @@ class _Cn0:
         return np.full(t_rel.shape, self.dbhz)
 
 
-def _outages(raw):
-    out = {}
-    for i, item in enumerate(raw or []):
-        key = f"blockage.outages[{i}]"
-        if not isinstance(item, dict) or set(item) - {"prn", "start_s", "end_s"} or "prn" not in item:
-            raise UserError(f"config key '{key}' must be a mapping {{prn, start_s, end_s}}")
-        try:
-            prn, a, b = int(item["prn"]), float(item.get("start_s", 0.0)), float(item.get("end_s", math.inf))
-        except (TypeError, ValueError):
-            raise UserError(f"config key '{key}' must hold numbers") from None
-        out.setdefault(prn, []).append((a, b))
-    return out
-
-
-def _visible_count(raw):
-    rows = []
-    for i, item in enumerate(raw or []):
-        try:
-            t, n = item
-            rows.append((float(t), int(n)))
-        except (TypeError, ValueError):
-            raise UserError(f"config key 'blockage.visible_count[{i}]' must be [t_s, n]") from None
-    rows.sort()
-    return rows
-
-
 # ------------------------------------------------------------------------------------------ geometry
 def hermite(xn, yn, dyn, x, deriv=False):
     """Cubic Hermite interpolation through nodes xn (increasing) with values yn and slopes dyn.
@@ -298,7 +273,7 @@ def satellite_geometry(track, t_rx, rx_pos, rx_vel, lat_deg, lon_deg, h_m, iono,
 
 
 def _scan_elevations(ephs, traj, t_ref_true, duration):
-    """Max elevation (deg) of every PRN over the run (coarse scan, no light time)."""
+    """(t (s since the start), {prn: elevation (deg) at t}): coarse scan over the run, no light time."""
     step = 1.0 if duration <= 3600 else 10.0
     ts = np.append(np.arange(0.0, duration, step), duration)
     pos = traj.state(ts)[0]
@@ -307,8 +282,8 @@ def _scan_elevations(ephs, traj, t_ref_true, duration):
     for prn, eph in ephs.items():
         sp = sat_state(eph, t_ref_true + ts)[0]
         e, n, u = enu_components(earth_rotation(sp, 0.075) - pos, lat, lon)
-        out[prn] = float(np.degrees(np.max(np.arctan2(u, np.hypot(e, n)))))
-    return out
+        out[prn] = np.degrees(np.arctan2(u, np.hypot(e, n)))
+    return ts, out
 
 
 # ------------------------------------------------------------------------------------------ truth file
@@ -461,8 +436,8 @@ class _Simulator:
         for p in con.exclude_prns:
             ephs.pop(p, None)
         self.mask = con.elevation_mask_deg
-        max_el = _scan_elevations(ephs, traj, t0_true, duration)
-        self.prns = sorted(p for p, e in max_el.items() if e >= min(self.mask, 0.0) - 1.0)
+        el_scan = _scan_elevations(ephs, traj, t0_true, duration)
+        self.prns = sorted(p for p, e in el_scan[1].items() if np.max(e) >= min(self.mask, 0.0) - 1.0)
         if not self.prns:
             raise UserError("no satellite rises above the horizon during the run")
         self.ephs = {p: ephs[p] for p in self.prns}
@@ -474,8 +449,7 @@ class _Simulator:
         self.scint = self._scintillation(sc.scintillation, tm.seed)
         self.cn0 = _Cn0(sc.cn0)
         self.impair = Impairments(sc.impairments, self.fs, self.if_hz, self.sigma, self.cplx)
-        self.outages = _outages(sc.blockage.outages)
-        self.vis_count = _visible_count(sc.blockage.visible_count)
+        self.blockage = Blockage(sc.blockage, self.prns, duration, tm.seed, el_scan, self.mask)
         self.nav = {p: _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
                                 sc.navigation.data) for p in self.prns}
         self.signal = get_signal(sc.signal)
@@ -529,6 +503,7 @@ class _Simulator:
     def run(self, paths, progress):
         sat_attrs = {p: {"toe": e.toe, "iode": e.iode, "week": e.week} for p, e in self.ephs.items()}
         self.writer = _TruthWriter(paths["truth"], self.attrs(), self.prns, sat_attrs)
+        self.blockage.write(self.writer.f)
         self.fh = open(paths["if"], "wb")
         bar = None
         try:
@@ -557,21 +532,7 @@ class _Simulator:
             yaml.safe_dump(frag, f, sort_keys=False)
 
     def _visibility(self, t_rel, el_deg):
-        visible = el_deg >= self.mask
-        for i, p in enumerate(self.prns):
-            for a, b in self.outages.get(p, ()):
-                visible[i] &= ~((t_rel >= a) & (t_rel < b))
-        if self.vis_count:
-            counts = np.full(t_rel.shape, len(self.prns))
-            for ts, nmax in self.vis_count:
-                counts[t_rel >= ts] = nmax
-            key = np.where(visible, el_deg, -np.inf)
-            order = np.argsort(-key, axis=0, kind="stable")
-            rank = np.empty_like(order)
-            np.put_along_axis(rank, order, np.broadcast_to(np.arange(len(self.prns))[:, None], order.shape),
-                              axis=0)
-            visible &= rank < counts[None, :]
-        return visible
+        return self.blockage.visibility(t_rel, el_deg, self.mask)
 
     def _track(self, prn, t_lo, t_hi):
         tr = self._tracks.get(prn)
