@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier batch-full clean
+.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier batch-full batch-outages clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -38,6 +38,10 @@ figures-carrier: venv
 batch-full: venv
 	$(VENV)/bin/gnssrx batch configs/batch/full.yaml
 	$(VENV)/bin/gnssrx compare out/batch/full/summary.h5 --by variant
+
+batch-outages: venv
+	$(VENV)/bin/gnssrx batch configs/batch/outages.yaml
+	$(PY) scripts/outage_table.py out/batch/outages/summary.h5 --out out/batch/outages/acceptance.md
 
 clean:
 	rm -rf out figures .pytest_cache

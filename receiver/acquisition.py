@@ -21,7 +21,8 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.stats import gamma
 
-from .signals import GPS_L1CA, sample_code
+from .gnss.signals import GPS_L1CA, sample_code
+from .runfile.record import ACQ_REASONS
 
 
 @dataclass
@@ -39,7 +40,7 @@ class AcqResult:
 
 
 #: codes of AcqResult.reason in the run file (/acquisition/reason)
-REASONS = {"": 0, "threshold": 1, "width": 2, "xcorr": 3, "verify": 4}
+REASONS = ACQ_REASONS
 
 
 def _threshold(pfa: float, n_cells: int, k: int) -> float:

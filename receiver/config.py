@@ -380,7 +380,7 @@ RECEIVER_SCHEMA = {
                                   "cubature Kalman filter) over position, velocity, clock bias and drift, fed "
                                   "with the pseudoranges and pseudorange rates of the satellites the WLS fix "
                                   "used; /navigation then holds the filtered position, velocity and clock "
-                                  "(n_sats, DOPs and /observables stay the WLS's; receiver/nav/pvt_filter.py)",
+                                  "(n_sats, DOPs and /observables stay the WLS's; receiver/navigation/pvt_filter.py)",
                     choices=("wls", "ekf", "ckf")),
         "filter_accel_psd": P(1.0, "float", "ekf/ckf: PSD of the white receiver acceleration per axis "
                                             "(m^2/s^3; ~0.01 static, 1 pedestrian/car, 10+ agile)", lo=0.0),

@@ -16,10 +16,10 @@ import numpy as np
 
 from .acquisition import reject_cross_correlations, search, verify
 from .errors import UserError
-from .io import SampleReader
-from .output import RunWriter
-from .record import EPOCH_DTYPE
-from .signals import get_signal
+from .source.io import SampleReader
+from .runfile.writer import RunWriter
+from .runfile.record import EPOCH_DTYPE
+from .gnss.registry import get_signal
 from .tracking.carrier import make_carrier_loop
 from .tracking.scalar import Channel
 
@@ -87,7 +87,7 @@ def open_input(cfg) -> SampleReader:
     reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap)
     c = i.conditioning
     if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
-        from .conditioning import ConditionedReader
+        from .source.conditioning import ConditionedReader
         reader = ConditionedReader(reader, c)
     return reader
 
@@ -163,7 +163,7 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
     out_path = default_output_path(cfg, cfg.input.path)
     ephemerides, iono = None, None
     if cfg.navigation.enabled and cfg.navigation.ephemeris:
-        from .nav.rinex import read_rinex_nav
+        from .gnss.rinex import read_rinex_nav
         ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
     fs, if_hz = reader.fs, cfg.input.if_hz
     writer = RunWriter(out_path, cfg.to_yaml(), {
@@ -184,7 +184,7 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
 
 
 def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
-    from .nav.engine import NavigationEngine
+    from .navigation.engine import NavigationEngine
     fs, if_hz = reader.fs, cfg.input.if_hz
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
@@ -286,7 +286,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                                   if ch.decoder.ephemeris is not None})     # the decoded ones
         writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else "lnav")
     if fix_ecef:
-        from .geodesy import ecef2enu, ecef2lla
+        from .gnss.geodesy import ecef2enu, ecef2lla
         e = np.concatenate(fix_ecef)
         mean = e.mean(axis=0)
         lat, lon, h = ecef2lla(mean)

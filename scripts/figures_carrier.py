@@ -4,7 +4,7 @@
     python scripts/figures_carrier.py --out figures/carrier            # default: 2 min per scenario
     FULL=1 python scripts/figures_carrier.py --out figures/carrier     # 10 min per scenario
 
-Experiments (correlator-level simulator receiver/corrsim.py; its statistics are checked against IF-level
+Experiments (correlator-level simulator receiver/sim/corrsim.py; its statistics are checked against IF-level
 simulator + receiver runs in tests/test_carrier_corrsim.py):
   * scintillation: BDS B1I (1561.098 MHz) PRN 5, 40 dB-Hz, data wiped off, T_coh = 5 ms, CSM scintillation
     (tau0 = 0.5 s) in five (S4, sigma_phi) scenarios, >= 10 Monte Carlo seeds; loops cpll_atan (ATAN, 3rd
@@ -31,10 +31,10 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from receiver.config import load_receiver_config  # noqa: E402
-from receiver.corrsim import (CorrScenario, loss_of_lock_probability, make_truth, phase_error_std_deg,  # noqa: E402
+from receiver.sim.corrsim import (CorrScenario, loss_of_lock_probability, make_truth, phase_error_std_deg,  # noqa: E402
                               run, tracking_threshold, windowed_pli, wrap_costas)
-from receiver.signals import L1_HZ  # noqa: E402
-from receiver.signals_bds import B1I_HZ  # noqa: E402
+from receiver.gnss.signals import L1_HZ  # noqa: E402
+from receiver.gnss.signals_bds import B1I_HZ  # noqa: E402
 from receiver.tracking.carrier import make_carrier_loop  # noqa: E402
 
 SCENARIOS = [(0.1, 0.05), (0.3, 0.25), (0.5, 0.35), (0.6, 0.5), (0.9, 0.75)]

@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, ROOT)
 
-from receiver.geodesy import ecef2enu, ecef2lla  # noqa: E402
+from receiver.gnss.geodesy import ecef2enu, ecef2lla  # noqa: E402
 from receiver.leo import geosot, solvers  # noqa: E402
 from receiver.leo.config import load_scenario  # noqa: E402
 from receiver.leo.constellation import Constellation  # noqa: E402

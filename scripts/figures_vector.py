@@ -46,7 +46,7 @@ import numpy as np
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, ROOT)
 
-from receiver.signals import C_LIGHT  # noqa: E402
+from receiver.gnss.signals import C_LIGHT  # noqa: E402
 
 FIG8 = {
     "name": "fig8", "scenario": "configs/scenarios/vll_fig8_blockage.yaml",
@@ -325,7 +325,7 @@ def plot_accel(res, tr, out, t_end):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from receiver.geodesy import ecef2lla, enu_matrix
+    from receiver.gnss.geodesy import ecef2lla, enu_matrix
     files = []
     steps = [t for t in accel_steps() if t <= t_end]
 

@@ -5,7 +5,7 @@ C/N0 = A^2 fs / sigma^2 with complex noise of variance sigma^2 per sample.
 """
 import numpy as np
 
-from receiver.signals import CA_CHIP_RATE, CA_CODE_LEN, L1_HZ, ca_code
+from receiver.gnss.signals import CA_CHIP_RATE, CA_CODE_LEN, L1_HZ, ca_code
 
 
 def make_signal(sats, fs=2.6e6, duration_s=1.0, noise_sigma=1.0, seed=0, if_hz=0.0, real=False):

@@ -95,7 +95,7 @@ def test_verification_dwell():
 
 # ---------------------------------------------------------------------------------------- short files
 def _write_int8(path, x):
-    from receiver.io import quantize
+    from receiver.source.io import quantize
     quantize(x, "int8_iq", 8.0).tofile(path)
 
 

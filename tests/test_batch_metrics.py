@@ -7,7 +7,7 @@ import pytest
 
 from receiver.batch.compare import comparison_plot, comparison_table, group_stats, interval
 from receiver.batch.metrics import METRIC_KEYS, carrier_phase_errors, compute_metrics
-from receiver.geodesy import enu_matrix, lla2ecef
+from receiver.gnss.geodesy import enu_matrix, lla2ecef
 
 FS, IF = 1.0e6, 1000.0
 LAT, LON, H = 46.5, 6.6, 400.0

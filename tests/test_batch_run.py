@@ -42,7 +42,10 @@ def pool_run(dirs):
 
 
 def _metrics(rows):
-    return {r["run_id"]: {k: r[k] for k in METRIC_KEYS if k not in TIMING_KEYS} for r in rows}
+    """Comparable metrics: NaN (metrics that do not apply, e.g. the outage ones) as the string 'nan'."""
+    def v(x):
+        return "nan" if isinstance(x, float) and math.isnan(x) else x
+    return {r["run_id"]: {k: v(r[k]) for k in METRIC_KEYS if k not in TIMING_KEYS} for r in rows}
 
 
 def test_ci_small_summary(pool_run, dirs):

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from receiver.signals import get_signal
-from receiver.signals_bds import (B1I_CHIP_RATE, B1I_CODE_LEN, B1I_HZ, BDS_B1I, G2_PHASE, NH_CODE, _G2_TAPS,
+from receiver.gnss.registry import get_signal
+from receiver.gnss.signals_bds import (B1I_CHIP_RATE, B1I_CODE_LEN, B1I_HZ, BDS_B1I, G2_PHASE, NH_CODE, _G2_TAPS,
                                   _lfsr, b1i_code, b1i_code_bits, data_signs, first_chips_octal)
 
 

@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import quad
 
 from receiver.config import load_receiver_config
-from receiver.corrsim import (CorrScenario, if_phase_error, loss_of_lock_probability, phase_error_std_deg,
+from receiver.sim.corrsim import (CorrScenario, if_phase_error, loss_of_lock_probability, phase_error_std_deg,
                               run)
 from receiver.tracking.carrier import make_carrier_loop
 

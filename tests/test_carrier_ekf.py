@@ -45,7 +45,7 @@ def test_pli_ekf_reduces_to_ekf_when_pli_is_one():
 
 @pytest.mark.parametrize("variant", ["ekf", "pli_ekf"])
 def test_ekf_converges_on_a_frequency_offset(variant):
-    from receiver.corrsim import CorrScenario, phase_error_std_deg, run
+    from receiver.sim.corrsim import CorrScenario, phase_error_std_deg, run
     cfg = load_receiver_config()
     loop = make_carrier_loop(variant, cfg.tracking)
     sc = CorrScenario(duration_s=5.0, cn0_dbhz=40.0, h0=0.0, h_2=0.0, init_doppler_err_hz=5.0)

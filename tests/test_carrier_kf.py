@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from receiver.config import load_receiver_config
-from receiver.signals import L1_HZ
+from receiver.gnss.signals import L1_HZ
 from receiver.tracking.carrier import REGISTRY, make_carrier_loop
 from receiver.tracking.loops.common import (atan_variance_cycles2, butterworth_bn_factor, clock_q,
                                             continuous_bandwidth, loop_noise_bandwidth_discrete,
                                             steady_state_gain)
 from receiver.tracking.loops.kfpll import KFPLL, kf_matrices
-from receiver.signals import C_LIGHT
+from receiver.gnss.signals import C_LIGHT
 
 
 def test_registry_and_config():
@@ -59,7 +59,7 @@ def test_kf_bandwidth_with_clock(T):
 
 
 def test_adaptive_kf_scales_q_and_tracks_cn0():
-    from receiver.corrsim import CorrScenario, run
+    from receiver.sim.corrsim import CorrScenario, run
     cfg = load_receiver_config(overrides=["tracking.carrier.clock_h0=1.2e-20", "tracking.carrier.clock_h_2=2.0e-22"])
     loop = make_carrier_loop("adaptive_kf", cfg.tracking)
     out = run(loop, CorrScenario(duration_s=6.0, t_coh_ms=5, cn0_dbhz=32.0, h0=1.2e-20, h_2=2e-22,

@@ -1,10 +1,10 @@
-"""Input conditioning (receiver/conditioning.py): tone detector, tone canceller, the conditioned reader."""
+"""Input conditioning (receiver/source/conditioning.py): tone detector, tone canceller, the conditioned reader."""
 import numpy as np
 import pytest
 
-from receiver.conditioning import Canceller, ConditionedReader, detect_tones
+from receiver.source.conditioning import Canceller, ConditionedReader, detect_tones
 from receiver.config import RECEIVER_SCHEMA, build
-from receiver.signals import CA_CHIP_RATE, L1_HZ, ca_code, sample_code
+from receiver.gnss.signals import CA_CHIP_RATE, L1_HZ, ca_code, sample_code
 
 from synth import make_signal
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from receiver.correlator import correlate, correlate_reference, extend_code
-from receiver.signals import ca_code
+from receiver.tracking.correlator import correlate, correlate_reference, extend_code
+from receiver.gnss.signals import ca_code
 
 
 @pytest.mark.parametrize("code_phase,code_step,carr_phase,carr_step,n", [

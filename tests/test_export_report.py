@@ -99,7 +99,7 @@ def test_vector_panels_from_the_vector_log(tokyo_run, tmp_path):
     import shutil
 
     import h5py
-    from receiver.output import VECTOR_LOG_DTYPE
+    from receiver.runfile.writer import VECTOR_LOG_DTYPE
     path = tmp_path / "vec.h5"
     shutil.copy(tokyo_run, path)
     run = load_run(path)

@@ -10,11 +10,11 @@ import pytest
 
 from receiver.export.rinex_obs import LLI_HALF_CYCLE, LLI_LOSS, lli_flags, ssi_from_cn0
 from receiver.export.run import load_run
-from receiver.nav.ephemeris import select
-from receiver.nav.pvt import NavSolver, Observation
-from receiver.nav.rinex import read_rinex_nav
-from receiver.output import OBS_DTYPE
-from receiver.signals import C_LIGHT
+from receiver.gnss.ephemeris import select
+from receiver.navigation.pvt import NavSolver, Observation
+from receiver.gnss.rinex import read_rinex_nav
+from receiver.runfile.writer import OBS_DTYPE
+from receiver.gnss.signals import C_LIGHT
 
 from conftest import TOKYO_NAV
 
@@ -224,9 +224,9 @@ def _solve_with_rtklib_weights(run, nav_path, mask_deg):
     Sagnac, Klobuchar, no troposphere) but the measurement variances of RTKLIB's documented single-point
     error model with its default settings: 100^2 (0.003^2 + 0.003^2 / sin el) + URA^2 + 0.3^2 (code bias)
     + (0.5 iono)^2 + 3^2 (troposphere not modelled).  Gauss-Newton from the Earth's centre."""
-    from receiver.geodesy import azel, ecef2lla
-    from receiver.nav.atmosphere import klobuchar_delay_s
-    from receiver.nav.ephemeris import earth_rotation, sat_state
+    from receiver.gnss.geodesy import azel, ecef2lla
+    from receiver.gnss.atmosphere import klobuchar_delay_s
+    from receiver.gnss.ephemeris import earth_rotation, sat_state
     ephs, iono = read_rinex_nav(nav_path)
     o, rx = run.obs, run.rx_tow()
     out = []

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from receiver.errors import UserError
-from receiver.io import FORMATS, SampleReader, SampleWriter, bytes_per_sample, is_complex, quantize
+from receiver.source.io import FORMATS, SampleReader, SampleWriter, bytes_per_sample, is_complex, quantize
 
 
 @pytest.mark.parametrize("fmt", sorted(FORMATS))

@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 
 from receiver.errors import UserError
-from receiver.geodesy import lla2ecef
+from receiver.gnss.geodesy import lla2ecef
 from receiver.leo import doppler as D
 from receiver.leo.config import load_scenario
 from receiver.leo.constellation import Constellation
-from receiver.signals import C_LIGHT
+from receiver.gnss.signals import C_LIGHT
 
 F0 = D.IRIDIUM_CARRIER_HZ
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from receiver.nav.filters import (CubatureKalmanFilter, ExtendedKalmanFilter, FilterDivergence,
+from receiver.estimation.filters import (CubatureKalmanFilter, ExtendedKalmanFilter, FilterDivergence,
                                   KalmanFilter, SquareRootCubatureKalmanFilter, tria)
 
 
@@ -131,7 +131,7 @@ def test_filters_accept_scalar_and_diagonal_noise_and_identity_dynamics():
 
 def test_triangular_solver_matches_scipy():
     import scipy.linalg as sla
-    from receiver.nav.filters import solve_triangular
+    from receiver.estimation.filters import solve_triangular
     rng = np.random.default_rng(4)
     for n in (1, 3, 7, 40):
         T = np.tril(rng.standard_normal((n, n))) + 3 * np.eye(n)

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from receiver.geodesy import lla2ecef
+from receiver.gnss.geodesy import lla2ecef
 from receiver.leo import geosot as G
 from receiver.leo.config import load_scenario
 from receiver.leo.constellation import Constellation

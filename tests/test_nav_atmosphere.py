@@ -4,9 +4,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from receiver.nav.atmosphere import (klobuchar_delay_s, saastamoinen_m, saastamoinen_zenith_m,
+from receiver.gnss.atmosphere import (klobuchar_delay_s, saastamoinen_m, saastamoinen_zenith_m,
                                      standard_atmosphere, tropo_mapping)
-from receiver.nav.ephemeris import IonoUtc
+from receiver.gnss.ephemeris import IonoUtc
 
 # broadcast coefficients of 2022-01-01 (brdc0010.22n header)
 IONO = IonoUtc(alpha=(0.1211e-07, -0.7451e-08, -0.5960e-07, 0.1192e-06),

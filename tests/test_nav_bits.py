@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from receiver.nav.engine import BIT_MS, ChannelNav
-from receiver.nav.lnav import EphemerisEvent, encode_frames
-from receiver.record import EPOCH_DTYPE, STATE_BIT_SYNC
+from receiver.navigation.engine import BIT_MS, ChannelNav
+from receiver.gnss.lnav import EphemerisEvent, encode_frames
+from receiver.runfile.record import EPOCH_DTYPE, STATE_BIT_SYNC
 from receiver.sim.constellation import nominal_ephemerides, quantize_ephemeris, quantize_iono
 
 ROOT = Path(__file__).resolve().parents[1]

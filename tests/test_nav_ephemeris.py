@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from receiver.errors import UserError
-from receiver.nav.ephemeris import (Ephemeris, earth_rotation, sat_state,
+from receiver.gnss.ephemeris import (Ephemeris, earth_rotation, sat_state,
                                     select)
-from receiver.nav.rinex import (gps_time_from_calendar, read_rinex_nav, ura_index_from_m,
+from receiver.gnss.rinex import (gps_time_from_calendar, read_rinex_nav, ura_index_from_m,
                                 write_rinex_nav)
-from receiver.signals import F_REL, MU_GPS, OMEGA_E
+from receiver.gnss.signals import F_REL, MU_GPS, OMEGA_E
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BRDC = DATA / "brdc0010.22n"

@@ -6,12 +6,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from receiver.nav.ephemeris import Ephemeris
-from receiver.nav.lnav import (EPH_LSB, IONO_LSB, PREAMBLE, EphemerisEvent, IonoUtcEvent,
+from receiver.gnss.ephemeris import Ephemeris
+from receiver.gnss.lnav import (EPH_LSB, IONO_LSB, PREAMBLE, EphemerisEvent, IonoUtcEvent,
                                LnavDecoder, SubframeEvent, decode_word, encode_frames,
                                encode_subframes, encode_word, parity_bits, subframe45_page,
                                word_parity_ok)
-from receiver.nav.rinex import read_rinex_nav
+from receiver.gnss.rinex import read_rinex_nav
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BRDC = DATA / "brdc0010.22n"

@@ -6,12 +6,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from receiver.geodesy import azel, lla2ecef
-from receiver.nav.atmosphere import klobuchar_delay_s, saastamoinen_m
-from receiver.nav.ephemeris import sat_state, select
-from receiver.nav.pvt import Fix, NavSolver, Observation
-from receiver.nav.rinex import read_rinex_nav
-from receiver.signals import C_LIGHT, LAMBDA_L1, OMEGA_E
+from receiver.gnss.geodesy import azel, lla2ecef
+from receiver.gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
+from receiver.gnss.ephemeris import sat_state, select
+from receiver.navigation.pvt import Fix, NavSolver, Observation
+from receiver.gnss.rinex import read_rinex_nav
+from receiver.gnss.signals import C_LIGHT, LAMBDA_L1, OMEGA_E
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BRDC = DATA / "brdc0010.22n"

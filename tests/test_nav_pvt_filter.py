@@ -14,12 +14,12 @@ import pytest
 
 from receiver.config import load_receiver_config
 from receiver.errors import UserError
-from receiver.geodesy import azel, ecef2lla, lla2ecef
-from receiver.nav.atmosphere import saastamoinen_m
-from receiver.nav.ephemeris import sat_state
-from receiver.nav.pvt import NavSolver, Observation
-from receiver.nav.pvt_filter import PvtFilter, make_pvt_filter
-from receiver.signals import C_LIGHT, LAMBDA_L1, OMEGA_E
+from receiver.gnss.geodesy import azel, ecef2lla, lla2ecef
+from receiver.gnss.atmosphere import saastamoinen_m
+from receiver.gnss.ephemeris import sat_state
+from receiver.navigation.pvt import NavSolver, Observation
+from receiver.navigation.pvt_filter import PvtFilter, make_pvt_filter
+from receiver.gnss.signals import C_LIGHT, LAMBDA_L1, OMEGA_E
 from receiver.sim.constellation import nominal_ephemerides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -302,7 +302,7 @@ def reference_ckf_run(tmp_path_factory):
     the (time, WLS fix, code offsets) handed to the filter are recorded on the way."""
     if not (REC.exists() and NAV.exists()):
         pytest.skip("../shared/data reference recording absent")
-    from receiver.nav import pvt_filter
+    from receiver.navigation import pvt_filter
     from receiver.pipeline import run
     captured = []
     step = pvt_filter.PvtFilter.step
@@ -363,8 +363,8 @@ def test_filters_on_the_reference_recording(reference_ckf_run):
 @pytest.mark.slow
 def test_replay_recomputes_the_wls_fixes(reference_ckf_run):
     """replay_run re-solves the run's WLS fixes from its /observables (and filters them)."""
-    from receiver.nav.pvt_filter import replay_run
-    from receiver.nav.rinex import read_rinex_nav
+    from receiver.navigation.pvt_filter import replay_run
+    from receiver.gnss.rinex import read_rinex_nav
     out, cfg, rows, captured = reference_ckf_run
     ephs, iono = read_rinex_nav(NAV)
     rep = replay_run(out, ephs, iono, cfg.navigation, kinds=("ekf",))

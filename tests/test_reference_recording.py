@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from receiver.config import load_receiver_config
-from receiver.geodesy import ecef2enu
+from receiver.gnss.geodesy import ecef2enu
 from receiver.pipeline import run
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -135,8 +135,8 @@ def test_fix_times_are_round_gps_times(standalone):
 
 
 def test_decoded_ephemeris_equals_rinex_to_the_lsb(standalone):
-    from receiver.nav.lnav import EPH_LSB
-    from receiver.nav.rinex import read_rinex_nav
+    from receiver.gnss.lnav import EPH_LSB
+    from receiver.gnss.rinex import read_rinex_nav
     rinex, _ = read_rinex_nav(SHARED / "brdc0010.22n")
     with h5py.File(standalone[0]) as f:
         g = f["ephemeris"]
@@ -158,7 +158,7 @@ def test_decoded_ephemeris_equals_rinex_to_the_lsb(standalone):
 def test_stored_iono_utc_equals_the_rinex_header(standalone):
     """/iono_utc holds the Klobuchar / UTC parameters decoded from subframe 4 page 18: the file's
     generator took them from the RINEX header (ION ALPHA / ION BETA / DELTA-UTC / LEAP SECONDS)."""
-    from receiver.nav.rinex import read_rinex_nav
+    from receiver.gnss.rinex import read_rinex_nav
     _, ref = read_rinex_nav(SHARED / "brdc0010.22n")
     assert ref is not None
     with h5py.File(standalone[0]) as f:

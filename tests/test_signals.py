@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from receiver.signals import GPS_PRNS, ca_code, ca_code_bits
+from receiver.gnss.signals import GPS_PRNS, ca_code, ca_code_bits
 
 # IS-GPS-200, Table 3-Ia: first 10 chips of the C/A code, octal (PRN 1..32)
 FIRST10_OCTAL = [0o1440, 0o1620, 0o1710, 0o1744, 0o1133, 0o1455, 0o1131, 0o1454, 0o1626, 0o1504,

@@ -76,16 +76,18 @@ def test_random_blockage_urban_canyon(tmp_path, seed):
     assert 0.62 <= frac <= 0.78, frac                    # at least 4 visible ~70 % of the time
     assert n_vis[win].min() < 4 and n_vis[win].max() > 4
     # each satellite's blocked spells (truth rows, 10 ms) last 0.2..5 s unless cut by the window end
+    n_spells = 0
     for i in range(len(prns)):
         blocked = np.concatenate(([0], (~vis[i]).astype(np.int8), [0]))
         starts = np.nonzero(np.diff(blocked) == 1)[0]
         ends = np.nonzero(np.diff(blocked) == -1)[0]
-        assert starts.size >= 2
+        n_spells += starts.size
         for a, e in zip(starts, ends):
             dur = (e - a) * 0.01
             assert dur <= 5.0 + 0.011
             if e < ts.size:
                 assert dur >= 0.2 - 0.011
+    assert n_spells >= 2 * len(prns)                     # ~2.5 s blockages, ~2 s gaps: several per satellite
     # the /blockage table is what the truth visibility shows
     assert set(b["kind"]) == {KIND_RANDOM}
     assert attrs["random_start_s"] == 1.0 and attrs["random_end_s"] == 12.0
@@ -104,6 +106,19 @@ def _pattern(seed, random_seed=None):
         r["seed"] = random_seed
     sim = _Simulator(load_scenario(_scenario(60.0, {"random": r}, seed=seed)))
     return sim.blockage.table()
+
+
+def test_random_blockage_length_distributions():
+    sc = _scenario(400.0, {"random": {"enabled": True, "start_s": 0.0}})
+    uni = _Simulator(load_scenario(sc)).blockage.table()
+    sc["blockage"]["random"]["distribution"] = "loguniform"
+    log = _Simulator(load_scenario(sc)).blockage.table()
+    du, dl = uni[2] - uni[1], log[2] - log[1]
+    du, dl = du[uni[2] < 400.0], dl[log[2] < 400.0]            # not cut by the end of the window
+    assert du.min() >= 0.2 - 1e-9 and du.max() <= 5.0 + 1e-9 and dl.min() >= 0.2 - 1e-9
+    assert abs(np.mean(du) - 2.6) < 0.2                          # uniform on [0.2, 5]
+    assert abs(np.mean(dl) - 4.8 / np.log(25.0)) < 0.15          # log-uniform: (b - a) / ln(b / a) = 1.49
+    assert abs(np.median(dl) - 1.0) < 0.15                       # geometric mean sqrt(0.2 * 5) = 1
 
 
 def test_random_blockage_seeding():
@@ -149,3 +164,20 @@ def test_outage_scenarios_as_documented():
     prn, a, e, _ = canyon.blockage.table()
     assert a.min() >= 45.0 and np.all(e - a <= 5.0 + 1e-9)
     assert set(prn) == set(PRNS)
+
+
+def test_simulate_cli_summarises_the_blockage(tmp_path, monkeypatch):
+    import yaml
+    from click.testing import CliRunner
+    from receiver.cli import main
+    monkeypatch.chdir(tmp_path)
+    sc = _scenario(3.0, {"total": [{"start_s": 0.5, "end_s": 1.0}],
+                         "outages": [{"prn": 7, "start_s": 0.2, "end_s": 0.4}],
+                         "random": {"enabled": True, "start_s": 1.5, "min_duration_s": 0.1,
+                                    "max_duration_s": 0.5}})
+    (tmp_path / "sc.yaml").write_text(yaml.safe_dump(sc))
+    res = CliRunner().invoke(main, ["simulate", "sc.yaml", "-o", "x.bin"])
+    assert res.exit_code == 0, res.output
+    line = next(x for x in res.output.splitlines() if x.startswith("blockage:"))
+    assert "1 total outages (0.5-1 s)" in line and "1 satellite outages" in line
+    assert "random blockages in 1.5-3 s, >= 4 satellites visible" in line

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from receiver import __version__
 from receiver.config import load_receiver_config
 from receiver.errors import UserError
-from receiver.io import FORMATS, quantize
+from receiver.source.io import FORMATS, quantize
 from receiver.sim import simulate as sim_mod
 from receiver.sim.cli import evaluate_cmd, simulate as simulate_cmd
 from receiver.sim.kernel import quantize_fast

@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from receiver.geodesy import azel, lla2ecef
-from receiver.nav.ephemeris import sat_state
-from receiver.nav.lnav import LnavDecoder, EphemerisEvent, encode_subframes
+from receiver.gnss.geodesy import azel, lla2ecef
+from receiver.gnss.ephemeris import sat_state
+from receiver.gnss.lnav import LnavDecoder, EphemerisEvent, encode_subframes
 from receiver.sim.constellation import nominal_ephemerides, quantize_ephemeris, rinex_ephemerides
 from receiver.sim.scenario import NOMINAL_CONSTELLATION, REPO_ROOT
 

@@ -5,7 +5,7 @@ import pytest
 
 from receiver.errors import UserError
 from receiver.evaluate import evaluate, format_table
-from receiver.geodesy import enu_matrix, lla2ecef
+from receiver.gnss.geodesy import enu_matrix, lla2ecef
 
 
 def _truth(path, t0=1000.0, n=1001, vel=(1.0, 0.0, 0.0)):

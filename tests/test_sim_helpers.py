@@ -5,8 +5,8 @@ phase only, so the tests check the kernel against the truth independently.
 """
 import numpy as np
 
-from receiver.io import FORMATS
-from receiver.signals import ca_code
+from receiver.source.io import FORMATS
+from receiver.gnss.signals import ca_code
 
 
 def read_if(path, fmt):

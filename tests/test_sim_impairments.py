@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from receiver.conditioning import detect_tones
+from receiver.source.conditioning import detect_tones
 from receiver.errors import UserError
-from receiver.io import SampleReader
+from receiver.source.io import SampleReader
 from receiver.sim.simulate import simulate
 
 FS = 2.6e6

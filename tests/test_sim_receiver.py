@@ -9,7 +9,7 @@ import yaml
 
 from receiver.acquisition import search
 from receiver.config import load_receiver_config
-from receiver.io import SampleReader
+from receiver.source.io import SampleReader
 from receiver.pipeline import run
 from receiver.sim.simulate import simulate
 

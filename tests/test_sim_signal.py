@@ -5,11 +5,11 @@ import h5py
 import numpy as np
 import pytest
 
-from receiver.nav.atmosphere import klobuchar_delay_s, saastamoinen_m
-from receiver.nav.ephemeris import earth_rotation, sat_state
-from receiver.nav.lnav import EphemerisEvent, IonoUtcEvent, LnavDecoder, SubframeEvent
-from receiver.geodesy import ecef2lla
-from receiver.signals import C_LIGHT
+from receiver.gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
+from receiver.gnss.ephemeris import earth_rotation, sat_state
+from receiver.gnss.lnav import EphemerisEvent, IonoUtcEvent, LnavDecoder, SubframeEvent
+from receiver.gnss.geodesy import ecef2lla
+from receiver.gnss.signals import C_LIGHT
 from receiver.sim.constellation import nominal_ephemerides
 from receiver.sim.scenario import REPO_ROOT, NOMINAL_CONSTELLATION
 from receiver.sim.simulate import simulate

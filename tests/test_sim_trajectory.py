@@ -4,7 +4,7 @@ import pytest
 
 from receiver.config import build
 from receiver.errors import UserError
-from receiver.geodesy import ecef2enu, lla2ecef
+from receiver.gnss.geodesy import ecef2enu, lla2ecef
 from receiver.sim.scenario import SCENARIO_SCHEMA
 from receiver.sim.trajectory import make_trajectory
 
@@ -54,7 +54,7 @@ def test_segments_with_jerk():
         assert np.allclose(p[0], p[1], atol=1e-5) and np.allclose(v[0], v[1], atol=1e-5)
     ref = tr.state(0.0)[0][0]
     _, v, a = tr.state(np.array([12.0]))
-    from receiver.geodesy import enu_matrix, ecef2lla
+    from receiver.gnss.geodesy import enu_matrix, ecef2lla
     lat, lon, _ = ecef2lla(ref)
     r = enu_matrix(lat, lon)
     assert np.allclose(r @ v[0], [10.0, 2.0 + 0.4 * 2 ** 2 / 2, 0.0], atol=1e-9)
@@ -82,7 +82,7 @@ def test_csv_spline(tmp_path, columns):
     t = np.arange(0.0, 130.0, 1.0)
     e, n = 50 * np.sin(0.05 * t), 30 * np.cos(0.03 * t)
     ref = lla2ecef(35.0, 139.0, 20.0)
-    from receiver.geodesy import enu_matrix, ecef2lla
+    from receiver.gnss.geodesy import enu_matrix, ecef2lla
     xyz = ref + np.stack([e, n, 0.1 * t], axis=1) @ enu_matrix(35.0, 139.0)
     path = tmp_path / "traj.csv"
     if columns == "ecef":

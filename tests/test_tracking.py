@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from receiver.config import load_receiver_config
-from receiver.record import STATE_BIT_SYNC
+from receiver.runfile.record import STATE_BIT_SYNC
 from receiver.tracking.scalar import Channel
 
 from synth import make_signal

@@ -4,8 +4,8 @@ import pytest
 
 from receiver.config import RECEIVER_SCHEMA, build
 from receiver.errors import UserError
-from receiver.correlator import correlate, extend_code
-from receiver.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ, ca_code
+from receiver.tracking.correlator import correlate, extend_code
+from receiver.gnss.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ, ca_code
 from receiver.tracking.vector import REGISTRY, make_filter
 from receiver.tracking.vector.discriminators import (code_discriminator, freq_disc_hz,
                                                      frequency_discriminator)
@@ -279,7 +279,7 @@ def test_kinematic_transition_and_q_equal_the_continuous_model(model):
 
 
 def test_vertical_scale_shapes_q_in_the_local_level():
-    from receiver.geodesy import enu_matrix, lla2ecef
+    from receiver.gnss.geodesy import enu_matrix, lla2ecef
     f = make_filter("adaptive_r", vcfg(q_accel=10.0, q_vertical_scale=0.001))
     r0 = np.asarray(lla2ecef(35.68, 139.77, 40.0), float)
     f.initial(r0, np.zeros(3), 0.0, 0.0, 0.0, {"pos": 1, "vel": 1, "b": 1, "d": 1, "delta": 1})

@@ -41,6 +41,16 @@ Every metric is a float (NaN when it cannot be computed, e.g. no fix or no truth
     Mean over channels of each channel's mean C/N0 over its locked epochs (as the run summary).
 ``vector_fix_fraction``
     Fraction of the fixes produced by a vector loop (``/navigation/mode`` == 1).
+``outage_*``, ``fixes_to_end``, ``canyon_*`` (need a simulator truth file with outages)
+    From :mod:`receiver.evaluate.outages` (see its docstring): ``outage_n`` total outages; for the first
+    four, ``outageK_dur_s`` (length), ``outageK_ttgf_s`` (signal return to the first good fix: measured,
+    3D error <= 10 m; NaN if none before the next outage) and ``outageK_max_err_m`` (largest error of the
+    measured fixes from its start to the next outage); ``outage_max_err_m`` / ``outage_max_err_all_m``
+    (measured / all fixes of the whole run), ``outage_coast_fixes``, ``outage_fixes_inside`` (measured
+    fixes more than 0.3 s into an outage: unflagged coasting), ``fixes_to_end`` (1: the
+    last measured fix is <= 2 s before the end); random blockage: ``canyon_epochs`` (epochs with >= 4
+    satellites visible), ``canyon_availability`` (fraction of them with a measured fix), ``canyon_rms_3d_m``
+    and ``canyon_max_err_m`` (measured fixes in the blockage window).
 ``signal_s``, ``run_wall_s``, ``realtime_factor``
     Seconds of signal processed, and the run file's ``wall_time_s`` / ``realtime_factor`` attributes.
 ``job_wall_s``, ``job_cpu_s`` (set by the batch runner)
@@ -54,8 +64,9 @@ import os
 import numpy as np
 
 from ..errors import UserError
+from ..evaluate.outages import OUTAGE_METRIC_KEYS
 
-METRICS_VERSION = 1
+METRICS_VERSION = 2
 
 #: metric columns in summary order
 METRIC_KEYS = (
@@ -65,6 +76,7 @@ METRIC_KEYS = (
     "loss_of_lock", "channels_dropped", "n_channels_locked",
     "carrier_phase_err_std_cyc", "carrier_phase_epochs", "carrier_disc_std_cyc",
     "cn0_mean_dbhz", "vector_fix_fraction", "n_sats_mean", "pdop_mean",
+) + OUTAGE_METRIC_KEYS + (
     "signal_s", "run_wall_s", "realtime_factor", "job_wall_s", "job_cpu_s",
 )
 #: metrics that depend on the machine / load, not on the receiver's result
@@ -100,8 +112,8 @@ def fix_enu_errors(nav: dict, truth: dict):
 
     truth: {"week", "gps_tow" (M,), "ecef" (M,3), "velocity_ecef" (M,3)}; a static reference has M = 2
     rows spanning everything.  Returns (enu, vel_err, scored_mask_over_all_fixes)."""
-    from ..geodesy import ecef2lla, enu_matrix
-    from ..nav.ephemeris import WEEK_S
+    from ..gnss.geodesy import ecef2lla, enu_matrix
+    from ..gnss.ephemeris import WEEK_S
     tow = np.asarray(nav["gps_tow"], dtype=float)
     week = np.asarray(nav.get("gps_week", np.full(tow.shape, truth["week"])), dtype=float)
     t = (week - truth["week"]) * WEEK_S + tow
@@ -137,8 +149,8 @@ def _read_truth_receiver(truth_h5):
 
 
 def _static_truth(reference_llh, nav):
-    from ..geodesy import lla2ecef
-    from ..nav.ephemeris import WEEK_S
+    from ..gnss.geodesy import lla2ecef
+    from ..gnss.ephemeris import WEEK_S
     ref = np.asarray(lla2ecef(*reference_llh), dtype=float).reshape(3)
     week = int(np.asarray(nav.get("gps_week", [0]))[0]) if len(nav["gps_tow"]) else 0
     return {"week": week, "gps_tow": np.array([-2 * WEEK_S, 3 * WEEK_S]), "ecef": np.tile(ref, (2, 1)),
@@ -291,4 +303,7 @@ def compute_metrics(run_h5, truth_h5=None, reference_llh=None, carrier_settle_s:
             out["n_fixes"] = float(n_fix)
             _channel_metrics(out, f, truth_h5, carrier_settle_s)
         _position_metrics(out, run_h5, nav, truth_h5, reference_llh)
+        if truth_h5:
+            from ..evaluate.outages import batch_metrics, report
+            out.update(batch_metrics(report(run_h5, truth_h5)))
     return out

@@ -332,8 +332,8 @@ def _read_json(path):
 
 def write_nav_for_scenario(scenario: dict, path: str):
     """The ephemerides and iono/UTC the simulator broadcasts for this scenario, as a RINEX 3.04 nav file."""
-    from ..nav.ephemeris import IonoUtc
-    from ..nav.rinex import write_rinex_nav
+    from ..gnss.ephemeris import IonoUtc
+    from ..gnss.rinex import write_rinex_nav
     from ..sim.constellation import load_constellation, quantize_iono
     from ..sim.scenario import load_scenario, resolve_path
     sc = load_scenario(scenario)

@@ -83,7 +83,7 @@ def run_info(path) -> dict:
             "pdop_mean": float(np.nanmean(fx["pdop"])),
         })
         if ok.any():
-            from ..geodesy import ecef2lla, ecef2enu
+            from ..gnss.geodesy import ecef2lla, ecef2enu
             e = fx["ecef"][ok]
             mean = e.mean(axis=0)
             lat, lon, h = ecef2lla(mean)

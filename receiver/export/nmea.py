@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from ..geodesy import enu_matrix
+from ..gnss.geodesy import enu_matrix
 from .run import RunData
 
 KNOTS_PER_MPS = 3600.0 / 1852.0

@@ -15,8 +15,8 @@ import os
 
 import numpy as np
 
-from ..geodesy import ecef2lla, enu_matrix
-from ..record import STATE_BIT_SYNC, STATE_LOST, STATE_PULL_IN, STATE_TRACK
+from ..gnss.geodesy import ecef2lla, enu_matrix
+from ..runfile.record import STATE_BIT_SYNC, STATE_LOST, STATE_PULL_IN, STATE_TRACK
 from .run import RunData, load_run, load_truth, truth_at
 
 MAX_POINTS = 3000

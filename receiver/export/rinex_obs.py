@@ -162,7 +162,7 @@ def nav_ephemerides(run: RunData) -> list:
 
 
 def write_nav(path, run: RunData) -> dict:
-    from ..nav.rinex import write_rinex_nav
+    from ..gnss.rinex import write_rinex_nav
     ephs = nav_ephemerides(run)
     if not ephs:
         raise ValueError("the run has no ephemerides")

@@ -21,9 +21,9 @@ import numpy as np
 import yaml
 
 from ..errors import UserError
-from ..nav.ephemeris import Ephemeris, IonoUtc
-from ..output import FIX_DTYPE, OBS_DTYPE, open_h5
-from ..signals import C_LIGHT
+from ..gnss.ephemeris import Ephemeris, IonoUtc
+from ..runfile.writer import FIX_DTYPE, OBS_DTYPE, open_h5
+from ..gnss.signals import C_LIGHT
 
 GPS_EPOCH = _dt.datetime(1980, 1, 6)
 WEEK_S = 604800.0
@@ -144,7 +144,7 @@ class RunData:
             cands += [os.path.join(here, p), os.path.join(os.path.dirname(here), p)]
         if self.attrs.get("input_path"):
             cands.append(os.path.join(os.path.dirname(str(self.attrs["input_path"])), os.path.basename(p)))
-        from ..nav.rinex import read_rinex_nav
+        from ..gnss.rinex import read_rinex_nav
         for c in cands:
             if os.path.isfile(c):
                 try:
@@ -180,7 +180,7 @@ class RunData:
         decoded ones of satellites that file does not cover."""
         if self._used is not None:
             return self._used
-        from ..nav.ephemeris import select
+        from ..gnss.ephemeris import select
         decoded = list(self.ephemerides) or list(self.decoded()[0].values())
         ephs = []
         if self.assisted and len(self.obs):
@@ -225,8 +225,8 @@ class RunData:
         miss = ~np.isfinite(obs["elevation_deg"]) | ~np.isfinite(obs["azimuth_deg"])
         if not miss.any() or not len(fx):
             return
-        from ..geodesy import azel
-        from ..nav.ephemeris import earth_rotation, sat_state
+        from ..gnss.geodesy import azel
+        from ..gnss.ephemeris import earth_rotation, sat_state
         order = np.argsort(fx["time_s"])
         ft = fx["time_s"][order]
         ephs = {e.prn: e for e in self.used_ephemerides()}
@@ -314,7 +314,7 @@ def load_run(path) -> RunData:
 # --------------------------------------------------------------------------------------------------
 def _bit_sums(g):
     """Soft 20-ms bits of one channel group: (bit indices, sums), from the bit-synchronised epochs."""
-    from ..record import STATE_BIT_SYNC
+    from ..runfile.record import STATE_BIT_SYNC
     state = g["state"][:]
     sync = state == STATE_BIT_SYNC
     if np.count_nonzero(sync) < 200:
@@ -339,7 +339,7 @@ def _bit_sums(g):
 def decode_channels(path, week_hint=None):
     """Decode the LNAV message of every stored channel again.  Returns (prn -> Ephemeris, IonoUtc or None)."""
     import h5py
-    from ..nav.lnav import LnavDecoder
+    from ..gnss.lnav import LnavDecoder
     ephs, iono = {}, None
     with h5py.File(path, "r") as f:
         if "channels" not in f:
@@ -385,7 +385,7 @@ def load_truth(path):
         if "ecef_m" in t:
             ecef = np.asarray(t["ecef_m"], float).reshape(1, 3)
         elif all(k in t for k in ("lat_deg", "lon_deg")):
-            from ..geodesy import lla2ecef
+            from ..gnss.geodesy import lla2ecef
             ecef = lla2ecef(float(t["lat_deg"]), float(t["lon_deg"]), float(t.get("height_m", 0.0))).reshape(1, 3)
         else:
             raise UserError(f"truth file {path}: 'truth' needs ecef_m or lat_deg/lon_deg/height_m")

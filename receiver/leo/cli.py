@@ -109,7 +109,7 @@ def run_fix(cfg, data):
               help="override a config key (repeatable), e.g. geosot.end_level=16")
 def fix_cmd(config, measurements, solver, output, overrides):
     """Position a static receiver from LEO Doppler measurements."""
-    from ..geodesy import ecef2enu, ecef2lla
+    from ..gnss.geodesy import ecef2enu, ecef2lla
     from .config import load_fix_config
     from .doppler import load_measurements
     overrides = list(overrides) + ([f"leo.solver={solver}"] if solver else [])

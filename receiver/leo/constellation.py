@@ -29,7 +29,7 @@ import numpy as np
 from sgp4.api import SatrecArray, Satrec, WGS72
 
 from ..errors import UserError
-from ..signals import OMEGA_E
+from ..gnss.signals import OMEGA_E
 
 MU_WGS72_KM3_S2 = 398600.8          # gravitational parameter used by SGP4 (WGS-72)
 R_EARTH_WGS72_KM = 6378.135

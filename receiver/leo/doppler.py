@@ -33,9 +33,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import UserError
-from ..output import open_h5
-from ..geodesy import lla2ecef
-from ..signals import C_LIGHT
+from ..runfile.writer import open_h5
+from ..gnss.geodesy import lla2ecef
+from ..gnss.signals import C_LIGHT
 from .constellation import Constellation, to_datetime64
 
 IRIDIUM_CARRIER_HZ = 1626.270833e6
@@ -73,7 +73,7 @@ def doppler_jacobian(state, sat_pos, sat_vel, f0):
 
 def elevation_from(rx_ecef, sat_pos):
     """Elevation (rad) of satellites (..., 3) above the ellipsoid normal at rx (3,)."""
-    from ..geodesy import ecef2lla
+    from ..gnss.geodesy import ecef2lla
     lat, lon, _ = ecef2lla(np.asarray(rx_ecef, float))
     lat, lon = np.radians(lat), np.radians(lon)
     up = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])

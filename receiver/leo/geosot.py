@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..geodesy import lla2ecef
-from ..signals import C_LIGHT
+from ..gnss.geodesy import lla2ecef
+from ..gnss.signals import C_LIGHT
 
 MAX_LEVEL = 32
 _FRAC_BITS = 11
@@ -193,7 +193,7 @@ def doppler_residuals(points_ecef, sat_pos, sat_vel, doppler_hz, f0, clock: str 
 
 def _region_boxes(sat_pos, mask_deg, margin_deg):
     """Lat/lon boxes that contain every point seeing at least one of the satellites."""
-    from ..geodesy import ecef2lla
+    from ..gnss.geodesy import ecef2lla
     lat, lon, h = ecef2lla(sat_pos)
     re = 6371e3
     el = np.radians(max(mask_deg - margin_deg, -10.0))

@@ -21,10 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..geodesy import lla2ecef
+from ..gnss.geodesy import lla2ecef
 from . import geosot
 from .doppler import DopplerData, doppler_jacobian, doppler_model
-from ..nav.filters import (CubatureKalmanFilter, ExtendedKalmanFilter, FilterDivergence,
+from ..estimation.filters import (CubatureKalmanFilter, ExtendedKalmanFilter, FilterDivergence,
                       SquareRootCubatureKalmanFilter)
 
 METHODS = ("lsm", "ekf", "ckf", "sqrt_ckf")

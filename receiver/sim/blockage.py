@@ -9,8 +9,9 @@ intervals half-open ``[start_s, end_s)``):
     Windows ``{start_s, end_s}`` in which no satellite carries a signal (bridges, tunnels).
 ``random`` (urban canyon)
     Per-satellite random blockages inside ``[start_s, end_s)``: each satellite alternates between a visible
-    gap and a blockage.  Blockage lengths are log-uniform in ``[min_duration_s, max_duration_s]`` (short
-    blockages -- poles, trees -- more common than long ones -- buildings); visible gaps are
+    gap and a blockage.  Blockage lengths are uniform (``distribution: uniform``) or log-uniform
+    (``loguniform``: short blockages -- poles, trees -- more common than long ones -- buildings) in
+    ``[min_duration_s, max_duration_s]``; visible gaps are
     ``min_duration_s + m * E`` with E unit-exponential, and the first visible gap of each satellite is a
     uniform fraction of one such gap.  The mean gap scale ``m`` is calibrated (bisection with the random
     draws held fixed) so that at least ``min_visible`` satellites carry a signal -- after the elevation
@@ -98,7 +99,7 @@ def _blocked(t, starts, ends):
 class RandomBlockage:
     """Urban-canyon pattern (see the module docstring): per-PRN blockage intervals inside [t0, t1)."""
 
-    def __init__(self, prns, t0, t1, min_s, max_s, seed):
+    def __init__(self, prns, t0, t1, min_s, max_s, seed, distribution="uniform"):
         self.prns, self.t0, self.t1 = list(prns), t0, t1
         self.min_s, self.max_s = min_s, max_s
         n = int(math.ceil((t1 - t0) / (2.0 * min_s))) + 4     # every cycle lasts >= 2 min_s: enough cycles
@@ -108,7 +109,11 @@ class RandomBlockage:
             u_block = rng.random(n)
             e_gap = rng.standard_exponential(n)
             first = rng.random()
-            self._draws[p] = (min_s * (max_s / min_s) ** u_block, e_gap, first)
+            block = min_s * (max_s / min_s) ** u_block if distribution == "loguniform" \
+                else min_s + (max_s - min_s) * u_block
+            self._draws[p] = (block, e_gap, first)
+        self.mean_block_s = (((max_s - min_s) / math.log(max_s / min_s) if max_s > min_s else min_s)
+                             if distribution == "loguniform" else 0.5 * (min_s + max_s))
         self.gap_scale_s = math.nan
         self.intervals = {p: (np.zeros(0), np.zeros(0)) for p in self.prns}
 
@@ -132,8 +137,7 @@ class RandomBlockage:
 
         base_visible: (n_prn, n_t) bool, visibility without the random blockage on t_grid.
         Returns the realised fraction."""
-        mean_block = (self.max_s - self.min_s) / math.log(self.max_s / self.min_s) \
-            if self.max_s > self.min_s else self.min_s
+        mean_block = self.mean_block_s
 
         def frac(scale):
             iv = self.realise(scale)
@@ -183,7 +187,7 @@ class Blockage:
             if r.max_duration_s < r.min_duration_s:
                 raise UserError("config key 'blockage.random.max_duration_s' must be >= min_duration_s")
             self.random = RandomBlockage(self.prns, t0, t1, r.min_duration_s, r.max_duration_s,
-                                         seed if r.seed is None else r.seed)
+                                         seed if r.seed is None else r.seed, r.distribution)
             self.random_cfg = r
             t_grid = np.arange(t0, t1, CAL_STEP_S)
             ts, el = elevations
@@ -251,4 +255,5 @@ class Blockage:
                             "random_min_visible": r.min_visible, "random_target_fraction": r.target_fraction,
                             "random_fraction": self.random.fraction,
                             "random_gap_scale_s": self.random.gap_scale_s,
-                            "random_min_duration_s": r.min_duration_s, "random_max_duration_s": r.max_duration_s})
+                            "random_min_duration_s": r.min_duration_s, "random_max_duration_s": r.max_duration_s,
+                            "random_distribution": r.distribution})

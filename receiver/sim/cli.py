@@ -33,6 +33,24 @@ def simulate(scenario, out, sets, quiet):
             click.echo(f"wrote {paths['if']} ({a['n_samples'] / a['sample_rate_hz']:.1f} s, {a['format']}, "
                        f"{a['sample_rate_hz'] / 1e6:g} MS/s, IF {a['if_hz']:g} Hz)")
             click.echo(f"truth {paths['truth']}: {len(vis)} satellites with signal: {' '.join(vis)}")
+            if "blockage" in f and f["blockage/kind"].size:
+                from .blockage import KIND_OUTAGE, KIND_RANDOM, KIND_TOTAL
+                b = f["blockage"]
+                kind, start, end = b["kind"][:], b["start_s"][:], b["end_s"][:]
+                parts = []
+                tot = kind == KIND_TOTAL
+                if tot.any():
+                    parts.append(f"{int(tot.sum())} total outages (" + ", ".join(
+                        f"{x:g}-{y:g} s" for x, y in zip(start[tot], end[tot])) + ")")
+                if (kind == KIND_OUTAGE).any():
+                    parts.append(f"{int((kind == KIND_OUTAGE).sum())} satellite outages")
+                if (kind == KIND_RANDOM).any():
+                    ra = b.attrs
+                    parts.append(f"{int((kind == KIND_RANDOM).sum())} random blockages in "
+                                 f"{ra['random_start_s']:g}-{ra['random_end_s']:g} s, >= "
+                                 f"{int(ra['random_min_visible'])} satellites visible "
+                                 f"{100 * ra['random_fraction']:.1f} % of that time")
+                click.echo("blockage: " + "; ".join(parts))
             click.echo(f"receiver input section: {paths['yaml']}")
 
 
@@ -40,11 +58,24 @@ def simulate(scenario, out, sets, quiet):
 @click.argument("run_h5", type=str)
 @click.argument("truth_h5", type=str)
 @click.option("--json", "as_json", is_flag=True, help="print the statistics as JSON")
-def evaluate_cmd(run_h5, truth_h5, as_json):
+@click.option("--outages", is_flag=True,
+              help="score continuity through the truth's outages (total outages: time to the first good fix "
+                   "after each, max errors, fixes to the end; random blockage: availability, 3D RMS); "
+                   "automatic when the truth has outages, an error when it has none")
+def evaluate_cmd(run_h5, truth_h5, as_json, outages):
     """Compare a receiver run file with a simulator truth file (position, velocity, clock, TTFF)."""
+    from ..errors import UserError
     from ..evaluate import evaluate, format_table
+    from ..evaluate.outages import format_report, has_outages, report
     stats = evaluate(run_h5, truth_h5)
+    rep = report(run_h5, truth_h5)
+    if outages and not has_outages(rep):
+        raise UserError(f"--outages: the truth file {truth_h5} shows no total outage and no random blockage")
     if as_json:
+        if has_outages(rep):
+            stats = {**stats, "outages": rep}
         click.echo(json.dumps(stats, indent=2, default=float))
     else:
         click.echo(format_table(stats))
+        if has_outages(rep):
+            click.echo(format_report(rep))

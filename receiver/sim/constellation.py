@@ -14,9 +14,9 @@ import numpy as np
 
 from ..config import read_yaml
 from ..errors import UserError
-from ..nav.ephemeris import Ephemeris, IonoUtc, WEEK_S, select
-from ..nav.lnav import EPH_LSB, IONO_LSB
-from ..nav.rinex import read_rinex_nav
+from ..gnss.ephemeris import Ephemeris, IonoUtc, WEEK_S, select
+from ..gnss.lnav import EPH_LSB, IONO_LSB
+from ..gnss.rinex import read_rinex_nav
 
 #: fields of Ephemeris that are broadcast as scaled integers (floats in SI units)
 _SCALED = ("toe", "toc", "af0", "af1", "af2", "tgd", "sqrt_a", "e", "i0", "omega0", "omega", "m0",
@@ -71,7 +71,7 @@ def nominal_ephemerides(path, week: int, tow_s: float) -> tuple[dict, IonoUtc]:
     raan_deg is the Earth-fixed longitude of the ascending node at toe, hence
     omega0 = raan + OMEGA_E * toe (IS-GPS-200: Omega(tk) = omega0 + (omega_dot - OMEGA_E) tk - OMEGA_E toe).
     """
-    from ..signals import OMEGA_E
+    from ..gnss.signals import OMEGA_E
     raw = read_yaml(path)
     sats = raw.get("satellites")
     if not isinstance(sats, list) or not sats:

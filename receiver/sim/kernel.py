@@ -143,9 +143,9 @@ def _quantize_int(x, out, complex_out, lo, hi):
 
 
 def quantize_fast(x: np.ndarray, fmt: str) -> np.ndarray:
-    """Fast path of :func:`receiver.io.quantize` (scale 1) for complex64 blocks: the same raw array
+    """Fast path of :func:`receiver.source.io.quantize` (scale 1) for complex64 blocks: the same raw array
     (round half to even, saturation; real formats take the real part)."""
-    from ..io import FORMATS
+    from ..source.io import FORMATS
     dt, ncomp = FORMATS[fmt]
     x = np.ascontiguousarray(x, dtype=np.complex64)
     if dt == np.float32:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..config import P, Section, build, defaults_doc, read_yaml
 from ..errors import UserError
-from ..io import FORMATS, is_complex
+from ..source.io import FORMATS, is_complex
 from .clock import CLOCK_PRESETS
 from .trajectory import TRAJECTORY_KINDS
 
@@ -106,7 +106,10 @@ SCENARIO_SCHEMA = {
             "end_s": P(None, "float", "... until this time (empty: the end of the recording)", nullable=True,
                        lo=0.0),
             "min_duration_s": P(0.2, "float", "shortest blockage (and shortest visible gap)", lo=0.001),
-            "max_duration_s": P(5.0, "float", "longest blockage (lengths log-uniform in between)", lo=0.001),
+            "max_duration_s": P(5.0, "float", "longest blockage", lo=0.001),
+            "distribution": P("uniform", "str", "blockage lengths between min and max: uniform, or loguniform "
+                                                "(short ones more common; shorter visible gaps for the same "
+                                                "target)", choices=("uniform", "loguniform")),
             "min_visible": P(4, "int", "the pattern is calibrated on this many satellites visible ...",
                              lo=1, hi=32),
             "target_fraction": P(0.7, "float", "... during this fraction of the window (after the elevation "

@@ -40,13 +40,14 @@ import yaml
 
 from .. import __version__
 from ..errors import UserError
-from ..geodesy import ecef2lla
-from ..io import is_complex
-from ..nav.atmosphere import klobuchar_delay_s, saastamoinen_m
-from ..nav.ephemeris import IonoUtc, WEEK_S, earth_rotation, sat_state
-from ..nav.lnav import encode_subframes
-from ..signals import CA_CHIP_RATE, C_LIGHT, L1_HZ, OMEGA_E, ca_code, get_signal  # noqa: F401
-from ..signals_bds import data_signs
+from ..gnss.geodesy import ecef2lla
+from ..source.io import is_complex
+from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
+from ..gnss.ephemeris import IonoUtc, WEEK_S, earth_rotation, sat_state
+from ..gnss.lnav import encode_subframes
+from ..gnss.registry import get_signal
+from ..gnss.signals import CA_CHIP_RATE, C_LIGHT, L1_HZ, OMEGA_E, ca_code  # noqa: F401
+from ..gnss.signals_bds import data_signs
 from .blockage import Blockage
 from .clock import ClockGenerator
 from .constellation import load_constellation, quantize_iono

@@ -23,7 +23,7 @@ import os
 import numpy as np
 
 from ..errors import UserError
-from ..geodesy import enu_matrix, lla2ecef
+from ..gnss.geodesy import enu_matrix, lla2ecef
 
 TRAJECTORY_KINDS = ("static", "constant_velocity", "segments", "figure8", "csv")
 

@@ -5,29 +5,19 @@ epoch.  The default ``pll`` (FLL-assisted PLL, 2nd/3rd order) runs inside the nu
 (``builtin = True``); any other variant is a Python object stepped once per epoch by the channel:
 
     loop.start(doppler_hz, channel_config)
-    doppler_hz = loop.update(epoch)    # epoch: one row of receiver.record.EPOCH_DTYPE (+ halves)
+    doppler_hz = loop.update(epoch)    # epoch: one row of receiver.runfile.record.EPOCH_DTYPE (+ halves)
 
-Adding a variant = one module with a :class:`CarrierLoop` subclass + one line in :data:`REGISTRY`.
+Adding a variant = one module in ``loops/`` with a :class:`~receiver.tracking.loops.base.CarrierLoop` subclass +
+one line in :data:`REGISTRY`.  The loop modules import only ``loops/base.py`` (and ``loops/common.py``), never
+this registry.
 """
 from __future__ import annotations
 
 from ..errors import UserError
-
-
-class CarrierLoop:
-    """Base class. Subclasses set ``name`` and implement start/update (unless builtin)."""
-    name = "base"
-    builtin = False
-
-    def __init__(self, cfg):
-        self.cfg = cfg            # the tracking config Section
-
-    def start(self, doppler_hz: float, T: float, rate_hz_s: float = 0.0, carrier_hz: float | None = None):
-        self.doppler_hz = doppler_hz
-        self.T = T
-
-    def update(self, epoch) -> float:   # pragma: no cover - interface
-        raise NotImplementedError
+from .loops.base import CarrierLoop
+from .loops.cpll import CPLL
+from .loops.ekf import EKF, PLIEKF
+from .loops.kfpll import KFPLL, AdaptiveKFPLL
 
 
 class BuiltinPLL(CarrierLoop):
@@ -35,10 +25,6 @@ class BuiltinPLL(CarrierLoop):
     name = "pll"
     builtin = True
 
-
-from .loops.cpll import CPLL  # noqa: E402
-from .loops.ekf import EKF, PLIEKF  # noqa: E402
-from .loops.kfpll import KFPLL, AdaptiveKFPLL  # noqa: E402
 
 REGISTRY: dict[str, type[CarrierLoop]] = {
     "pll": BuiltinPLL,

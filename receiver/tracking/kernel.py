@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..correlator import correlate
+from .correlator import correlate
 
 # ---- state indices
 S_NEXT_SAMPLE = 0      # first sample of the next epoch (file index)
@@ -23,7 +23,7 @@ S_CARR_PHASE = 4       # carrier NCO phase at S_NEXT_SAMPLE (cycles, accumulated
 S_PLL_RATE = 5         # loop filter integrator: Doppler rate (Hz/s)
 S_PLL_FREQ = 6         # loop filter integrator: Doppler (Hz)
 S_CODE_PERIOD = 7      # code periods since channel start
-S_MODE = 8             # STATE_* of receiver.record
+S_MODE = 8             # STATE_* of receiver.runfile.record
 S_MODE_MS = 9          # ms spent in the mode
 S_INT_MS = 10          # current integration (code periods)
 S_BIT_OFFSET = 11      # code_period % 20 at a bit edge (-1 unknown)
@@ -75,7 +75,7 @@ C_NH_BASE = 22         # > 0: index in code_ext of the overlay-modulated code se
 C_NO_DATA = 23         # 1: the signal carries no data symbols (skip bit sync: integrate from pull-in end)
 N_CONFIG = 24
 
-# ---- output columns (same order as receiver.record.EPOCH_DTYPE)
+# ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
     O_E, O_L, O_CN0, O_PLI, O_CARR_ERR, O_CODE_ERR, O_LOCK, O_STATE, O_INT_MS, \
     O_P1I, O_P1Q, O_P2I, O_P2Q = range(22)  # same order as EPOCH_DTYPE

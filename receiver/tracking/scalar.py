@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import record
-from ..correlator import extend_code
-from ..correlator import CODE_PAD
-from ..signals import GPS_L1CA
+from ..runfile import record
+from .correlator import extend_code
+from .correlator import CODE_PAD
+from ..gnss.signals import GPS_L1CA
 from . import kernel as K
 from .carrier import make_carrier_loop
 

@@ -1,2 +1,4 @@
-"""Python carrier loops (see receiver.tracking.carrier): CPLL, KF-PLL, adaptive KF-PLL, EKF, PLI-EKF."""
-from .. import carrier as _carrier  # noqa: F401  (defines CarrierLoop before the loop modules load)
+"""Python carrier loops (registered in receiver.tracking.carrier): CPLL, KF-PLL, adaptive KF-PLL, EKF, PLI-EKF.
+
+Each loop module imports only ``base`` and ``common`` from here; the registry imports the loop modules.
+"""

@@ -15,8 +15,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from ...signals import C_LIGHT, L1_HZ
-from ..carrier import CarrierLoop
+from ...gnss.signals import C_LIGHT, L1_HZ
+from .base import CarrierLoop
 from .. import kernel as K
 
 

@@ -32,7 +32,7 @@ from collections import deque
 import numpy as np
 from numba import njit
 
-from ...signals import C_LIGHT
+from ...gnss.signals import C_LIGHT
 from .common import NWPR, PythonLoop, atan_variance_cycles2, clock_q
 
 

@@ -24,7 +24,7 @@ import weakref
 import numpy as np
 
 from ...errors import UserError
-from ...signals import C_LIGHT, CA_CHIP_RATE
+from ...gnss.signals import C_LIGHT, CA_CHIP_RATE
 from .. import kernel as K
 from .adaptive_r import AdaptiveR
 from .base import VectorFilter

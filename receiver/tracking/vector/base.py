@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geodesy import ecef2lla, enu_matrix
-from ...signals import C_LIGHT
+from ...gnss.geodesy import ecef2lla, enu_matrix
+from ...gnss.signals import C_LIGHT
 from .kalman import FORM_NONE
 
 #: oscillator classes, (h0, h_-2) of the fractional-frequency PSD (textbook values)

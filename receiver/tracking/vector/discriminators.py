@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ...signals import C_LIGHT, CA_CHIP_RATE, L1_HZ
+from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ
 
 METRES_PER_CHIP = C_LIGHT / CA_CHIP_RATE
 

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geodesy import azel, ecef2lla
-from ...nav.atmosphere import klobuchar_delay_s, saastamoinen_m
-from ...nav.ephemeris import earth_rotation, sat_state
-from ...signals import C_LIGHT
+from ...gnss.geodesy import azel, ecef2lla
+from ...gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
+from ...gnss.ephemeris import earth_rotation, sat_state
+from ...gnss.signals import C_LIGHT
 
 
 def transmit_state(ephs, t_gps, rx_pos, delay_m=None, iterations=3):

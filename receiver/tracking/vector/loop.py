@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from .. import kernel as K
-from ...signals import C_LIGHT, CA_CHIP_RATE, L1_HZ
+from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ
 from .discriminators import code_disc_m, freq_disc_hz
 from .kalman import adapt_r, kf_predict, kf_update
 

@@ -25,10 +25,10 @@ import math
 import numpy as np
 
 from .. import kernel as K
-from ...geodesy import ecef2lla, enu_matrix
-from ...nav.ephemeris import select
-from ...output import FIX_DTYPE, VECTOR_LOG_DTYPE
-from ...signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
+from ...gnss.geodesy import ecef2lla, enu_matrix
+from ...gnss.ephemeris import select
+from ...runfile.writer import FIX_DTYPE, VECTOR_LOG_DTYPE
+from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
 from ..scalar import Channel, to_records
 from . import loop as L
 from .geometry import satellite_polys

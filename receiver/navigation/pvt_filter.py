@@ -70,8 +70,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..signals import C_LIGHT
-from .filters import ExtendedKalmanFilter, SquareRootCubatureKalmanFilter, tria
+from ..gnss.signals import C_LIGHT
+from ..estimation.filters import ExtendedKalmanFilter, SquareRootCubatureKalmanFilter, tria
 from .pvt import Fix
 
 #: (h0, h_-2) of the fractional-frequency PSD of common oscillator classes (textbook values; the same

@@ -40,3 +40,6 @@ STATE_BIT_SYNC = 2    # bit boundary known (epochs may be longer than 1 ms)
 STATE_LOST = 3
 STATE_NAMES = {STATE_PULL_IN: "pull_in", STATE_TRACK: "track", STATE_BIT_SYNC: "bit_sync",
                STATE_LOST: "lost"}
+
+#: codes of an acquisition result's ``reason`` (why a PRN was not detected) in /acquisition/reason
+ACQ_REASONS = {"": 0, "threshold": 1, "width": 2, "xcorr": 3, "verify": 4}

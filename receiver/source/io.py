@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 
-from .errors import UserError
+from ..errors import UserError
 
 # name -> (numpy dtype of one component, components per sample)
 FORMATS = {

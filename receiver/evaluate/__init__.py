@@ -17,10 +17,10 @@ import os
 
 import numpy as np
 
-from .errors import UserError
-from .output import open_h5
-from .geodesy import ecef2lla, enu_matrix
-from .nav.ephemeris import WEEK_S
+from ..errors import UserError
+from ..runfile.writer import open_h5
+from ..gnss.geodesy import ecef2lla, enu_matrix
+from ..gnss.ephemeris import WEEK_S
 
 
 def _open(path, what):

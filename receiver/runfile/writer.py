@@ -12,10 +12,9 @@ import time
 import h5py
 import numpy as np
 
-from . import __version__
-from .errors import UserError
-from .acquisition import REASONS
-from .record import EPOCH_DTYPE, STATE_NAMES
+from .. import __version__
+from ..errors import UserError
+from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_NAMES
 
 MODE_NAMES = {0: "scalar", 1: "vector"}
 
@@ -99,10 +98,10 @@ class RunWriter:
             "cn0_dbhz_est": np.array([r.cn0_dbhz_est for r in results]),
             "time_s": np.array([r.sample_index for r in results], float) / (attrs or {}).get("fs", 1.0),
             # integrity: why a peak was not detected (attrs reason_codes) and the verification dwell
-            "reason": np.array([REASONS.get(getattr(r, "reason", ""), 0) for r in results], np.int8),
+            "reason": np.array([ACQ_REASONS.get(getattr(r, "reason", ""), 0) for r in results], np.int8),
             "verified": np.array([getattr(r, "verified", -1) for r in results], np.int8),
         }
-        g.attrs["reason_codes"] = ",".join(f"{v}={k or 'detected'}" for k, v in REASONS.items())
+        g.attrs["reason_codes"] = ",".join(f"{v}={k or 'detected'}" for k, v in ACQ_REASONS.items())
         for k, v in rows.items():
             _append(g, k, v)
         for k, v in (attrs or {}).items():

@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geodesy import azel, ecef2lla, enu_matrix
-from ..signals import C_LIGHT, LAMBDA_L1
-from .atmosphere import klobuchar_delay_s, saastamoinen_m
-from .ephemeris import earth_rotation, sat_state, select, wrap_week_seconds
+from ..gnss.geodesy import azel, ecef2lla, enu_matrix
+from ..gnss.signals import C_LIGHT, LAMBDA_L1
+from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
+from ..gnss.ephemeris import earth_rotation, sat_state, select, wrap_week_seconds
 
 
 @dataclass

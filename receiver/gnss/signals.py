@@ -88,14 +88,3 @@ class SignalDef:
 
 
 GPS_L1CA = SignalDef()
-SIGNAL_NAMES = ("gps_l1ca", "bds_b1i")
-
-
-def get_signal(name: str) -> SignalDef:
-    """The SignalDef of a configured ``signal`` name."""
-    if name == "gps_l1ca":
-        return GPS_L1CA
-    if name == "bds_b1i":
-        from .signals_bds import BDS_B1I
-        return BDS_B1I
-    raise ValueError(f"unknown signal '{name}' (one of {', '.join(SIGNAL_NAMES)})")

@@ -20,11 +20,11 @@ from collections import deque
 
 import numpy as np
 
-from ..geodesy import ecef2lla
-from ..output import FIX_DTYPE, OBS_DTYPE
-from ..record import STATE_BIT_SYNC
-from ..signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
-from .lnav import LnavDecoder, SubframeEvent
+from ..gnss.geodesy import ecef2lla
+from ..runfile.writer import FIX_DTYPE, OBS_DTYPE
+from ..runfile.record import STATE_BIT_SYNC
+from ..gnss.signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
+from ..gnss.lnav import LnavDecoder, SubframeEvent
 from .pvt import NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
@@ -331,7 +331,7 @@ class NavigationEngine:
 
     # ------------------------------------------------------------------------------------------
     def _ephemerides(self, t):
-        from .ephemeris import select
+        from ..gnss.ephemeris import select
         out = {}
         for prn, ch in self.channels.items():
             if self.assisted and prn in self.rinex_ephs:
@@ -397,7 +397,7 @@ class NavigationEngine:
         of 60..95 ms at the approximate receiver time and keeping the assignment whose least-squares fix
         has the smallest residuals and a clock bias within 10 ms.  Later channels: the ambiguity is taken
         from the current fix.  Frame sync, when it comes, replaces (and checks) the assisted value."""
-        from .ephemeris import select
+        from ..gnss.ephemeris import select
         pending = [ch for ch in self.channels.values()
                    if not ch.has_time and ch.bit_offset >= 0 and ch.locked
                    and ch.settled(s, self.cfg.settle_s)]
@@ -410,7 +410,7 @@ class NavigationEngine:
                 eph = self._ephemerides(rx_tow).get(ch.prn)
                 if eph is None:
                     continue
-                from .ephemeris import sat_state
+                from ..gnss.ephemeris import sat_state
                 pos = sat_state(eph, fix.gps_tow - 0.075)[0]
                 rng = float(np.linalg.norm(pos - fix.ecef))
                 guess = rx_tow - (rng + fix.clock_bias_m) / C_LIGHT

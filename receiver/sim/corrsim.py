@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .signals import C_LIGHT
+from ..gnss.signals import C_LIGHT
 
 DT = 0.5e-3
 G0 = 9.80665
@@ -85,7 +85,7 @@ def make_truth(sc: CorrScenario):
     s_amp = np.ones(n)
     s_ph = np.zeros(n)
     if sc.s4 > 0 or sc.sigma_phi > 0:
-        from .sim.scintillation import Scintillation
+        from .scintillation import Scintillation
         srng = np.random.default_rng(np.random.SeedSequence([sc.seed, 12]))
         ms = int(math.ceil(n * DT / 1e-3)) + 2
         sci = Scintillation(sc.s4, sc.sigma_phi, sc.tau0_s, 1e-3, srng, window_s=60.0)

@@ -10,7 +10,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from ..signals import F_REL, MU_GPS, OMEGA_E
+from .signals import F_REL, MU_GPS, OMEGA_E
 
 GPS_PI = 3.1415926535898          # value of pi used by IS-GPS-200 for semicircle conversion
 HALF_WEEK = 302400.0

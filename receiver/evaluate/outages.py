@@ -1,0 +1,328 @@
+"""Continuity through signal outages, scored against simulator truth (``gnssrx eval --outages``, batch metrics).
+
+Everything runs on the truth's time axis (``time_s``: receiver seconds since the first sample): a fix's GPS
+time (``/navigation`` ``gps_week``/``gps_tow``) is mapped onto it through the truth's ``gps_tow`` column, its
+3D error is the distance to the true position interpolated there, and it is a *coast* fix when its ``mode``
+is 2 (vector loop bridging an epoch with fewer than four measured satellites); scalar (0) and vector (1) fixes
+are *measured* fixes.  A *good* fix is a measured fix within ``good_m`` (10 m) of the truth.
+
+Total outages
+    The truth's ``/blockage`` windows of kind *total* (``blockage.total`` and ``prn: all`` outages; random
+    blockages that happen to coincide are not total outages), overlapping ones merged; for truth files
+    without a ``/blockage`` table, the intervals during which no satellite is visible
+    (``/satellites/Gnn/visible`` all false, at the truth rate, at least 50 ms).  For outage k = [a_k, b_k), whose
+    *window* runs to the next outage's start a_{k+1} (or the end of the truth):
+
+    ``first_fix_s``  time from the signal's return b_k to the first measured fix in the window;
+    ``ttgf_s``       time from b_k to the first good fix in the window (NaN: none);
+    ``max_err_m``    largest 3D error of the measured fixes in [a_k, a_{k+1});
+    ``max_err_all_m`` the same over every fix, coast fixes included;
+    ``n_coast``      coast fixes in [a_k, a_{k+1});
+    ``n_inside``     measured fixes more than ``grace_s`` (0.3 s: the time a receiver may take to notice
+                     the loss) into the outage, [a_k + grace_s, b_k): a receiver that measures nothing
+                     should claim no measured fix there (vector: such epochs must be flagged coast).
+
+    Over the whole run: ``max_err_m`` / ``max_err_all_m`` (measured / all fixes), ``n_coast`` (coast
+    fixes), ``n_inside`` (summed over the outages).
+
+Fixes to the end (any blockage)
+    ``fixes_to_end``: true when the last measured fix is at most ``end_tol_s`` (2 s) before the end of the
+    truth (``end_gap_s``).
+
+Random blockage (urban canyon)
+    Over the truth's ``/blockage`` attributes ``random_start_s`` .. ``random_end_s``: the window is cut into
+    epochs of one fix period (``navigation.rate_hz`` from the run file's config, else the median fix
+    spacing); an epoch *counts* when at least ``min_visible`` (4) satellites are visible in the truth at its
+    centre, and is *available* when it holds a measured fix.  ``availability`` = available / counted epochs;
+    ``rms_3d_m`` / ``max_err_m``: 3D RMS / maximum of the measured fixes in the window.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import UserError
+from ..runfile.writer import open_h5
+from ..sim.blockage import KIND_TOTAL
+
+MODE_COAST = 2
+GOOD_M = 10.0
+END_TOL_S = 2.0
+LOSS_GRACE_S = 0.3
+MIN_OUTAGE_S = 0.05
+N_OUTAGE_KEYS = 4            # outages reported one by one in the batch metrics
+
+#: batch metric keys of this module (see :func:`batch_metrics`)
+OUTAGE_METRIC_KEYS = (
+    ("outage_n",)
+    + tuple(f"outage{k}_{m}" for k in range(1, N_OUTAGE_KEYS + 1) for m in ("dur_s", "ttgf_s", "max_err_m"))
+    + ("outage_max_err_m", "outage_max_err_all_m", "outage_coast_fixes", "outage_fixes_inside", "fixes_to_end",
+       "canyon_epochs", "canyon_availability", "canyon_rms_3d_m", "canyon_max_err_m")
+)
+
+
+@dataclass
+class Fixes:
+    """The fixes of a run on the truth's time axis: t (s), err (3D error, m), coast (bool); sorted by t."""
+    t: np.ndarray
+    err: np.ndarray
+    coast: np.ndarray
+
+    def __post_init__(self):
+        order = np.argsort(self.t, kind="stable")
+        self.t = np.asarray(self.t, float)[order]
+        self.err = np.asarray(self.err, float)[order]
+        self.coast = np.asarray(self.coast, bool)[order]
+
+
+@dataclass
+class Visibility:
+    """Truth visibility: t (truth time_s), n_visible per row; random-blockage window (or None); the total
+    windows [(start, end)] of the truth's /blockage table (None: the truth has no table)."""
+    t: np.ndarray
+    n_visible: np.ndarray
+    random_window: tuple | None = None
+    total_windows: list | None = None
+
+
+# ------------------------------------------------------------------------------------------ pure math
+def total_outages(vis: Visibility, min_s: float = MIN_OUTAGE_S) -> list:
+    """[(start, end)]: the /blockage total windows (merged, clipped to the truth span) when the truth has
+    the table, else the runs of truth rows with no satellite visible (end: first row with one)."""
+    step = float(np.median(np.diff(vis.t))) if vis.t.size > 1 else 0.0
+    if vis.total_windows is not None:
+        t0, t1 = float(vis.t[0]), float(vis.t[-1]) + step
+        out = []
+        for a, b in sorted(vis.total_windows):
+            a, b = max(a, t0), min(b, t1)
+            if b <= a:
+                continue
+            if out and a <= out[-1][1]:
+                out[-1] = (out[-1][0], max(out[-1][1], b))
+            else:
+                out.append((a, b))
+        return out
+    dark = np.concatenate(([0], (vis.n_visible == 0).astype(np.int8), [0]))
+    starts = np.nonzero(np.diff(dark) == 1)[0]
+    ends = np.nonzero(np.diff(dark) == -1)[0]
+    t = vis.t
+    out = []
+    for a, e in zip(starts, ends):
+        ta = float(t[a])
+        te = float(t[e]) if e < t.size else float(t[-1]) + step
+        if te - ta >= min_s - 1e-9:
+            out.append((ta, te))
+    return out
+
+
+def outage_report(fx: Fixes, outages: list, t_end: float, good_m: float = GOOD_M,
+                  end_tol_s: float = END_TOL_S, grace_s: float = LOSS_GRACE_S) -> dict:
+    """Per-outage recovery and error statistics (see the module docstring)."""
+    meas = ~fx.coast
+    good = meas & (fx.err <= good_m)
+    rows = []
+    for k, (a, b) in enumerate(outages):
+        w_end = outages[k + 1][0] if k + 1 < len(outages) else math.inf
+        win = (fx.t >= a) & (fx.t < w_end)
+        after = (fx.t >= b) & (fx.t < w_end)
+
+        def first(sel):
+            i = np.nonzero(sel)[0]
+            return float(fx.t[i[0]] - b) if i.size else math.nan
+
+        def vmax(sel):
+            e = fx.err[sel]
+            e = e[np.isfinite(e)]
+            return float(e.max()) if e.size else math.nan
+
+        rows.append({"start_s": a, "end_s": b, "dur_s": b - a,
+                     "first_fix_s": first(after & meas), "ttgf_s": first(after & good),
+                     "max_err_m": vmax(win & meas), "max_err_all_m": vmax(win),
+                     "n_coast": int(np.count_nonzero(win & fx.coast)),
+                     "n_inside": int(np.count_nonzero(meas & (fx.t >= a + grace_s) & (fx.t < b)))})
+    out = {"outages": rows}
+    out.update(end_report(fx, t_end, end_tol_s))
+    e_m, e_a = fx.err[meas], fx.err
+    e_m, e_a = e_m[np.isfinite(e_m)], e_a[np.isfinite(e_a)]
+    out["max_err_m"] = float(e_m.max()) if e_m.size else math.nan
+    out["max_err_all_m"] = float(e_a.max()) if e_a.size else math.nan
+    out["n_coast"] = int(np.count_nonzero(fx.coast))
+    out["n_inside"] = int(sum(r["n_inside"] for r in rows))
+    return out
+
+
+def end_report(fx: Fixes, t_end: float, end_tol_s: float = END_TOL_S) -> dict:
+    """{"end_gap_s": end of the truth - last measured fix, "fixes_to_end": gap <= end_tol_s}."""
+    t_meas = fx.t[~fx.coast]
+    gap = float(t_end - t_meas[-1]) if t_meas.size else math.inf
+    return {"end_gap_s": gap, "fixes_to_end": bool(gap <= end_tol_s)}
+
+
+def canyon_report(fx: Fixes, vis: Visibility, rate_hz: float, min_visible: int = 4) -> dict | None:
+    """Availability and accuracy over the random-blockage window (None without one)."""
+    if vis.random_window is None or not rate_hz > 0:
+        return None
+    w0 = max(vis.random_window[0], float(vis.t[0]))
+    w1 = min(vis.random_window[1], float(vis.t[-1]))
+    period = 1.0 / rate_hz
+    n_ep = int(math.floor((w1 - w0) / period + 1e-9))
+    if n_ep < 1:
+        return None
+    if fx.t.size:        # epochs centred on the fixes' phase (fixes at round GPS times, off the window grid)
+        phase = np.angle(np.mean(np.exp(2j * np.pi * (fx.t - w0) / period))) / (2 * np.pi) * period
+        w0 += (phase - 0.5 * period) % period
+        n_ep = int(math.floor((w1 - w0) / period + 1e-9))
+        if n_ep < 1:
+            return None
+    centres = w0 + (np.arange(n_ep) + 0.5) * period
+    k = np.clip(np.searchsorted(vis.t, centres, side="right") - 1, 0, vis.t.size - 1)
+    counted = vis.n_visible[k] >= min_visible
+    meas = ~fx.coast & (fx.t >= w0) & (fx.t < w0 + n_ep * period)
+    slots = np.floor((fx.t[meas] - w0) / period).astype(np.int64)
+    has_fix = np.zeros(n_ep, bool)
+    has_fix[slots[(slots >= 0) & (slots < n_ep)]] = True
+    e = fx.err[meas]
+    e = e[np.isfinite(e)]
+    n_counted = int(counted.sum())
+    return {"window_s": (w0, w0 + n_ep * period), "epochs": n_ep, "counted": n_counted,
+            "available": int((counted & has_fix).sum()),
+            "availability": float((counted & has_fix).sum() / n_counted) if n_counted else math.nan,
+            "fix_fraction_all": float(has_fix.mean()),
+            "visible_fraction": float(counted.mean()),
+            "rms_3d_m": float(np.sqrt(np.mean(e * e))) if e.size else math.nan,
+            "max_err_m": float(e.max()) if e.size else math.nan}
+
+
+def batch_metrics(rep: dict) -> dict:
+    """Flat float metrics (:data:`OUTAGE_METRIC_KEYS`) of :func:`report`'s result; NaN where n/a."""
+    m = {k: math.nan for k in OUTAGE_METRIC_KEYS}
+    o, c = rep.get("total"), rep.get("canyon")
+    if o is not None and o["outages"]:
+        m["outage_n"] = float(len(o["outages"]))
+        for k, row in enumerate(o["outages"][:N_OUTAGE_KEYS], start=1):
+            for name in ("dur_s", "ttgf_s", "max_err_m"):
+                m[f"outage{k}_{name}"] = float(row[name])
+        m["outage_max_err_m"] = o["max_err_m"]
+        m["outage_max_err_all_m"] = o["max_err_all_m"]
+        m["outage_coast_fixes"] = float(o["n_coast"])
+        m["outage_fixes_inside"] = float(o["n_inside"])
+    if "fixes_to_end" in rep and has_outages(rep):
+        m["fixes_to_end"] = float(rep["fixes_to_end"])
+    if c is not None:
+        m["canyon_epochs"] = float(c["counted"])
+        m["canyon_availability"] = c["availability"]
+        m["canyon_rms_3d_m"] = c["rms_3d_m"]
+        m["canyon_max_err_m"] = c["max_err_m"]
+    return m
+
+
+# ------------------------------------------------------------------------------------------ files
+def read_visibility(truth_h5) -> Visibility:
+    with open_h5(os.fspath(truth_h5), "truth file") as f:
+        if "receiver" not in f or "satellites" not in f:
+            raise UserError(f"truth file {truth_h5} has no /receiver or /satellites group "
+                            "(not a gnssrx simulator truth file)")
+        t = f["receiver/time_s"][:]
+        n = np.zeros(t.size, np.int32)
+        for g in f["satellites"].values():
+            if "visible" in g and g["visible"].shape[0] == t.size:
+                n += g["visible"][:].astype(np.int32)
+        win, total = None, None
+        if "blockage" in f:
+            b = f["blockage"]
+            if "random_start_s" in b.attrs:
+                win = (float(b.attrs["random_start_s"]), float(b.attrs["random_end_s"]))
+            if "kind" in b:
+                sel = b["kind"][:] == KIND_TOTAL
+                total = [(float(x), float(y)) for x, y in zip(b["start_s"][:][sel], b["end_s"][:][sel])]
+    return Visibility(t=t, n_visible=n, random_window=win, total_windows=total)
+
+
+def read_fixes(run_h5, truth_h5):
+    """(Fixes on the truth's time axis, navigation rate (Hz) or NaN, truth end time)."""
+    import yaml
+    from ..gnss.ephemeris import WEEK_S
+    with open_h5(os.fspath(truth_h5), "truth file") as f:
+        g = f["receiver"]
+        tr = {k: g[k][:] for k in ("time_s", "gps_tow", "ecef")}
+        week0 = int(f.attrs.get("gps_week", 0))
+    rate = math.nan
+    with open_h5(os.fspath(run_h5), "run file") as f:
+        try:
+            rate = float(yaml.safe_load(f.attrs["config"])["navigation"]["rate_hz"])
+        except Exception:          # older or foreign run files: estimated from the fix spacing below
+            rate = math.nan
+        nav = f["navigation"] if "navigation" in f and "gps_tow" in f["navigation"] else None
+        if nav is None or nav["gps_tow"].shape[0] == 0:
+            empty = np.zeros(0)
+            return Fixes(empty, empty, empty.astype(bool)), rate, float(tr["time_s"][-1])
+        tow = nav["gps_tow"][:].astype(float)
+        week = nav["gps_week"][:].astype(float) if "gps_week" in nav else np.full(tow.shape, week0)
+        ecef = nav["ecef"][:].astype(float).reshape(-1, 3)
+        mode = nav["mode"][:] if "mode" in nav else np.zeros(tow.size, np.uint8)
+    gps = (week - week0) * WEEK_S + tow
+    ok = np.all(np.isfinite(ecef), axis=1) & (gps >= tr["gps_tow"][0]) & (gps <= tr["gps_tow"][-1])
+    gps, ecef, mode = gps[ok], ecef[ok], mode[ok]
+    t = np.interp(gps, tr["gps_tow"], tr["time_s"])
+    true = np.stack([np.interp(gps, tr["gps_tow"], tr["ecef"][:, k]) for k in range(3)], axis=1)
+    err = np.linalg.norm(ecef - true, axis=1)
+    fx = Fixes(t, err, mode == MODE_COAST)
+    if not np.isfinite(rate) and fx.t.size > 1:
+        d = np.diff(fx.t)
+        d = d[d > 0]
+        rate = 1.0 / float(np.median(d)) if d.size else math.nan
+    return fx, rate, float(tr["time_s"][-1])
+
+
+def report(run_h5, truth_h5, good_m: float = GOOD_M) -> dict:
+    """{"total": outage_report or None, "canyon": canyon_report or None} of a run against its truth."""
+    vis = read_visibility(truth_h5)
+    fx, rate, t_end = read_fixes(run_h5, truth_h5)
+    outs = total_outages(vis)
+    return {"total": outage_report(fx, outs, t_end, good_m) if outs else None,
+            "canyon": canyon_report(fx, vis, rate), "rate_hz": rate, "good_m": good_m,
+            **end_report(fx, t_end)}
+
+
+def has_outages(rep: dict) -> bool:
+    return rep.get("total") is not None or rep.get("canyon") is not None
+
+
+def _f(v, fmt="{:.2f}"):
+    return "-" if v is None or not np.isfinite(v) else fmt.format(v)
+
+
+def format_report(rep: dict) -> str:
+    """Printable tables of :func:`report`'s result."""
+    lines = []
+    o = rep.get("total")
+    if o is not None:
+        lines += ["", f"total outages (good fix: measured, 3D error <= {rep['good_m']:g} m)", "-" * 96,
+                  f"{'window (s)':<16}{'length':>8}{'1st fix':>10}{'good fix':>10}{'max err':>10}"
+                  f"{'max incl.':>11}{'coast':>8}{'fixes':>8}",
+                  f"{'':<16}{'(s)':>8}{'after (s)':>10}{'after (s)':>10}{'(m)':>10}{'coast (m)':>11}"
+                  f"{'fixes':>8}{'inside*':>8}"]
+        for r in o["outages"]:
+            lines.append(f"{r['start_s']:7.2f}-{r['end_s']:<8.2f}{r['dur_s']:8.2f}"
+                         f"{_f(r['first_fix_s']):>10}{_f(r['ttgf_s']) if np.isfinite(r['ttgf_s']) else 'never':>10}"
+                         f"{_f(r['max_err_m'], '{:.1f}'):>10}{_f(r['max_err_all_m'], '{:.1f}'):>11}"
+                         f"{r['n_coast']:>8d}{r['n_inside']:>8d}")
+        lines.append(f"* measured (non-coast) fixes more than {LOSS_GRACE_S:g} s into the outage")
+        lines.append(f"whole run: max error {_f(o['max_err_m'], '{:.1f}')} m (measured fixes), "
+                     f"{_f(o['max_err_all_m'], '{:.1f}')} m (all); coast fixes {o['n_coast']}")
+    c = rep.get("canyon")
+    if c is not None:
+        lines += ["", "random blockage (urban canyon)", "-" * 52,
+                  f"window {c['window_s'][0]:.1f}-{c['window_s'][1]:.1f} s, {c['epochs']} epochs of "
+                  f"{1.0 / rep['rate_hz']:.3g} s; >= 4 satellites visible in {c['counted']} "
+                  f"({100 * c['visible_fraction']:.1f} %)",
+                  f"availability (measured fix in those epochs)  {_f(100 * c['availability'], '{:.1f}')} %",
+                  f"measured fixes in all epochs                 {_f(100 * c['fix_fraction_all'], '{:.1f}')} %",
+                  f"3D RMS / max of the measured fixes           {_f(c['rms_3d_m'])} / {_f(c['max_err_m'])} m"]
+    if has_outages(rep) and "fixes_to_end" in rep:
+        lines.append(f"fixes continue to the end: {'yes' if rep['fixes_to_end'] else 'NO'} "
+                     f"(last measured fix {_f(rep['end_gap_s'])} s before the end)")
+    return "\n".join(lines)

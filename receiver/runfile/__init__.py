@@ -1,0 +1,1 @@
+"""The run file (HDF5): record dtypes (``record``) and the writer (``writer``)."""

@@ -1,0 +1,1 @@
+"""Sample sources: recorded IF files (``io``: memory-mapped chunked reader, formats, quantisation)."""
