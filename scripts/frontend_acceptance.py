@@ -171,7 +171,7 @@ def main():
                 ok = r["rms"] <= lim and (p != 30.0 or loss <= 2.0)
                 ok_all &= ok
                 print(f"{seed:>4} {f'CW +3k {p:g} dB':<14} {r['n_fixes']:>6d} {r['rms']:9.2f} {loss:12.2f} "
-                      f"{r['cpu']:7.1f}  {[round(x, 1) for x in r['tones']]}" + ("" if ok else "   FAIL"),
+                      f"{r['cpu']:7.1f}  {[round(float(x), 1) for x in r['tones']]}" + ("" if ok else "   FAIL"),
                       flush=True)
     print("\nall met" if ok_all else "\nNOT all met")
 

@@ -47,7 +47,8 @@ class Tone:
     freq_hz: float          # frequency of the tone in the sampled (complex) band
     snr_bin_db: float       # peak periodogram bin over the local noise floor
     jnr_db: float           # tone power over the total noise power of the sampled band
-    cancelled: bool = True  # a canceller runs on it (False: DC, handled by dc_removal, or over max_tones)
+    cancelled: bool = True  # a notch runs on it (False: DC, excision off, or beyond max_tones)
+    dc: bool = False        # at 0 Hz: dc_removal takes it
 
 
 @dataclass
@@ -254,14 +255,13 @@ class ConditionedReader:
         start = reader.first if detect_start is None else detect_start
         n = int(round(cfg.detect_ms * 1e-3 * fs))
         span = reader.read(start, n)
-        self.detection = detect_tones(span, fs, cfg.fft_size, cfg.pfa, cfg.min_db, cfg.max_tones) \
+        self.detection = detect_tones(span, fs, cfg.fft_size, cfg.pfa, cfg.min_db, max(cfg.max_tones, 16)) \
             if cfg.tone_detection else Detection(dc=complex(np.mean(span)) if len(span) else 0j)
         cancel_f = []
         dc_bin = self.detection.bin_hz if self.detection.bin_hz else 0.0
-        for t in self.detection.tones:
-            if cfg.dc_removal and abs(t.freq_hz) <= dc_bin:
-                t.cancelled = False                   # the DC canceller takes it
-            elif cfg.tone_excision:
+        for t in self.detection.tones:                # strongest first
+            t.dc = bool(cfg.dc_removal and abs(t.freq_hz) <= dc_bin)    # the DC canceller takes it
+            if not t.dc and cfg.tone_excision and len(cancel_f) < cfg.max_tones:
                 cancel_f.append(t.freq_hz)
             else:
                 t.cancelled = False
@@ -330,7 +330,8 @@ class ConditionedReader:
             if d.tones:
                 parts.append(f"{len(d.tones)} tone(s): " + ", ".join(
                     f"{t.freq_hz / 1e3:+.3f} kHz {t.jnr_db:+.1f} dB"
-                    + ("" if t.cancelled else " (not cancelled)") for t in d.tones))
+                    + (" (DC removal)" if t.dc else "" if t.cancelled else " (not cancelled)")
+                    for t in d.tones))
             else:
                 parts.append("no tones")
         if self.blank_level > 0:
