@@ -269,7 +269,7 @@ RECEIVER_SCHEMA = {
                                     "spectrum of white noise", lo=1e-12, hi=0.5),
             "min_db": P(6.0, "float", "a tone must also exceed the local noise floor of its periodogram "
                                        "bin by this much (dB)", lo=0.0),
-            "max_tones": P(8, "int", "largest number of tones cancelled (the strongest; up to max(16, max_tones) are "
+            "max_tones": P(32, "int", "largest number of tones cancelled (the strongest; up to max(16, max_tones) are "
                                       "reported)", lo=0, hi=64),
             "notch_bw_hz": P(100.0, "float", "-3 dB width of each tone notch (Hz)", lo=1.0),
             "dc_bw_hz": P(100.0, "float", "-3 dB width of the DC notch (Hz)", lo=1.0),

@@ -8,6 +8,7 @@ the receiver runs it: input conditioning, search, verification dwell, cross-corr
     cw F P     one CW tone at F Hz from the carrier, P dB above the noise power
     strong     the highest satellite at 55 dB-Hz, the others 38-45 dB-Hz
     2bit       2-bit quantisation with AGC
+    lo +20k    oscillator error -12.7 ppm: every carrier ~20 kHz off (the widened search must find them)
 The sky: embedded constellation, C/N0 38 dB-Hz at the horizon to 45 dB-Hz at zenith.  Per case: false
 PRNs (detected, not simulated) summed over seeds, and detected / simulated satellites above 10 deg.
 
@@ -47,6 +48,13 @@ def acq_cases(quick=False):
                           {"impairments": {"tones": [{"freq_hz": f, "power_db": p}]}}))
     cases.append(("strong 55", "strong"))
     cases.append(("2bit", {"impairments": {"quantization": {"bits": 2}}, "frontend": {"format": "int8_iq"}}))
+    # beyond the list: an oscillator 12.7 ppm slow puts every carrier ~ +20 kHz off (LO offset)
+    cases.append(("lo +20k", {"clock": {"freq_error_ppm": -12.7}}))
+    # beyond the list: a CW into a 2-bit ADC (the AGC sets on the tone: hard limiting, a comb of
+    # harmonics and intermodulation every 6 kHz, and the satellites suppressed by the limiter)
+    for p in (20.0, 30.0):
+        cases.append((f"2bit+cw +3k {p:g}dB", {"impairments": {"quantization": {"bits": 2}, "tones": [
+            {"freq_hz": 3000.0, "power_db": p}]}, "frontend": {"format": "int8_iq"}}))
     return cases
 
 
@@ -142,6 +150,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="30 dB tones only")
     ap.add_argument("--skip-acq", action="store_true")
     ap.add_argument("--skip-fix", action="store_true")
+    ap.add_argument("--cases", default="", help="only the acquisition cases whose name contains this")
     args = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="frontend_acc_")
     seeds = list(range(1, args.seeds + 1))
@@ -150,6 +159,8 @@ def main():
         print(f"acquisition: {len(seeds)} seeds x {args.acq_s:g} s, default config")
         print(f"{'case':<20} {'false PRNs':>10} {'detected >10deg':>16} {'rate':>6} {'cpu/acq s':>9}")
         for name, extra in acq_cases(args.quick):
+            if args.cases not in name:
+                continue
             fp, det, n, cpu = run_acq_case(tmp, name, extra, seeds, args.acq_s)
             rate = det / n if n else 1.0
             ok = fp == 0 and rate >= 0.9

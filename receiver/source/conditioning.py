@@ -67,7 +67,7 @@ def _bh_window(n):
 
 
 def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e-3, min_db: float = 6.0,
-                 max_tones: int = 8, floor_bins: int = 129) -> Detection:
+                 max_tones: int = 32, floor_bins: int = 129) -> Detection:
     """Detect CW tones / spurs in complex samples ``x`` (see the module doc for the test and Pfa)."""
     x = np.asarray(x)
     nfft = int(fft_size)
