@@ -139,3 +139,23 @@ def test_lo_offset_widens_the_search_and_warns(tmp_path):
     assert all(abs(got[p] - d) < 30 for p, d in dops.items())
     assert any("+/-25 kHz" in n for n in notes)
     assert any("common Doppler offset of +20" in n and "ppm" in n for n in notes)
+
+
+def test_channel_opened_on_a_false_detection_is_released_quickly():
+    """Integrity end to end: a channel opened on noise (a false detection that got through) never reports
+    lock and is released (lost) within 1.5 s -- pull-in, then tracking.lost_ms of failed lock tests."""
+    from receiver.config import load_receiver_config
+    from receiver.gnss.registry import get_signal
+    from receiver.tracking.scalar import Channel
+    cfg = load_receiver_config(None)
+    x = make_signal([], FS, 2.0, seed=3)
+    chunk, ov = int(0.5 * FS), int(0.03 * FS)
+    ch = Channel(9, -3000.0, 123.0, 0, cfg.tracking, FS, 0.0, channel_id=0, signal=get_signal("gps_l1ca"))
+    lock, lost_at = 0, None
+    for s in range(0, len(x) - chunk, chunk):
+        lock += int((ch.process(x[s:s + chunk + ov], s)["pll_lock"] > 0).sum())
+        if ch.lost:
+            lost_at = (s + chunk) / FS
+            break
+    assert lock == 0
+    assert lost_at is not None and lost_at <= 1.5
