@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..runfile.writer import open_h5
+from ..runfile.reader import open_h5
 from ..sim.blockage import KIND_TOTAL
 
 MODE_COAST = 2
@@ -244,7 +244,7 @@ def read_visibility(truth_h5) -> Visibility:
 def read_fixes(run_h5, truth_h5):
     """(Fixes on the truth's time axis, navigation rate (Hz) or NaN, truth end time)."""
     import yaml
-    from ..gnss.ephemeris import WEEK_S
+    from ..gnss.time import WEEK_S
     with open_h5(os.fspath(truth_h5), "truth file") as f:
         g = f["receiver"]
         tr = {k: g[k][:] for k in ("time_s", "gps_tow", "ecef")}
