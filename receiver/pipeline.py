@@ -108,9 +108,12 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
         raise UserError("input too short for acquisition "
                         f"({len(block) / fs * 1e3:.0f} ms available, {dwell / fs * 1e3:.0f} needed)")
 
+    centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
+
     def _search(prns_, dmax):
         res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
-                      a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio)
+                      a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
+                      doppler_center_hz=centre if dmax == a.doppler_max_hz else 0.0)
         for r in res_:
             if r.detected and a.verify and len(block) >= 2 * dwell:
                 ok = verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r, a.coherent_ms,
@@ -132,11 +135,12 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
                      f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
                      f"{sum(r.detected for r in res)} found")
     dop = [r.doppler_hz for r in res if r.detected]
-    if len(dop) >= 3 and abs(np.median(dop)) > a.lo_warn_hz:
+    if len(dop) >= 3 and abs(np.median(dop) - centre) > a.lo_warn_hz:
         med = float(np.median(dop))
         notes.append(f"warning         the {len(dop)} satellites found share a common Doppler offset of "
                      f"{med / 1e3:+.2f} kHz (median): front-end LO / oscillator error of about "
-                     f"{-med / sig.carrier_hz * 1e6:+.1f} ppm")
+                     f"{-med / sig.carrier_hz * 1e6:+.1f} ppm; later searches are centred there")
+        reader.doppler_centre_hz = round(med / 100.0) * 100.0     # re-acquisitions search around it
     return res
 
 

@@ -139,6 +139,9 @@ def test_lo_offset_widens_the_search_and_warns(tmp_path):
     assert all(abs(got[p] - d) < 30 for p, d in dops.items())
     assert any("+/-25 kHz" in n for n in notes)
     assert any("common Doppler offset of +20" in n and "ppm" in n for n in notes)
+    # a later (re-)acquisition searches +/-10 kHz around the offset: found without widening
+    later = acquire(cfg, reader, reader.first + int(0.04 * FS), [22, 8], widen=False)
+    assert all(r.detected and abs(r.doppler_hz - dops[r.prn]) < 30 for r in later)
 
 
 def test_channel_opened_on_a_false_detection_is_released_quickly():
