@@ -111,13 +111,16 @@ def acquire(config, input_path, sets):
     cfg = _load(config, input_path, sets)
     reader = open_input(cfg)
     start = reader.first + int(round(cfg.acquisition.start_s * reader.fs))
-    res = do_acquire(cfg, reader, start, cfg.acquisition.prns)
+    notes = []
+    res = do_acquire(cfg, reader, start, cfg.acquisition.prns, widen=True, notes=notes)
     click.echo(f"{'PRN':>4} {'detected':>8} {'doppler_hz':>11} {'code_phase':>11} {'metric':>7} "
                f"{'C/N0~':>6}")
     for r in res:
         click.echo(f"{r.prn:4d} {('yes' if r.detected else 'no'):>8} {r.doppler_hz:11.1f} "
                    f"{r.code_phase_chips:11.2f} {r.metric:7.2f} {r.cn0_dbhz_est:6.1f}")
     click.echo(f"detected: {' '.join(str(r.prn) for r in res if r.detected) or 'none'}")
+    for line in (reader.summary_lines() if hasattr(reader, "summary_lines") else []) + notes:
+        click.echo(line)
 
 
 def _register_commands():

@@ -271,6 +271,29 @@ RECEIVER_SCHEMA = {
                                          "time-tagging before the first decoded TOW)", nullable=True),
         "start_gps_tow_s": P(None, "float", "approximate GPS time of week of the first sample",
                              nullable=True),
+        "conditioning": {
+            "dc_removal": P(True, "bool", "remove the DC offset / LO leakage (a ~dc_bw_hz wide notch at 0 Hz "
+                                          "that follows a drifting offset)"),
+            "tone_detection": P(True, "bool", "detect CW tones / spurs in the spectrum of the first detect_ms "
+                                              "(reported in the run summary and /conditioning)"),
+            "tone_excision": P(True, "bool", "cancel the detected tones (one adaptive notch of notch_bw_hz "
+                                             "per tone, causal, continuous across blocks)"),
+            "detect_ms": P(100.0, "float", "span analysed by the tone detector (ms; shorter files: all of "
+                                           "it)", lo=1.0),
+            "fft_size": P(4096, "int", "periodogram length of the tone detector (bin = sample rate / "
+                                       "fft_size)", lo=64, hi=1 << 20),
+            "pfa": P(1e-3, "float", "probability of one or more false tone detections over the whole "
+                                    "spectrum of white noise", lo=1e-12, hi=0.5),
+            "min_db": P(6.0, "float", "a tone must also exceed the local noise floor of its periodogram "
+                                       "bin by this much (dB)", lo=0.0),
+            "max_tones": P(32, "int", "largest number of tones cancelled (the strongest; up to max(16, max_tones) are "
+                                      "reported)", lo=0, hi=64),
+            "notch_bw_hz": P(100.0, "float", "-3 dB width of each tone notch (Hz)", lo=1.0),
+            "dc_bw_hz": P(100.0, "float", "-3 dB width of the DC notch (Hz)", lo=1.0),
+            "pulse_blanking": P(False, "bool", "zero samples whose magnitude exceeds blank_sigma x the RMS "
+                                               "of the conditioned detection span (pulsed interference)"),
+            "blank_sigma": P(5.0, "float", "pulse blanking threshold in RMS units", lo=1.0),
+        },
     },
     "signal": P("gps_l1ca", "str", "signal to acquire and track (bds_b1i: BeiDou B1I, no navigation "
                                    "decoding)", choices=("gps_l1ca", "bds_b1i")),
@@ -286,6 +309,17 @@ RECEIVER_SCHEMA = {
                                       "non-Gaussian tail that strong signals' cross-correlation adds (README)",
                        lo=0.1),
         "start_s": P(0.0, "float", "time into the processed span where acquisition starts", lo=0.0),
+        "width_ratio": P(0.3, "float", "a peak is rejected when the mean power 2-4 chips beside it, above "
+                                       "the floor, exceeds this fraction of the peak's (CW tones give broad "
+                                       "maxima)", lo=0.0),
+        "verify": P(True, "bool", "verification dwell: a detection must be found again in the next, "
+                                  "independent coherent_ms x noncoherent block (skipped when the file is "
+                                  "too short)"),
+        "lo_search_hz": P(25000.0, "float", "when fewer than 4 satellites are found, search the others again "
+                                            "over this Doppler half-range (front-end LO offsets; 0 = off)",
+                          lo=0.0),
+        "lo_warn_hz": P(3000.0, "float", "warn when the median Doppler of the satellites found exceeds "
+                                         "this (a common LO / oscillator offset)", lo=0.0),
     },
     "tracking": {
         "max_channels": P(12, "int", "maximum number of tracking channels", lo=1, hi=64),

@@ -15,7 +15,7 @@ import numpy as np
 from .. import __version__
 from .. import interrupt
 from ..safeio import AtomicH5
-from .record import EPOCH_DTYPE, STATE_NAMES
+from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_NAMES
 
 
 def _append(group: h5py.Group, name: str, data: np.ndarray):
@@ -66,7 +66,11 @@ class RunWriter:
             "detected": np.array([r.detected for r in results], bool),
             "cn0_dbhz_est": np.array([r.cn0_dbhz_est for r in results]),
             "time_s": np.array([r.sample_index for r in results], float) / (attrs or {}).get("fs", 1.0),
+            # integrity: why a peak was not detected (attrs reason_codes) and the verification dwell
+            "reason": np.array([ACQ_REASONS.get(getattr(r, "reason", ""), 0) for r in results], np.int8),
+            "verified": np.array([getattr(r, "verified", -1) for r in results], np.int8),
         }
+        g.attrs["reason_codes"] = ",".join(f"{v}={k or 'detected'}" for k, v in ACQ_REASONS.items())
         for k, v in rows.items():
             _append(g, k, v)
         for k, v in (attrs or {}).items():

@@ -55,6 +55,7 @@ from ..gnss.time import WEEK_S
 from .blockage import Blockage
 from .clock import ClockGenerator
 from .constellation import load_constellation, quantize_iono
+from .impairments import Impairments
 from .kernel import quantize_fast, synth_block
 from .scenario import clock_h, load_scenario, noise_sigma, resolve_path
 from .scintillation import Scintillation
@@ -479,6 +480,7 @@ class _Simulator:
             aging_per_s=sc.clock.aging_ppb_per_s * 1e-9, white_fm_corner_hz=sc.clock.white_fm_corner_hz).take)
         self.scint = self._scintillation(sc.scintillation, tm.seed)
         self.cn0 = _Cn0(sc.cn0)
+        self.impair = Impairments(sc.impairments, self.fs, self.if_hz, self.sigma, self.cplx)
         self.blockage = Blockage(sc.blockage, self.prns, duration, tm.seed, el_scan, self.mask)
         self.nav = {p: _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
                                 sc.navigation.data) for p in self.prns}
@@ -684,6 +686,7 @@ class _Simulator:
                     view += np.float32(self.sigma) * self.rng.standard_normal(view.size, dtype=np.float32)
                 else:
                     view[0::2] += np.float32(self.sigma) * self.rng.standard_normal(n_samp, dtype=np.float32)
+            out = self.impair.apply(out, first)          # front-end impairments (sim/impairments.py)
             quantize_fast(out, self.fmt).tofile(self.fh)
 
         if rows.size:
