@@ -105,10 +105,15 @@ class ChannelManager:
         return ch
 
     # ------------------------------------------------------------------ start / cold search
-    def start(self, acq_start: int):
-        results = self.acquire(self.cfg, self.reader, acq_start, self.cfg.acquisition.prns)
+    def start(self, acq_start: int, notes=None):
+        """The initial cold acquisition (widened when fewer than 4 satellites are found); lines for the user
+        go to notes."""
+        notes = [] if notes is None else notes
+        results = self.acquire(self.cfg, self.reader, acq_start, self.cfg.acquisition.prns, widen=True,
+                               notes=notes)
         if self.writer is not None:
-            self.writer.write_acquisition(results, {"fs": self.fs, "pfa": self.cfg.acquisition.pfa})
+            self.writer.write_acquisition(results, {"fs": self.fs, "pfa": self.cfg.acquisition.pfa,
+                                                    "notes": "\n".join(notes)})
         detected = sorted([r for r in results if r.detected], key=lambda r: -r.metric)
         for r in detected[:self.max_ch]:
             self._open(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index)
