@@ -415,6 +415,9 @@ RECEIVER_SCHEMA = {
                        choices=("elevation", "cn0", "none", "rtklib")),
         "residual_threshold_m": P(30.0, "float", "drop the worst satellite when a residual exceeds this",
                                   lo=0.0),
+        "max_pdop": P(20.0, "float", "no fix when the PDOP of the satellites used exceeds this (4-satellite "
+                                     "fixes in urban canyons reach PDOP > 100 and errors of hundreds of m)",
+                      lo=1.0),
         "filter": P("wls", "str", "navigation solution: wls (single-epoch weighted least squares and "
                                   "Doppler velocity), ekf (extended Kalman filter) or ckf (square-root "
                                   "cubature Kalman filter) over position, velocity, clock bias and drift, fed "
