@@ -47,6 +47,9 @@ def _threshold(pfa: float, n_cells: int, k: int) -> float:
     return float(gamma.isf(pfa / n_cells, k, scale=1.0 / k))
 
 
+def _has_energy(x: np.ndarray) -> bool:
+    """False when the block is constant (all zero or pure DC): no correlation peak can be a signal."""
+    return bool(np.any(x != x[0])) if len(x) else False
 def _gamma_median(k: int) -> float:
     return float(gamma.median(k, scale=1.0 / k))
 
@@ -137,6 +140,10 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     if len(samples) < need:
         raise ValueError(f"acquisition needs {need} samples, got {len(samples)}")
     T = m * 1e-3
+    if not _has_energy(samples[:need]):
+        # all-zero or constant input: no signal energy once the mean is removed -> nothing detected
+        cn0_floor = float(10 * np.log10(1e-3 / T))
+        return [AcqResult(prn, False, 0.0, 0.0, start_index, 0.0, 0.0, cn0_floor) for prn in prns]
     step = doppler_step_hz or 1.0 / (2.0 * T)
     dopplers = doppler_center_hz + np.arange(-doppler_max_hz, doppler_max_hz + step / 2, step)
     sp = _Spectra(samples, fs, if_hz, dopplers, m, noncoherent)

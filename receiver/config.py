@@ -197,14 +197,31 @@ def apply_overrides(raw: dict, overrides) -> dict:
     return raw
 
 
+def read_utf8(path, what: str = "file") -> str:
+    """The text of a UTF-8 file; another encoding (or binary data) is a one-line UserError naming the
+    first bad byte and its line."""
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise UserError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise UserError(f"{what} {path} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                        f"save it as UTF-8") from None
+
+
 def read_yaml(path) -> dict:
     """Read a YAML mapping; errors become one-line UserErrors."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise UserError(f"config file not found: {path}")
+    text = read_utf8(path, "config file")
     try:
-        with open(path) as fh:
-            raw = yaml_load(fh)
+        raw = yaml_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark else ""
@@ -527,4 +544,29 @@ def load_receiver_config(path=None, overrides=None) -> Section:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
             raw[sec][key] = resolve_path(raw[sec][key], path)
     cfg = build(RECEIVER_SCHEMA, raw, overrides)
+    validate_receiver(cfg)
+    return cfg
+
+
+def validate_receiver(cfg: Section) -> Section:
+    """Checks of meaning that span several keys (one-line UserErrors): the IF inside the sampled band,
+    a non-empty PRN list (duplicates are removed with a warning)."""
+    i = cfg.input
+    half = i.sample_rate_hz / 2
+    if i.format.endswith("_real"):
+        if not 0.0 < i.if_hz < half:
+            raise UserError(f"config key 'input.if_hz' must be in (0, sample_rate_hz/2 = {half:g}) for the "
+                            f"real format {i.format}, got {i.if_hz:g}")
+    elif abs(i.if_hz) >= half:
+        raise UserError(f"config key 'input.if_hz' must be within +/- sample_rate_hz/2 = {half:g}, "
+                        f"got {i.if_hz:g}")
+    prns = cfg.acquisition.prns
+    if not prns:
+        raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
+    unique = list(dict.fromkeys(prns))
+    if len(unique) < len(prns):
+        from .errors import warn
+        dup = sorted({p for p in prns if prns.count(p) > 1})
+        warn(f"acquisition.prns lists PRN {', '.join(map(str, dup))} more than once; each is searched once")
+        cfg.acquisition._values["prns"] = unique
     return cfg

@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .acquisition import reject_cross_correlations, search, verify
-from .errors import UserError
+from . import interrupt
+from .errors import UserError, warn
 from .source.io import SampleReader
 from .runfile.writer import RunWriter
 from .runfile.record import EPOCH_DTYPE
@@ -40,6 +41,7 @@ class RunSummary:
     mean_llh: tuple | None = None
     scatter_m: tuple | None = None     # (east, north, up) standard deviation
     parity_failures: int = 0
+    nonfinite_samples: int = 0         # NaN/Inf input samples replaced by zeros
     notes: list = field(default_factory=list)   # input conditioning / acquisition lines
 
     @property
@@ -62,6 +64,8 @@ class RunSummary:
                       "scatter (1 sd)  E {:.2f} N {:.2f} U {:.2f} m".format(*self.scatter_m)]
         else:
             lines.append("fixes           none")
+        if self.nonfinite_samples:
+            lines.append(f"input           {self.nonfinite_samples} non-finite samples replaced by zeros")
         return "\n".join(lines + self.notes)
 
 
@@ -154,14 +158,17 @@ def _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet=False):
     return handover(cfg, channels, nav, start, fs)
 
 
-def run(cfg, quiet: bool = False, log=print) -> RunSummary:
-    """Run the receiver on cfg.input.path; write cfg.output.path (HDF5)."""
+@interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk
+def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
+    """Run the receiver on cfg.input.path; write cfg.output.path (HDF5).
+    ``reads``: further files the command reads (the config file): the output must not be one of them."""
     make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
     reader = open_input(cfg)
     out_path = default_output_path(cfg, cfg.input.path)
+    check_meaning(cfg, reader)
     ephemerides, iono = None, None
     if cfg.navigation.enabled and cfg.navigation.ephemeris:
         from .gnss.rinex import read_rinex_nav
@@ -170,11 +177,12 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
     writer = RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
-        "command": " ".join(sys.argv)})
+        "command": " ".join(sys.argv)}, reads=_reads(cfg, out_path, reader, reads))
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
         summary.output = out_path
+        _nonfinite(reader, writer, summary)
         ok = True
         return summary
     finally:
@@ -182,6 +190,41 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
         if ok:  # standard outputs (receiver/export): RINEX/NMEA/KML/GPX/report from the closed run file
             from .export import export_all
             export_all(out_path, cfg.output, log=None if quiet else log)
+
+
+def check_meaning(cfg, reader):
+    """Checks of meaning (receiver.config.validate_receiver: IF, PRN list) and those that need the input
+    file: vector.start_s inside the processed span (else a warning)."""
+    from .config import validate_receiver
+    validate_receiver(cfg)
+    v = cfg.vector
+    if v.enabled and v.start_s is not None and v.start_s >= reader.duration_s:
+        warn(f"vector.start_s={v.start_s:g} s is after the end of the processed span "
+             f"({reader.duration_s:.3f} s): the run stays scalar")
+
+
+def _reads(cfg, out_path, reader, extra) -> list:
+    """The files the run reads (the output must be none of them); the standard outputs written beside
+    the run file (output.rinex, nmea, ...) must not overwrite one of them either."""
+    from .export import KINDS, _enabled, output_paths
+    from .safeio import _samefile
+    reads = [reader.path, cfg.navigation.ephemeris, *extra]
+    paths = output_paths(out_path)
+    for kind in KINDS:
+        if _enabled(cfg.output, kind):
+            for key in (("obs", "nav") if kind == "rinex" else (kind,)):
+                for r in reads:
+                    if r and os.path.exists(paths[key]) and _samefile(paths[key], r):
+                        raise UserError(f"output.{kind} would overwrite {r}, which the run reads")
+    return reads
+
+
+def _nonfinite(reader, writer, summary):
+    """NaN/Inf input samples (zeroed by the reader): summary line, run-file attribute, warning."""
+    summary.nonfinite_samples = reader.n_nonfinite
+    writer.set_attrs("/", {"nonfinite_samples": reader.n_nonfinite})
+    if reader.n_nonfinite:
+        warn(f"{reader.n_nonfinite} non-finite input samples (NaN/Inf) were replaced by zeros")
 
 
 def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
@@ -213,6 +256,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     bar = _progress(reader.duration_s, quiet)
     start = acq_start
     while start < reader.end:
+        interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
         block = reader.read(start, chunk + overlap)
         if vector is None and cfg.vector.enabled:
             vector = _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet)
