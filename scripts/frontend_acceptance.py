@@ -164,9 +164,11 @@ def main():
             fp, det, n, cpu = run_acq_case(tmp, name, extra, seeds, args.acq_s)
             rate = det / n if n else 1.0
             ok = fp == 0 and rate >= 0.9
-            ok_all &= ok
+            informational = name.startswith(("lo ", "2bit+cw"))      # beyond the acceptance list
+            ok_all &= ok or informational
             print(f"{name:<20} {fp:>10d} {f'{det}/{n}':>16} {100 * rate:5.1f}% {cpu:9.1f}"
-                  + ("" if ok else "   FAIL"), flush=True)
+                  + ("" if ok else "   (not met; not in the acceptance list)" if informational else "   FAIL"),
+                  flush=True)
     if not args.skip_fix:
         print(f"\nfixes: {args.fix_seeds} seed(s) x {args.fix_s:g} s static, default config")
         print(f"{'seed':>4} {'case':<14} {'fixes':>6} {'3D RMS m':>9} {'C/N0 loss dB':>12} {'cpu s':>7}  tones")
