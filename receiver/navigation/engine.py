@@ -29,6 +29,7 @@ from .pvt import NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
 BIT_MS = 20
+LOCK_GUARD_S = 0.1           # a measurement needs lock this long after its epoch too (detector lag)
 ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
 
 
@@ -277,6 +278,27 @@ class ChannelNav:
                 phase += 0.5
             return txrel, dop, phase
         return None
+
+    def locked_at(self, s: float, guard_s: float = LOCK_GUARD_S) -> bool:
+        """The channel's lock detectors (PLL lock and C/N0) were good at sample s and guard_s later (or at its
+        latest epoch, if earlier): the detectors lag a vanished signal, so the epochs just before a loss are
+        noise-tracking too.  A channel tracking noise during a blockage never enters a fix."""
+        for t in (s, s + guard_s * self.fs):
+            found = None
+            for recs in reversed(self.recent):
+                si = recs["sample_index"]
+                if len(si) == 0 or si[0] > t:
+                    continue
+                k = int(np.searchsorted(si, t, side="right")) - 1
+                found = recs[max(k, 0)]
+                break
+            if found is None:
+                if t == s:
+                    return False
+                continue
+            if not found["pll_lock"]:
+                return False
+        return True
 
     def smooth_update(self, s: float, txrel: float, phase: float, window_epochs: int):
         """Carrier smoothing, step 1: add this epoch's code-minus-carrier to the channel's fit.
@@ -600,7 +622,7 @@ class NavigationEngine:
         dt = 1.0 / self.rate
         window = int(round(self.cfg.smoothing_s * self.rate))
         for prn, ch in self.channels.items():
-            if not ch.locked or not ch.settled(s, self.cfg.settle_s):
+            if not ch.settled(s, self.cfg.settle_s) or not ch.locked_at(s):
                 ch.hatch = None
                 continue
             m = ch.measure(s)

@@ -197,6 +197,13 @@ class ChannelManager:
             self.nav.suspend(prn)
         g = list(sat.good)
         if not g:
+            if sat.ref is not None and sat.lost_at is not None:
+                # lost again before a good state (re-acquired just before another blockage): the previous
+                # prediction still holds, its window keeps widening with the age of that last good state
+                sat.state = "reacquiring"
+                sat.searches = 0
+                self._event(sat.lost_at, prn, "lost", "(no new good state: previous prediction kept)")
+                return
             sat.state, sat.ref = "searching", None
             self._event(self.reader.first, prn, "lost", "(no good state: cold search)")
             return
