@@ -367,6 +367,11 @@ RECEIVER_SCHEMA = {
             "pull_in_ms": P(100, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
             "settle_s": P(0.3, "float", "a re-acquired channel's measurements are used this long after its "
                                         "pull-in", lo=0.0),
+            "search_step_s": P(0.125, "float", "narrow searches run at this step through each chunk just tracked "
+                                               "(a returning satellite is found within a step, not a chunk); "
+                                               "0: once per chunk, at its end", lo=0.0),
+            "search_after_s": P(0.15, "float", "narrow searches start this long after the last good epoch "
+                                               "of a lost satellite", lo=0.0),
         },
         "carrier": {
             "variant": P("pll", "str", "carrier loop variant: pll (built-in FLL-assisted PLL), cpll_atan "

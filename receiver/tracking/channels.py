@@ -44,6 +44,7 @@ from .scalar import Channel
 REACQ_PER_ATTEMPT = 4           # cold searches per attempt
 GOOD_KEEP_S = 1.5               # good-state history used for the Doppler rate
 HOT_DLL_FIRST_ORDER_S = 0.4     # a hot-started channel's DLL is 1st order this long (then per the config)
+CATCH_UP_OVERLAP_S = 0.03       # as the pipeline's chunk overlap: a channel's epochs may end inside it
 GOOD_MARGIN_S = 0.1             # lock detectors lag: the prediction starts this long before the last good epoch
 
 
@@ -185,10 +186,38 @@ class ChannelManager:
                 sat.restore_at = None
         if next_start + 0.05 * self.fs >= self.reader.end:
             return
+        # narrow searches at several points of the chunk just tracked (earliest first), not only at its end:
+        # a satellite that came back early in the chunk is found there and its new channel catches up to
+        # the chunk end at once (the re-acquisition latency drops from ~1 chunk to ~1 search step)
+        step = int(round(self.rc.search_step_s * self.fs))
+        points = [next_start]
+        if step > 0:
+            points = list(range(next_start - step * ((next_start - start - 1) // step), next_start + 1, step))
+            points = [p for p in points if p >= start] or [next_start]
         for prn, sat in list(self.sats.items()):
             if sat.state == "reacquiring" and prn not in self.channels and len(self.channels) < self.max_ch:
-                self._hot(sat, next_start)
+                for p in points:
+                    if sat.lost_at is not None and p < sat.lost_at + self.rc.search_after_s * self.fs:
+                        continue
+                    if self._hot(sat, p) or sat.state != "reacquiring":
+                        if p < next_start and prn in self.channels:
+                            self._catch_up(prn, p, next_start)
+                        break
         self._cold(start, next_start)
+
+    def _catch_up(self, prn, s, next_start):
+        """Run a channel opened at sample s (inside the chunk just tracked) up to the pipeline's position."""
+        ch = self.channels[prn]
+        overlap = int(CATCH_UP_OVERLAP_S * self.fs)
+        block = self.reader.read(int(s), int(next_start - s) + overlap)
+        recs = ch.process(block, int(s))
+        if self.writer is not None:
+            self.writer.append_channel(prn, recs)
+        self.note(prn, recs)
+        if self.nav is not None:
+            self.nav.add_records(prn, recs, ch.bit_offset)
+        if ch.lost:                         # lost again at once: the next chunk's after_chunk handles it
+            pass
 
     def _lost(self, prn):
         sat = self._sat(prn)
@@ -280,7 +309,7 @@ class ChannelManager:
         res = narrow_search(block, int(s), self.fs, self.if_hz, prn, dop, dop_half, cp_pred,
                             code_half, rc.coherent_ms, rc.noncoherent, rc.pfa, self.signal)
         if res is None:
-            return
+            return False
         # code phase: the prediction while its uncertainty is below the search's resolution
         cp = res.code_phase_chips
         if dr / self.chip_m < 0.05 and code_half < code_len / 4:
@@ -310,6 +339,7 @@ class ChannelManager:
         self._event(s, prn, "re-acquired",
                     f"after {age:.2f} s, Doppler {res.doppler_hz:.1f} Hz (predicted {dop:.1f} +/- {dop_half:.0f}), "
                     f"code {res.code_phase_chips:.2f} chips (predicted {cp_pred:.2f} +/- {code_half:.2f})")
+        return True
 
     # ------------------------------------------------------------------ summary
     def summary(self) -> dict:
