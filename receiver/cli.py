@@ -96,7 +96,10 @@ def run(config, input_path, output, sets, quiet):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
     from .pipeline import run as run_pipeline
     cfg = _load(config, input_path, sets, output)
-    summary = run_pipeline(cfg, quiet=quiet, log=logging.getLogger("receiver.pipeline").info, reads=[config])
+    log = logging.getLogger("receiver.pipeline").info
+    summary = run_pipeline(cfg, quiet=quiet, log=log, reads=[config])
+    from .export import export_all      # standard outputs (output.rinex, nmea, ...) from the closed run file
+    export_all(summary.output, cfg.output, log=None if quiet else log)
     if not quiet:
         click.echo(summary.text())
 

@@ -9,6 +9,7 @@ the navigation engine keeps each satellite's memory (ephemeris, transmit-time re
 """
 from __future__ import annotations
 
+import logging
 import os
 import sys
 import time
@@ -162,9 +163,14 @@ def _vector_handover(cfg, channels, nav, fs, quiet=False):
 
 
 @interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk
-def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
+def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     """Run the receiver on cfg.input.path; write cfg.output.path (HDF5).
-    ``reads``: further files the command reads (the config file): the output must not be one of them."""
+    ``reads``: further files the command reads (the config file): the output must not be one of them.
+    ``log``: a callable for progress messages (default: this module's logger).  The standard outputs
+    (RINEX/NMEA/KML/GPX/report, ``output.*``) are written by the caller from the closed run file
+    (:func:`receiver.export.export_all`): the CLI and the batch runner do."""
+    if log is None:
+        log = logging.getLogger(__name__).info
     make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
@@ -190,9 +196,6 @@ def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
         return summary
     finally:
         writer.close(ok)
-        if ok:  # standard outputs (receiver/export): RINEX/NMEA/KML/GPX/report from the closed run file
-            from .export import export_all
-            export_all(out_path, cfg.output, log=None if quiet else log)
 
 
 def check_meaning(cfg, reader):
@@ -209,7 +212,7 @@ def check_meaning(cfg, reader):
 def _reads(cfg, out_path, reader, extra) -> list:
     """The files the run reads (the output must be none of them); the standard outputs written beside
     the run file (output.rinex, nmea, ...) must not overwrite one of them either."""
-    from .export import KINDS, _enabled, output_paths
+    from .runfile.outputs import KINDS, _enabled, output_paths
     from .safeio import _samefile
     reads = [reader.path, cfg.navigation.ephemeris, *extra]
     paths = output_paths(out_path)
