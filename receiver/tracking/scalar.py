@@ -153,9 +153,10 @@ class Channel:
             cap = int(len(block) / self.fs * 1000) + 2
             if self._out.shape[0] < cap:
                 self._out = np.zeros((cap, K.N_OUT))
+            K.repair_state(self.st)              # non-finite C/N0 estimate: reset, not a dead channel
             n = K.track_block(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
                               self._out, cap)
-            K.repair_state(self.st)              # non-finite C/N0 estimate: reset, not a dead channel
+            K.repair_state(self.st)              # (before and after the compiled call)
             return to_records(self._out[:n])
         limit = max_epochs if max_epochs is not None else 10 ** 9
         rows = []
