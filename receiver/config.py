@@ -346,6 +346,9 @@ RECEIVER_SCHEMA = {
         "lost_ms": P(200, "int", "time below the lock thresholds before a channel declares the signal lost "
                                 "(its satellite is then re-acquired around the prediction, README: outages)",
                      lo=10),
+        "lost_grace_ms": P(1000, "int", "a channel is declared lost only after this long below the lock "
+                                        "thresholds while it is younger than this (since its pull-in began): a "
+                                        "weak signal needs time to reach phase lock", lo=0),
         "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
                                        "or no longer predictable", lo=0.1),
         "reacquisition": {

@@ -73,6 +73,7 @@ class Channel:
         c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
         c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
         c[K.C_LOST_MS] = trk_cfg.lost_ms
+        c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
         c[K.C_BIT_MS] = bit_ms
         c[K.C_NH_BASE] = nh_base
         c[K.C_NO_DATA] = 1.0 if dataless else 0.0
