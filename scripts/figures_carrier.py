@@ -394,7 +394,7 @@ def main(argv=None):
         for d in ("static", "manoeuvre"):
             for T in weak_T:
                 m = {lp: ci95(weak[(d, T, lp)]) for lp in WEAK_LOOPS}
-                lines.append(f"| {d} | {T} | " + " | ".join(f"{m[lp][0]:.1f} +/- {m[lp][1]:.1f}"
+                lines.append(f"| {d} | {T} | " + " | ".join(f"{m[lp][0]:.1f} ± {m[lp][1]:.1f}"
                                                             for lp in WEAK_LOOPS)
                              + f" | {m['cpll_atan'][0] - m['adaptive_kf'][0]:.1f} dB |")
         lines.append("")

@@ -463,7 +463,7 @@ def _reading(met, sens):
     r = met
     worst = "xyz"[int(np.argmax(r["sqrt_ckf"]["axis"]))]
     lv = sorted(sens)
-    coarse = lv[0]
+    coarse = lv[0] if lv else None
     txt = [
         f"* The worst ECEF axis is {worst}.  In the local frame the East error dominates: with "
         "near-polar orbits the satellites move north-south, so the along-track (North) position is "
@@ -483,14 +483,19 @@ def _reading(met, sens):
         "random-walk process noise and is the most accurate (Table 1): the filters forget part of "
         "the information through Q (sigma_D^2 = 10 m^2 on a static receiver); with Q = 0 the EKF "
         "reproduces the batch LSM (tests/test_leo_solvers.py).",
-        f"* Coarser initial values (Table 4, Fig. 9) separate the filters: at level {coarse} "
-        f"(median initial error {np.median(sens[coarse]['init_err']) / 1e3:.1f} km) the SR-CKF ends "
-        f"at {sens[coarse]['met']['sqrt_ckf']['final3d_mean']:.0f} m vs the EKF's "
-        f"{sens[coarse]['met']['ekf']['final3d_mean']:.0f} m (the cubature points see the curvature "
-        "the linearisation misses), but its RMSE over the window is "
-        f"{np.mean(sens[coarse]['met']['sqrt_ckf']['rmse_epoch']):.0f} m vs "
-        f"{np.mean(sens[coarse]['met']['ekf']['rmse_epoch']):.0f} m: the spread of the cubature "
-        "points inflates the innovation covariance and slows the first updates.",
+    ]
+    if coarse is not None:
+        txt += [
+            f"* Coarser initial values (Table 4, Fig. 9) separate the filters: at level {coarse} "
+            f"(median initial error {np.median(sens[coarse]['init_err']) / 1e3:.1f} km) the SR-CKF ends "
+            f"at {sens[coarse]['met']['sqrt_ckf']['final3d_mean']:.0f} m vs the EKF's "
+            f"{sens[coarse]['met']['ekf']['final3d_mean']:.0f} m (the cubature points see the curvature "
+            "the linearisation misses), but its RMSE over the window is "
+            f"{np.mean(sens[coarse]['met']['sqrt_ckf']['rmse_epoch']):.0f} m vs "
+            f"{np.mean(sens[coarse]['met']['ekf']['rmse_epoch']):.0f} m: the spread of the cubature "
+            "points inflates the innovation covariance and slows the first updates.",
+        ]
+    txt += [
         "* Started at the Earth's centre, every solver diverges (Table 5, Fig. 7); the GeoSOT grid "
         "search is what makes LEO Doppler positioning converge.",
     ]
