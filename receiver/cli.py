@@ -5,12 +5,14 @@ reported here as one line on stderr with exit code 2 and no traceback.
 """
 from __future__ import annotations
 
+import logging
 import sys
 
 import click
 
 from . import __version__
 from .errors import UserError
+from .logs import setup_cli
 
 
 class _Group(click.Group):
@@ -26,6 +28,7 @@ class _Group(click.Group):
 @click.version_option(__version__, prog_name="gnssrx")
 def main():
     """gnssrx - GNSS software receiver for recorded IF samples."""
+    setup_cli()
 
 
 def _load(config, input_path, sets, output=None):
@@ -48,7 +51,7 @@ def run(config, input_path, output, sets, quiet):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
     from .pipeline import run as run_pipeline
     cfg = _load(config, input_path, sets, output)
-    summary = run_pipeline(cfg, quiet=quiet)
+    summary = run_pipeline(cfg, quiet=quiet, log=logging.getLogger("receiver.pipeline").info)
     if not quiet:
         click.echo(summary.text())
 
@@ -72,34 +75,17 @@ def acquire(config, input_path, sets):
     click.echo(f"detected: {' '.join(str(r.prn) for r in res if r.detected) or 'none'}")
 
 
-def _register_optional():
-    """Commands that live in their own packages (registered when present)."""
-    try:
-        from .sim.cli import simulate, evaluate_cmd
-        main.add_command(simulate)
-        main.add_command(evaluate_cmd)
-    except ImportError:
-        pass
-    try:
-        from .leo.cli import leo
-        main.add_command(leo)
-    except ImportError:
-        pass
-    try:
-        from .export.cli import export, info, report
-        for cmd in (export, report, info):
-            main.add_command(cmd)
-    except ImportError:
-        pass
-    try:
-        from .batch.cli import batch, compare
-        main.add_command(batch)
-        main.add_command(compare)
-    except ImportError:
-        pass
+def _register_commands():
+    """Commands that live in their own packages (a failing import is a real error and shows)."""
+    from .batch.cli import batch, compare
+    from .export.cli import export, info, report
+    from .leo.cli import leo
+    from .sim.cli import evaluate_cmd, simulate
+    for cmd in (simulate, evaluate_cmd, leo, export, report, info, batch, compare):
+        main.add_command(cmd)
 
 
-_register_optional()
+_register_commands()
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -103,10 +103,7 @@ def _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet=False):
     """Vector-loop handover hook: returns a vector tracker once vector.start_s is reached (or 5 s after
     the first fix), else None.  The tracker's ``process(block, start)`` returns
     ({prn: EPOCH_DTYPE records}, FIX_DTYPE fixes with mode=1) and drives the channels' NCOs."""
-    try:
-        from .tracking.vector import handover
-    except ImportError:
-        raise UserError("vector tracking is not available in this build") from None
+    from .tracking.vector import handover
     if quiet:
         return handover(cfg, channels, nav, start, fs, log=lambda msg: None)
     return handover(cfg, channels, nav, start, fs)

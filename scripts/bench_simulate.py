@@ -40,11 +40,10 @@ def main(argv=None):
         t, c = time.perf_counter(), time.process_time()
         paths = simulate(SCENARIO, out, overrides=[f"time.duration_s={args.duration}"], progress=False)
         wall, cpu = time.perf_counter() - t, time.process_time() - c
-        import h5py
-        with h5py.File(paths["truth"], "r") as f:
-            vis = f["satellites"]
-            n_sig = max(int(sum(vis[k]["visible"][i] for k in vis)) for i in range(0, vis[next(iter(vis))]
-                                                                                   ["visible"].size, 100))
+        from receiver.runfile.truth import TruthFile
+        with TruthFile(paths["truth"]) as tf:
+            vis = [s["visible"] for s in tf.satellites(("visible",)).values()]
+        n_sig = max(int(sum(v[i] for v in vis)) for i in range(0, vis[0].size, 100))
     threads = os.environ.get("NUMBA_NUM_THREADS", "(unset)")
     print(f"simulate: {args.duration:.1f} s of signal, {n_sig} satellites, 2.6 MS/s int8_iq in {wall:.2f} s "
           f"wall (NUMBA_NUM_THREADS={threads})")

@@ -8,11 +8,11 @@ import argparse
 import tempfile
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from receiver.config import load_receiver_config
 from receiver.pipeline import run
+from receiver.runfile.reader import RunFile
 from receiver.sim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -36,12 +36,12 @@ def main():
                                                    ("acquisition.noncoherent", 40),
                                                    ("tracking.pll_bw_hz", 15.0), ("tracking.pll_order", 2)])
             run(cfg, quiet=True)
-            with h5py.File(Path(d) / "c.h5") as f:
+            with RunFile(Path(d) / "c.h5") as rf:
                 meds = []
                 for name in ("G01", "G06", "G09"):
-                    g = f[f"channels/{name}"]
-                    m = (g["time_s"][:] > 2.0) & (g["pll_lock"][:] > 0)
-                    meds.append(float(np.median(g["cn0_dbhz"][:][m])) if m.any() else float("nan"))
+                    g = rf.channel(name, ("time_s", "pll_lock", "cn0_dbhz"))
+                    m = (g["time_s"] > 2.0) & (g["pll_lock"] > 0)
+                    meds.append(float(np.median(g["cn0_dbhz"][m])) if m.any() else float("nan"))
             worst = max(abs(m - cn0) for m in meds)
             print(f"| {cn0:.0f} | {' / '.join(f'{m:.2f}' for m in meds)} | {worst:.2f} |")
 

@@ -121,10 +121,10 @@ def experiment_batch(exp, args):
 def run_experiment(exp, args, log):
     """Run (or take from the batch cache) every variant x seed of one experiment through receiver/batch.
     Returns {seed: (truth_h5, {variant: (run_h5, wall_s)})} and the signal duration."""
-    import h5py
     from receiver.batch.config import load_batch
-    from receiver.batch.runner import make_plan, run_batch
-    from receiver.batch.runner import code_fingerprint
+    from receiver.batch.plan import code_fingerprint, make_plan
+    from receiver.batch.runner import run_batch
+    from receiver.runfile.reader import RunFile
     raw, dur = experiment_batch(exp, args)
     # one code identity for the run and the plan read back below (a source edit in between must not
     # change the run keys)
@@ -140,8 +140,8 @@ def run_experiment(exp, args, log):
         if row["status"] != "ok":
             log(f"  {r.variant} seed {r.seed}: {row['status']} {row['error']}")
             continue
-        with h5py.File(r.h5, "r") as f:
-            wall = f.attrs.get("wall_time_s")
+        with RunFile(r.h5) as rf:
+            wall = rf.attrs.get("wall_time_s")        # the run's own timing (receiver pipeline only)
         out.setdefault(int(r.seed), (r.truth, {}))[1][r.variant_name] = \
             (r.h5, float(wall) if wall is not None else None)
     return out, dur
@@ -149,15 +149,12 @@ def run_experiment(exp, args, log):
 
 # ----------------------------------------------------------------------------------------- analysis
 def load_truth(path):
-    import h5py
-    with h5py.File(path, "r") as f:
-        g = f["receiver"]
-        tr = {k: g[k][:] for k in ("time_s", "gps_tow", "ecef", "velocity_ecef")}
-        tr["tow0"] = float(f.attrs["start_gps_tow_s"])
-        sats = {}
-        for k in f["satellites"]:
-            s = f["satellites"][k]
-            sats[int(k[1:])] = {n: s[n][:] for n in ("time_s", "doppler_hz", "pseudorange_m", "visible")}
+    from receiver.runfile.truth import TruthFile
+    with TruthFile(path) as tf:
+        tr = tf.receiver(("time_s", "gps_tow", "ecef", "velocity_ecef"))
+        tr["tow0"] = float(tf.attrs["start_gps_tow_s"])
+        sats = {int(k[1:]): s for k, s in tf.satellites(("time_s", "doppler_hz", "pseudorange_m",
+                                                          "visible")).items()}
     t = tr["time_s"]
     some = next(iter(sats.values()))
     nvis = np.sum([np.interp(some["time_s"], s["time_s"], s["visible"].astype(float)) > 0.5
@@ -170,13 +167,12 @@ def load_truth(path):
 
 def nav_errors(run_h5, tr, t_from):
     """Fixes after t_from (s since the first sample): time, 3D position / velocity errors, ECEF error."""
-    import h5py
-    with h5py.File(run_h5, "r") as f:
-        if "navigation" not in f or "gps_tow" not in f["navigation"]:
-            return None
-        g = f["navigation"]
-        tow, e, v, mode = g["gps_tow"][:], g["ecef"][:], g["velocity_ecef"][:], g["mode"][:]
-        nsat = g["n_sats"][:]
+    from receiver.runfile.reader import RunFile
+    with RunFile(run_h5) as rf:
+        g = rf.fix_columns(("gps_tow", "ecef", "velocity_ecef", "mode", "n_sats"))
+    if g is None:
+        return None
+    tow, e, v, mode, nsat = g["gps_tow"], g["ecef"], g["velocity_ecef"], g["mode"], g["n_sats"]
     rel = tow - tr["gps_tow"][0] + tr["t"][0]
     k = rel >= t_from
     rel, tow, e, v, mode, nsat = rel[k], tow[k], e[k], v[k], mode[k], nsat[k]
@@ -189,17 +185,17 @@ def nav_errors(run_h5, tr, t_from):
 
 def channel_errors(run_h5, tr, prns=None, step=1):
     """Per PRN: record time, NCO-minus-true Doppler (Hz), replica code error (chips), signal visible."""
-    import h5py
+    from receiver.runfile.reader import RunFile
     out = {}
-    with h5py.File(run_h5, "r") as f:
-        for name in f["channels"]:
+    with RunFile(run_h5) as rf:
+        for name in rf.channel_names():
             prn = int(name[1:])
             if prns is not None and prn not in prns or prn not in tr["sats"]:
                 continue
-            c = f["channels"][name]
-            t = c["time_s"][::step]
-            dop = c["doppler_hz"][::step]
-            cp = c["code_phase_chips"][::step]
+            c = rf.channel(name, ("time_s", "doppler_hz", "code_phase_chips"), step)
+            t = c["time_s"]
+            dop = c["doppler_hz"]
+            cp = c["code_phase_chips"]
             s = tr["sats"][prn]
             d_true = np.interp(t, s["time_s"], s["doppler_hz"])
             rho = np.interp(t, s["time_s"], s["pseudorange_m"])
@@ -388,7 +384,6 @@ TOKYO_ECEF = np.array([-3959617.482, 3350136.615, 3699531.459])
 
 def tokyo(data, quick, reuse, log):
     """Every variant on the third-party recording from 36 s; rows for the table."""
-    import h5py
     if not os.path.exists(TOKYO_BIN):
         log(f"  third-party recording absent ({TOKYO_BIN}): skipped")
         return []
@@ -405,23 +400,26 @@ def tokyo(data, quick, reuse, log):
             run_pipeline(cfg, quiet=True, log=lambda *a: None)
             wall = time.perf_counter() - t0
             log(f"  tokyo {variant:<12} in {wall:5.1f} s")
-        with h5py.File(out, "r") as f:
-            g = f["navigation"]
-            vec = g["mode"][:] == 1
-            d = np.linalg.norm(g["ecef"][:][vec] - TOKYO_ECEF, axis=1)
-            v = np.linalg.norm(g["velocity_ecef"][:][vec], axis=1)
+        from receiver.runfile.reader import RunFile
+        with RunFile(out) as rf:
+            g = rf.fix_columns(("mode", "ecef", "velocity_ecef", "time_s", "n_sats", "clock_drift_mps",
+                                "clock_bias_m"))
+            vec = g["mode"] == 1
+            d = np.linalg.norm(g["ecef"][vec] - TOKYO_ECEF, axis=1)
+            v = np.linalg.norm(g["velocity_ecef"][vec], axis=1)
             t_end = float(g["time_s"][-1])
             kept, total = 0, 0
-            for c in f["channels"].values():
-                tt = c["time_s"][:]
+            for name in rf.channel_names():
+                c = rf.channel(name, ("time_s", "pll_lock"))
+                tt = c["time_s"]
                 if tt[0] < 35.0:
                     total += 1
                     kept += int(tt[-1] > t_end - 0.5 and c["pll_lock"][-500:].mean() > 0.9)
             rows.append({"run": variant, "n_fixes": int(vec.sum()), "pos_rms": stats(d)[0], "pos_max": stats(d)[1],
                          "vel_rms": stats(v)[0], "vel_max": stats(v)[1], "kept": kept, "total": total,
-                         "n_sats_min": int(g["n_sats"][:][vec].min()) if vec.any() else 0,
-                         "drift": float(np.median(g["clock_drift_mps"][:][vec])),
-                         "bias_span": float(np.ptp(g["clock_bias_m"][:][vec])), "wall_s": wall})
+                         "n_sats_min": int(g["n_sats"][vec].min()) if vec.any() else 0,
+                         "drift": float(np.median(g["clock_drift_mps"][vec])),
+                         "bias_span": float(np.ptp(g["clock_bias_m"][vec])), "wall_s": wall})
     return rows
 
 

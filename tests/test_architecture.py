@@ -16,9 +16,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "receiver"
 
-#: bottom -> top; a module's layer is that of the longest prefix listed here
+#: bottom -> top; a module's layer is that of the longest prefix listed here (``receiver`` itself: the
+#: package's __init__ only).  A new top-level module must be placed here (and in the README) explicitly.
 LAYERS: list[tuple[str, ...]] = [
-    ("receiver", "receiver.errors", "receiver.config"),
+    ("receiver", "receiver.errors", "receiver.config", "receiver.logs"),
     ("receiver.gnss",),
     ("receiver.estimation",),
     ("receiver.runfile",),
@@ -45,8 +46,6 @@ ALLOWED_EXCEPTIONS: set[tuple[str, str]] = {
     # pipeline.run writes the configured exports (output.exports) from its `finally`; the continuity work
     # owns pipeline.py -- to go when the CLI/batch call export_all after run()
     ("receiver.pipeline", "receiver.export"),
-    # batch metrics interpolate truth with the simulator's Hermite helper -- to go when it moves down
-    ("receiver.batch.metrics", "receiver.sim.simulate"),
 }
 
 
@@ -90,7 +89,7 @@ def layer_of(name: str) -> int:
     best, best_len = None, -1
     for i, prefixes in enumerate(LAYERS):
         for p in prefixes:
-            if (name == p or name.startswith(p + ".")) and len(p) > best_len:
+            if (name == p or (p != "receiver" and name.startswith(p + "."))) and len(p) > best_len:
                 best, best_len = i, len(p)
     assert best is not None, f"{name} is in no layer: add it to LAYERS (and to the README)"
     return best
@@ -123,6 +122,36 @@ def test_imports_go_down_the_layers():
                 if _under(m, src) and _under(d, dst) and (m, d) not in ALLOWED_EXCEPTIONS:
                     bad.append(f"{m}:{line} imports {d}: {why}")
     assert not bad, "\n".join(bad)
+
+
+#: modules allowed to call print(): the command-line front ends, and (listed with the reason) others
+PRINT_ALLOWED_SUFFIX = ".cli"
+PRINT_EXCEPTIONS = {
+    # vector handover messages go to stderr through print; the module is owned by the continuity work
+    # (to become logging.getLogger(__name__))
+    "receiver.tracking.vector",
+    # pipeline.run(log=print): the default log callable; owned by the continuity work (the CLI passes a
+    # logger's info method, the batch runner a no-op)
+    "receiver.pipeline",
+}
+
+
+def test_library_code_does_not_print():
+    """Library code reports through logging (receiver.logs); only the CLI modules print."""
+    bad = []
+    for m, path in all_modules().items():
+        if m == "receiver.cli" or m.endswith(PRINT_ALLOWED_SUFFIX) or m in PRINT_EXCEPTIONS:
+            continue
+        tree = ast.parse(path.read_text(), str(path))
+        called = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "print":
+                bad.append(f"{m}:{node.lineno} calls print()")
+            if (isinstance(node, ast.Attribute) and node.attr in ("redirect_stdout", "redirect_stderr")):
+                bad.append(f"{m}:{node.lineno} redirects a process-wide stream")
+            elif isinstance(node, ast.Name) and node.id == "print" and id(node) not in called:
+                bad.append(f"{m}:{node.lineno} uses print as a callable (e.g. log=print)")
+    assert not bad, "\n".join(sorted(set(bad)))
 
 
 def strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:

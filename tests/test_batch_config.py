@@ -11,7 +11,8 @@ import pytest
 import yaml
 
 from receiver.batch.config import load_batch
-from receiver.batch.runner import code_fingerprint, make_plan, run_batch
+from receiver.batch.plan import code_fingerprint, make_plan
+from receiver.batch.runner import run_batch
 from receiver.errors import UserError
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))

@@ -122,7 +122,7 @@ def test_carrier_phase_errors_near_the_wrap_edge():
           "carrier_phase_cycles": ph + IF * t + 0.249 + rng.normal(0, 0.01, t.size)}
     tt = np.arange(0, 301) * 0.01
     pt, dt = _true_phase(tt)
-    e = carrier_phase_errors(ch, {"time_s": tt, "carrier_phase_cycles": pt, "doppler_hz": dt}, FS, IF, 0.5)
+    e = carrier_phase_errors(ch, {"time_s": tt, "carrier_phase_cycles": pt, "doppler_hz": dt}, IF, 0.5)
     assert e.size == 2500
     assert abs(np.mean(e)) < 1e-3 and np.std(e) == pytest.approx(0.01, rel=0.06)
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from receiver.export.nmea import _latlon, checksum, gsv, sentence
-from receiver.export.run import load_run
+from receiver.runfile.reader import load_run
 
 
 def _xor(body):

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from receiver.export.report import make_figure, read_channels, summary_stats, write_report
-from receiver.export.run import load_run, load_truth
+from receiver.runfile.reader import load_run
+from receiver.runfile.truth import load_truth
 
 from conftest import TOKYO_META
 
@@ -99,7 +100,7 @@ def test_vector_panels_from_the_vector_log(tokyo_run, tmp_path):
     import shutil
 
     import h5py
-    from receiver.runfile.writer import VECTOR_LOG_DTYPE
+    from receiver.runfile.record import VECTOR_LOG_DTYPE
     path = tmp_path / "vec.h5"
     shutil.copy(tokyo_run, path)
     run = load_run(path)

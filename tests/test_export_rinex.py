@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from receiver.export.rinex_obs import LLI_HALF_CYCLE, LLI_LOSS, lli_flags, ssi_from_cn0
-from receiver.export.run import load_run
+from receiver.runfile.reader import load_run
 from receiver.gnss.ephemeris import select
 from receiver.navigation.pvt import NavSolver, Observation
 from receiver.gnss.rinex import read_rinex_nav
-from receiver.runfile.writer import OBS_DTYPE
+from receiver.runfile.record import OBS_DTYPE
 from receiver.gnss.signals import C_LIGHT
 
 from conftest import TOKYO_NAV

@@ -31,7 +31,9 @@ from ..errors import UserError
 def batch(batch_file, jobs, scheduler, out_dir, sets, force, retry_failed, dry_run, quiet):
     """Run a matrix of receiver configs x inputs x seeds (see receiver/batch/config.py)."""
     from .config import load_batch
-    from .runner import _cached_result, make_plan, run_batch
+    from .cache import _cached_result
+    from .plan import make_plan
+    from .runner import run_batch
     if jobs is not None and jobs < 1:
         raise UserError("--jobs must be >= 1")
     overrides = list(sets)

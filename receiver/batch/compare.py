@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 from ..errors import UserError
-from ..runfile.writer import open_h5
+from ..runfile.reader import open_h5
 from .metrics import METRIC_KEYS
 
 ID_COLUMNS = ("run_id", "variant", "variant_name", "input", "kind", "seed")

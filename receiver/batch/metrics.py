@@ -22,9 +22,10 @@ Every metric is a float (NaN when it cannot be computed, e.g. no fix or no truth
     Channels whose PLL locked at least once (false acquisitions that never lock are not counted).
 ``carrier_phase_err_std_cyc`` (needs a simulator truth file), ``carrier_phase_epochs``
     For each channel whose PRN has a truth group ``/satellites/Gnn``: the replica (NCO) carrier phase at the
-    first sample of each epoch, ``carrier_phase_cycles - if_hz * sample_index / sample_rate_hz``, minus the
-    true carrier phase of the received signal at the same receiver time (truth ``carrier_phase_cycles``,
-    cubic Hermite interpolation with the truth ``doppler_hz`` as its derivative).  The truth phase already
+    first sample of each epoch, ``carrier_phase_cycles - if_hz * time_s``, minus the true carrier phase of
+    the received signal at the same receiver time (truth ``carrier_phase_cycles``, cubic Hermite
+    interpolation with the truth ``doppler_hz`` as its derivative): the negative of
+    :func:`receiver.runfile.truth.carrier_phase_error` at the epoch start.  The truth phase already
     contains the receiver clock (the simulated oscillator's bias and drift enter it through
     D_carr = b + tau_c - dt_sv), the satellite clock, the atmosphere and any scintillation phase, so no clock
     or propagation term is left to remove: the difference is the tracking error plus a constant.  That
@@ -65,6 +66,9 @@ import numpy as np
 
 from ..errors import UserError
 from ..evaluate.outages import OUTAGE_METRIC_KEYS
+from ..runfile.reader import RunFile
+from ..runfile.record import STATE_BIT_SYNC, STATE_LOST, STATE_TRACK
+from ..runfile.truth import TruthFile, carrier_phase_error
 
 METRICS_VERSION = 2
 
@@ -81,7 +85,6 @@ METRIC_KEYS = (
 )
 #: metrics that depend on the machine / load, not on the receiver's result
 TIMING_KEYS = ("run_wall_s", "realtime_factor", "job_wall_s", "job_cpu_s")
-STATE_TRACK, STATE_BIT_SYNC, STATE_LOST = 1, 2, 3
 
 
 def _nan_dict():
@@ -98,12 +101,8 @@ def _max(x):
     return float(np.max(x)) if x.size else math.nan
 
 
-def _read_nav(f):
-    if "navigation" not in f or "gps_tow" not in f["navigation"]:
-        return None
-    import h5py
-    g = f["navigation"]
-    return {k: g[k][:] for k in g if isinstance(g[k], h5py.Dataset)}
+def _read_nav(rf: RunFile):
+    return rf.fix_columns()
 
 
 # ------------------------------------------------------------------------------------------ positions
@@ -112,11 +111,12 @@ def fix_enu_errors(nav: dict, truth: dict):
 
     truth: {"week", "gps_tow" (M,), "ecef" (M,3), "velocity_ecef" (M,3)}; a static reference has M = 2
     rows spanning everything.  Returns (enu, vel_err, scored_mask_over_all_fixes)."""
+    from ..estimation.interpolation import interp_columns
     from ..gnss.geodesy import ecef2lla, enu_matrix
-    from ..gnss.ephemeris import WEEK_S
+    from ..gnss.time import week_seconds_since
     tow = np.asarray(nav["gps_tow"], dtype=float)
     week = np.asarray(nav.get("gps_week", np.full(tow.shape, truth["week"])), dtype=float)
-    t = (week - truth["week"]) * WEEK_S + tow
+    t = week_seconds_since(week, tow, truth["week"])
     ecef = np.asarray(nav["ecef"], dtype=float).reshape(-1, 3)
     t_tr = truth["gps_tow"]
     ok = np.all(np.isfinite(ecef), axis=1) & np.isfinite(t) & (t >= t_tr[0]) & (t <= t_tr[-1])
@@ -125,8 +125,7 @@ def fix_enu_errors(nav: dict, truth: dict):
     ts = t[ok]
 
     def interp(a):
-        a = np.asarray(a, dtype=float)
-        return np.stack([np.interp(ts, t_tr, a[:, k]) for k in range(3)], axis=1)
+        return interp_columns(t_tr, a, ts)
 
     true_pos = interp(truth["ecef"])
     lat, lon, _ = ecef2lla(true_pos.mean(axis=0))
@@ -139,18 +138,13 @@ def fix_enu_errors(nav: dict, truth: dict):
 
 
 def _read_truth_receiver(truth_h5):
-    import h5py
-    with h5py.File(truth_h5, "r") as f:
-        if "receiver" not in f:
-            raise UserError(f"truth file {truth_h5} has no /receiver group")
-        g = f["receiver"]
-        return {"week": int(f.attrs.get("gps_week", 0)), "gps_tow": g["gps_tow"][:], "ecef": g["ecef"][:],
-                "velocity_ecef": g["velocity_ecef"][:]}
+    with TruthFile(truth_h5) as tf:
+        return tf.receiver(("gps_tow", "ecef", "velocity_ecef"))
 
 
 def _static_truth(reference_llh, nav):
     from ..gnss.geodesy import lla2ecef
-    from ..gnss.ephemeris import WEEK_S
+    from ..gnss.time import WEEK_S
     ref = np.asarray(lla2ecef(*reference_llh), dtype=float).reshape(3)
     week = int(np.asarray(nav.get("gps_week", [0]))[0]) if len(nav["gps_tow"]) else 0
     return {"week": week, "gps_tow": np.array([-2 * WEEK_S, 3 * WEEK_S]), "ecef": np.tile(ref, (2, 1)),
@@ -189,24 +183,15 @@ def _position_metrics(out, run_h5, nav, truth_h5, reference_llh):
 
 # ------------------------------------------------------------------------------------------ channels
 def _truth_sats(truth_h5):
-    import h5py
-    sats = {}
     if not truth_h5:
-        return sats
-    with h5py.File(truth_h5, "r") as f:
-        if "satellites" not in f:
-            return sats
-        for name, g in f["satellites"].items():
-            if "carrier_phase_cycles" not in g or "time_s" not in g:
-                continue
-            sats[name] = {k: g[k][:] for k in ("time_s", "carrier_phase_cycles", "doppler_hz", "visible")
-                          if k in g}
-    return sats
+        return {}
+    with TruthFile(truth_h5) as tf:
+        sats = tf.satellites(("time_s", "carrier_phase_cycles", "doppler_hz", "visible"))
+    return {k: s for k, s in sats.items() if "carrier_phase_cycles" in s and "time_s" in s}
 
 
-def carrier_phase_errors(ch: dict, tr: dict, fs: float, if_hz: float, settle_s: float) -> np.ndarray:
+def carrier_phase_errors(ch: dict, tr: dict, if_hz: float, settle_s: float) -> np.ndarray:
     """Wrapped carrier phase errors (cycles) of one channel against its truth (see the module docstring)."""
-    from ..sim.simulate import hermite
     t = ch["time_s"]
     lock = ch["pll_lock"] > 0
     if not lock.any():
@@ -220,23 +205,21 @@ def carrier_phase_errors(ch: dict, tr: dict, fs: float, if_hz: float, settle_s: 
         sel &= tr["visible"][k].astype(bool)
     if sel.sum() < 2 or tt.size < 2:
         return np.zeros(0)
-    nco = ch["carrier_phase_cycles"][sel] - if_hz * ch["sample_index"][sel] / fs
-    true = hermite(tt, tr["carrier_phase_cycles"], tr["doppler_hz"], t[sel])
-    d = nco - true
+    _, err = carrier_phase_error({k: ch[k][sel] for k in ("time_s", "carrier_phase_cycles")}, tr, if_hz)
+    d = -err                          # NCO minus truth
     m = np.angle(np.mean(np.exp(4j * np.pi * d))) / (4.0 * np.pi)
     return np.mod(d - m + 0.25, 0.5) - 0.25
 
 
-def _channel_metrics(out, f, truth_h5, settle_s):
-    fs = float(f.attrs.get("sample_rate_hz", math.nan))
-    if_hz = float(f.attrs.get("if_hz", 0.0))
+def _channel_metrics(out, rf: RunFile, truth_h5, settle_s):
+    if_hz = float(rf.attrs.get("if_hz", 0.0))
     truth = _truth_sats(truth_h5)
     n_lol = n_drop = n_locked = 0
     cn0_means, perr, disc = [], [], []
-    names = ("time_s", "sample_index", "carrier_phase_cycles", "pll_lock", "state", "cn0_dbhz",
+    names = ("time_s", "carrier_phase_cycles", "pll_lock", "state", "cn0_dbhz",
              "carrier_err_cycles")
-    for name, g in (f["channels"].items() if "channels" in f else ()):
-        ch = {k: g[k][:] for k in names if k in g}
+    for name in rf.channel_names():
+        ch = rf.channel(name, names)
         if "pll_lock" not in ch or not ch["pll_lock"].size:
             continue
         lock = ch["pll_lock"] > 0
@@ -258,8 +241,8 @@ def _channel_metrics(out, f, truth_h5, settle_s):
         if "carrier_err_cycles" in ch:
             e = ch["carrier_err_cycles"][settled].astype(float)
             disc.append(e[np.isfinite(e)])
-        if name in truth and {"time_s", "sample_index", "carrier_phase_cycles", "state"} <= set(ch):
-            perr.append(carrier_phase_errors(ch, truth[name], fs, if_hz, settle_s))
+        if name in truth and {"time_s", "carrier_phase_cycles", "state"} <= set(ch):
+            perr.append(carrier_phase_errors(ch, truth[name], if_hz, settle_s))
     out["loss_of_lock"] = float(n_lol)
     out["channels_dropped"] = float(n_drop)
     out["n_channels_locked"] = float(n_locked)
@@ -276,20 +259,19 @@ def _channel_metrics(out, f, truth_h5, settle_s):
 def compute_metrics(run_h5, truth_h5=None, reference_llh=None, carrier_settle_s: float = 1.0) -> dict:
     """Metrics of one run (see the module docstring); truth_h5: simulator truth file or None;
     reference_llh: [lat, lon, h] of a static antenna when there is no truth file."""
-    import h5py
     run_h5 = os.fspath(run_h5)
     if not os.path.isfile(run_h5):
         raise UserError(f"run file not found: {run_h5}")
     out = _nan_dict()
     with np.errstate(all="ignore"):
-        with h5py.File(run_h5, "r") as f:
-            a = f.attrs
+        with RunFile(run_h5) as rf:
+            a = rf.attrs
             fs = float(a.get("sample_rate_hz", math.nan))
             t0 = float(a.get("first_sample", 0)) / fs
             out["signal_s"] = float(a.get("n_samples", math.nan)) / fs
             out["run_wall_s"] = float(a.get("wall_time_s", math.nan))
             out["realtime_factor"] = float(a.get("realtime_factor", math.nan))
-            nav = _read_nav(f)
+            nav = _read_nav(rf)
             n_fix = 0
             if nav is not None and len(nav["gps_tow"]):
                 ecef = np.asarray(nav["ecef"], dtype=float).reshape(-1, 3)
@@ -301,7 +283,7 @@ def compute_metrics(run_h5, truth_h5=None, reference_llh=None, carrier_settle_s:
                     out["vector_fix_fraction"] = float(np.mean(np.asarray(nav["mode"])[good] == 1)) \
                         if n_fix else math.nan
             out["n_fixes"] = float(n_fix)
-            _channel_metrics(out, f, truth_h5, carrier_settle_s)
+            _channel_metrics(out, rf, truth_h5, carrier_settle_s)
         _position_metrics(out, run_h5, nav, truth_h5, reference_llh)
         if truth_h5:
             from ..evaluate.outages import batch_metrics, report

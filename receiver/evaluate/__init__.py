@@ -17,14 +17,11 @@ import os
 
 import numpy as np
 
-from ..errors import UserError
-from ..runfile.writer import open_h5
+from ..estimation.interpolation import interp_columns
 from ..gnss.geodesy import ecef2lla, enu_matrix
-from ..gnss.ephemeris import WEEK_S
-
-
-def _open(path, what):
-    return open_h5(path, what)
+from ..gnss.time import week_seconds_since
+from ..runfile.reader import RunFile
+from ..runfile.truth import TruthFile
 
 
 def _rms(x):
@@ -38,23 +35,14 @@ def _stat(fn, x):
 
 
 def _read_truth(path):
-    with _open(path, "truth file") as f:
-        if "receiver" not in f:
-            raise UserError(f"truth file {path} has no /receiver group (not a gnssrx simulator truth file)")
-        g = f["receiver"]
-        t = {k: g[k][:] for k in ("gps_tow", "ecef", "velocity_ecef", "clock_bias_m", "clock_drift_mps")}
-        t["week"] = int(f.attrs.get("gps_week", 0))
-    return t
+    with TruthFile(path) as tf:
+        return tf.receiver(("gps_tow", "ecef", "velocity_ecef", "clock_bias_m", "clock_drift_mps"))
 
 
 def _read_run(path):
-    with _open(path, "run file") as f:
-        if "navigation" not in f or "gps_tow" not in f["navigation"]:
-            return None
-        g = f["navigation"]
-        names = ("gps_week", "gps_tow", "ecef", "velocity_ecef", "clock_bias_m", "clock_drift_mps",
-                 "n_sats", "pdop", "mode")
-        return {k: g[k][:] for k in names if k in g}
+    with RunFile(path) as rf:
+        return rf.fix_columns(("gps_week", "gps_tow", "ecef", "velocity_ecef", "clock_bias_m",
+                               "clock_drift_mps", "n_sats", "pdop", "mode"))
 
 
 def evaluate(run_h5, truth_h5) -> dict:
@@ -67,7 +55,7 @@ def evaluate(run_h5, truth_h5) -> dict:
         return _fill_nan(out)
     tow = nav["gps_tow"].astype(float)
     week = nav.get("gps_week", np.full(tow.shape, truth["week"])).astype(float)
-    t = (week - truth["week"]) * WEEK_S + tow            # seconds of the truth's week
+    t = week_seconds_since(week, tow, truth["week"])     # seconds of the truth's week
     ecef = np.asarray(nav["ecef"], dtype=float).reshape(-1, 3)
     ok = np.all(np.isfinite(ecef), axis=1) & np.isfinite(t)
     out["n_fixes"] = int(np.count_nonzero(ok))
@@ -80,10 +68,7 @@ def evaluate(run_h5, truth_h5) -> dict:
     t = t[ok]
 
     def interp(a):
-        a = np.asarray(a, dtype=float)
-        if a.ndim == 1:
-            return np.interp(t, t_tr, a)
-        return np.stack([np.interp(t, t_tr, a[:, k]) for k in range(a.shape[1])], axis=1)
+        return interp_columns(t_tr, a, t)
 
     true_pos = interp(truth["ecef"])
     lat, lon, _ = ecef2lla(true_pos.mean(axis=0))

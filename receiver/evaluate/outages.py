@@ -39,13 +39,15 @@ Random blockage (urban canyon)
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import UserError
-from ..runfile.writer import open_h5
+from ..estimation.interpolation import interp_columns
+from ..gnss.time import week_seconds_since
+from ..runfile.reader import RunFile
+from ..runfile.truth import TruthFile
 from ..sim.blockage import KIND_TOTAL
 
 MODE_COAST = 2
@@ -221,53 +223,51 @@ def batch_metrics(rep: dict) -> dict:
 
 # ------------------------------------------------------------------------------------------ files
 def read_visibility(truth_h5) -> Visibility:
-    with open_h5(os.fspath(truth_h5), "truth file") as f:
-        if "receiver" not in f or "satellites" not in f:
+    with TruthFile(truth_h5) as tf:
+        if not (tf.has("receiver") and tf.has("satellites")):
             raise UserError(f"truth file {truth_h5} has no /receiver or /satellites group "
                             "(not a gnssrx simulator truth file)")
-        t = f["receiver/time_s"][:]
+        t = tf.receiver(("time_s",))["time_s"]
         n = np.zeros(t.size, np.int32)
-        for g in f["satellites"].values():
-            if "visible" in g and g["visible"].shape[0] == t.size:
-                n += g["visible"][:].astype(np.int32)
+        for s in tf.satellites(("visible",)).values():
+            if "visible" in s and s["visible"].shape[0] == t.size:
+                n += s["visible"].astype(np.int32)
         win, total = None, None
-        if "blockage" in f:
-            b = f["blockage"]
-            if "random_start_s" in b.attrs:
-                win = (float(b.attrs["random_start_s"]), float(b.attrs["random_end_s"]))
+        battrs = tf.group_attrs("blockage")
+        if battrs is not None:
+            if "random_start_s" in battrs:
+                win = (float(battrs["random_start_s"]), float(battrs["random_end_s"]))
+            b = tf.table("blockage")
             if "kind" in b:
-                sel = b["kind"][:] == KIND_TOTAL
-                total = [(float(x), float(y)) for x, y in zip(b["start_s"][:][sel], b["end_s"][:][sel])]
+                sel = b["kind"] == KIND_TOTAL
+                total = [(float(x), float(y)) for x, y in zip(b["start_s"][sel], b["end_s"][sel])]
     return Visibility(t=t, n_visible=n, random_window=win, total_windows=total)
 
 
 def read_fixes(run_h5, truth_h5):
     """(Fixes on the truth's time axis, navigation rate (Hz) or NaN, truth end time)."""
-    import yaml
-    from ..gnss.ephemeris import WEEK_S
-    with open_h5(os.fspath(truth_h5), "truth file") as f:
-        g = f["receiver"]
-        tr = {k: g[k][:] for k in ("time_s", "gps_tow", "ecef")}
-        week0 = int(f.attrs.get("gps_week", 0))
+    with TruthFile(truth_h5) as tf:
+        tr = tf.receiver(("time_s", "gps_tow", "ecef"))
+    week0 = tr["week"]
     rate = math.nan
-    with open_h5(os.fspath(run_h5), "run file") as f:
+    with RunFile(run_h5) as rf:
         try:
-            rate = float(yaml.safe_load(f.attrs["config"])["navigation"]["rate_hz"])
+            rate = float(rf.config()["navigation"]["rate_hz"])
         except Exception:          # older or foreign run files: estimated from the fix spacing below
             rate = math.nan
-        nav = f["navigation"] if "navigation" in f and "gps_tow" in f["navigation"] else None
-        if nav is None or nav["gps_tow"].shape[0] == 0:
-            empty = np.zeros(0)
-            return Fixes(empty, empty, empty.astype(bool)), rate, float(tr["time_s"][-1])
-        tow = nav["gps_tow"][:].astype(float)
-        week = nav["gps_week"][:].astype(float) if "gps_week" in nav else np.full(tow.shape, week0)
-        ecef = nav["ecef"][:].astype(float).reshape(-1, 3)
-        mode = nav["mode"][:] if "mode" in nav else np.zeros(tow.size, np.uint8)
-    gps = (week - week0) * WEEK_S + tow
+        nav = rf.fix_columns(("gps_tow", "gps_week", "ecef", "mode"))
+    if nav is None or nav["gps_tow"].shape[0] == 0:
+        empty = np.zeros(0)
+        return Fixes(empty, empty, empty.astype(bool)), rate, float(tr["time_s"][-1])
+    tow = nav["gps_tow"].astype(float)
+    week = nav["gps_week"].astype(float) if "gps_week" in nav else np.full(tow.shape, week0)
+    ecef = nav["ecef"].astype(float).reshape(-1, 3)
+    mode = nav["mode"] if "mode" in nav else np.zeros(tow.size, np.uint8)
+    gps = week_seconds_since(week, tow, week0)
     ok = np.all(np.isfinite(ecef), axis=1) & (gps >= tr["gps_tow"][0]) & (gps <= tr["gps_tow"][-1])
     gps, ecef, mode = gps[ok], ecef[ok], mode[ok]
     t = np.interp(gps, tr["gps_tow"], tr["time_s"])
-    true = np.stack([np.interp(gps, tr["gps_tow"], tr["ecef"][:, k]) for k in range(3)], axis=1)
+    true = interp_columns(tr["gps_tow"], tr["ecef"], gps)
     err = np.linalg.norm(ecef - true, axis=1)
     fx = Fixes(t, err, mode == MODE_COAST)
     if not np.isfinite(rate) and fx.t.size > 1:

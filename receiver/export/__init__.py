@@ -7,7 +7,7 @@
                   out/run_report.png
 
 The same files can be written later with ``gnssrx export RUN.h5 --rinex --nmea --kml --gpx`` and
-``gnssrx report RUN.h5``.  Everything is read from the HDF5 file (see :mod:`receiver.export.run`).
+``gnssrx report RUN.h5``.  Everything is read from the HDF5 file (see :mod:`receiver.runfile.reader`).
 """
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ def export_all(run_h5, cfg_output, log=None, truth=None) -> dict:
     wanted = [k for k in KINDS if _enabled(cfg_output, k)]
     if not wanted:
         return {}
-    from .run import load_run
+    from ..runfile.reader import load_run
     run = load_run(run_h5)
     paths = output_paths(run_h5)
     written: dict = {}

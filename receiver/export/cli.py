@@ -42,7 +42,8 @@ def report(run_h5, truth, output):
     """Plot a one-page PNG report of a run (C/N0, sky plot, Doppler, lock, position/velocity)."""
     from . import output_paths
     from .report import write_report
-    from .run import load_run, load_truth
+    from ..runfile.reader import load_run
+    from ..runfile.truth import load_truth
     run = load_run(run_h5)
     tr = load_truth(truth) if truth else None
     out = output or output_paths(run_h5)["report"]

@@ -6,22 +6,10 @@ import os
 import numpy as np
 
 
-def _walk(f):
-    """(path, shape, dtype) of every dataset."""
-    rows = []
-
-    def visit(name, obj):
-        import h5py
-        if isinstance(obj, h5py.Dataset):
-            rows.append((name, obj.shape, obj.dtype))
-    f.visititems(visit)
-    return rows
-
-
 def run_info(path) -> dict:
     """A JSON-friendly description of the run file."""
-    import h5py
-    from .run import load_run, gps_datetime
+    from ..gnss.time import gps_datetime, week_seconds_since
+    from ..runfile.reader import RunFile, load_run
     run = load_run(path)          # validates the file
     info: dict = {"file": os.path.abspath(run.path), "size_bytes": os.path.getsize(run.path)}
     a = run.attrs
@@ -34,37 +22,35 @@ def run_info(path) -> dict:
     if "n_samples" in a and np.isfinite(fs) and fs > 0:
         info["duration_s"] = float(a["n_samples"]) / fs
     info["assisted"] = run.assisted
-    with h5py.File(run.path, "r") as f:
-        datasets = _walk(f)
+    with RunFile(run.path) as rf:
         groups = {}
-        for name, shape, dtype in datasets:
+        for name, shape, dtype in rf.datasets():
             top = name.split("/")[0]
             groups.setdefault(top, 0)
             groups[top] += 1
         info["groups"] = groups
         ch = {}
-        if "channels" in f:
-            for name, g in f["channels"].items():
-                if "time_s" in g and g["time_s"].shape[0]:
-                    t = g["time_s"]
-                    d = {"records": int(t.shape[0]), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
-                    if "cn0_dbhz" in g and "state" in g:
-                        st = g["state"][:]
-                        c = g["cn0_dbhz"][:][st == 2]
-                        if c.size:
-                            d["mean_cn0_dbhz"] = float(np.mean(c))
-                    ch[name] = d
+        for name in rf.channel_names():
+            g = rf.channel(name, ("time_s", "cn0_dbhz", "state"))
+            if "time_s" in g and g["time_s"].shape[0]:
+                t = g["time_s"]
+                d = {"records": int(t.shape[0]), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
+                if "cn0_dbhz" in g and "state" in g:
+                    c = g["cn0_dbhz"][g["state"] == 2]
+                    if c.size:
+                        d["mean_cn0_dbhz"] = float(np.mean(c))
+                ch[name] = d
         info["channels"] = ch
-        if "iono_utc" in f:
-            a_io = f["iono_utc"].attrs
+        a_io = rf.iono_utc_attrs()
+        if a_io is not None:
             info["iono_utc"] = {k: (np.asarray(a_io[k]).tolist() if k in ("alpha", "beta") else
                                     (a_io[k].item() if isinstance(a_io[k], np.generic) else a_io[k]))
                                 for k in ("source", "alpha", "beta", "dt_ls") if k in a_io}
-        if "acquisition" in f and "prn" in f["acquisition"]:
-            acq = f["acquisition"]
-            det = acq["detected"][:] if "detected" in acq else np.zeros(0, bool)
+        acq = rf.acquisition(("prn", "detected"))
+        if "prn" in acq:
+            det = acq["detected"] if "detected" in acq else np.zeros(0, bool)
             info["acquisition"] = {"searches": int(acq["prn"].shape[0]),
-                                   "detected_prns": sorted({int(p) for p in acq["prn"][:][det]})}
+                                   "detected_prns": sorted({int(p) for p in acq["prn"][det]})}
     fx = run.fixes
     nav = {"fixes": int(len(fx))}
     if len(fx):
@@ -75,7 +61,7 @@ def run_info(path) -> dict:
             "first_fix": {"gps_week": w0, "gps_tow": t0, "gps_time": gps_datetime(w0, t0).isoformat(),
                           "utc": run.utc(w0, t0).isoformat(), "time_s": float(fx["time_s"][0])},
             "last_fix": {"gps_week": w1, "gps_tow": t1, "gps_time": gps_datetime(w1, t1).isoformat()},
-            "span_s": float((w1 - w0) * 604800.0 + t1 - t0),
+            "span_s": float(week_seconds_since(w1, t1, w0) - t0),
             "rate_hz": (float(1.0 / np.median(np.diff(fx["time_s"]))) if len(fx) > 1 else None),
             "modes": {"scalar": int(np.count_nonzero(fx["mode"] == 0)),
                       "vector": int(np.count_nonzero(fx["mode"] == 1))},

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..gnss.geodesy import enu_matrix
-from .run import RunData
+from ..runfile.reader import RunData
 
 KNOTS_PER_MPS = 3600.0 / 1852.0
 

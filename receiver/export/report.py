@@ -17,7 +17,8 @@ import numpy as np
 
 from ..gnss.geodesy import ecef2lla, enu_matrix
 from ..runfile.record import STATE_BIT_SYNC, STATE_LOST, STATE_PULL_IN, STATE_TRACK
-from .run import RunData, load_run, load_truth, truth_at
+from ..runfile.reader import RunData, RunFile, load_run
+from ..runfile.truth import load_truth, truth_at
 
 MAX_POINTS = 3000
 STATE_COLORS = {STATE_PULL_IN: "#f4a340", STATE_TRACK: "#8fb8de", STATE_BIT_SYNC: "#4daf4a",
@@ -31,14 +32,12 @@ VECTOR_COLOR = "#c9b3e6"
 def read_vector_log(path, max_points: int = MAX_POINTS):
     """The /vector diagnostics (time_s, r_carrier_m2s2, sigma_pos_m, sigma_vel_mps), at most ``max_points``
     rows (every k-th), or None when the run has none."""
-    import h5py
-    with h5py.File(path, "r") as f:
-        if "vector" not in f or "time_s" not in f["vector"] or not f["vector"]["time_s"].shape[0]:
+    with RunFile(path) as rf:
+        n = rf.length("vector")
+        if not n:
             return None
-        g = f["vector"]
-        step = max(1, -(-g["time_s"].shape[0] // max_points))
-        return {k: g[k][::step] for k in ("time_s", "r_carrier_m2s2", "sigma_pos_m", "sigma_vel_mps")
-                if k in g}
+        step = max(1, -(-n // max_points))
+        return rf.vector_log(("time_s", "r_carrier_m2s2", "sigma_pos_m", "sigma_vel_mps"), step)
 
 
 def read_channels(path, max_points: int = MAX_POINTS) -> dict:
@@ -48,15 +47,13 @@ def read_channels(path, max_points: int = MAX_POINTS) -> dict:
     mean C/N0 and Doppler, the state of the last record (``lost`` when any record is lost), ``unlocked`` =
     fraction of records without PLL lock; ``gap`` marks bins that follow a gap in the records (the channel
     was dropped and re-acquired).  One channel's columns are read at a time."""
-    import h5py
     out = {}
-    with h5py.File(path, "r") as f:
-        if "channels" not in f:
-            return out
-        for name, g in f["channels"].items():
+    with RunFile(path) as rf:
+        for name in rf.channel_names():
+            g = rf.channel(name, ("time_s", "cn0_dbhz", "doppler_hz", "state", "pll_lock"))
             if "time_s" not in g or g["time_s"].shape[0] == 0:
                 continue
-            t = g["time_s"][:]
+            t = g["time_s"]
             n = len(t)
             span = float(t[-1] - t[0])
             nbins = max(1, min(max_points, n))
@@ -69,21 +66,20 @@ def read_channels(path, max_points: int = MAX_POINTS) -> dict:
             def mean(col):
                 if col not in g:
                     return np.full(len(starts), np.nan)
-                x = g[col][:].astype(float)
+                x = g[col].astype(float)
                 return np.add.reduceat(x, starts) / counts
 
             ch = {"time_s": t[starts], "t_end": t[ends], "cn0": mean("cn0_dbhz"), "doppler": mean("doppler_hz")}
             if "state" in g:
-                st = g["state"][:]
+                st = g["state"]
                 lost = np.add.reduceat((st == STATE_LOST).astype(np.int64), starts) > 0
                 ch["state"] = np.where(lost, STATE_LOST, st[ends]).astype(float)
             else:
                 ch["state"] = np.full(len(starts), float(STATE_TRACK))
-            ch["unlocked"] = (np.add.reduceat((g["pll_lock"][:] == 0).astype(float), starts) / counts
+            ch["unlocked"] = (np.add.reduceat((g["pll_lock"] == 0).astype(float), starts) / counts
                               if "pll_lock" in g else np.zeros(len(starts)))
             ch["gap"] = _gaps(ch["time_s"], ch["t_end"], width)
-            prn = int(g.attrs.get("prn", int(name[1:]) if name[1:].isdigit() else 0))
-            out[prn] = ch
+            out[rf.channel_prn(name)] = ch
     return out
 
 

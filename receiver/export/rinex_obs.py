@@ -23,7 +23,8 @@ import os
 import numpy as np
 
 from .. import __version__
-from .run import RunData, split_gps_time
+from ..gnss.time import split_gps_time
+from ..runfile.reader import RunData
 
 OBS_TYPES = ("C1C", "L1C", "D1C", "S1C")
 LLI_LOSS = 1

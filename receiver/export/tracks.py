@@ -16,9 +16,8 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from .. import __version__
-from .run import RunData
-
-MODE_NAMES = {0: "scalar", 1: "vector"}
+from ..runfile.reader import RunData
+from ..runfile.record import MODE_NAMES
 
 
 def _points(run: RunData):

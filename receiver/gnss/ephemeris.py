@@ -11,10 +11,9 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .signals import F_REL, MU_GPS, OMEGA_E
+from .time import WEEK_S, wrap_week_seconds
 
 GPS_PI = 3.1415926535898          # value of pi used by IS-GPS-200 for semicircle conversion
-HALF_WEEK = 302400.0
-WEEK_S = 604800.0
 
 
 @dataclass
@@ -77,11 +76,6 @@ class IonoUtc:
     wn_lsf: int | None = None
     dn: int | None = None
     dt_lsf: int | None = None
-
-
-def wrap_week_seconds(dt):
-    """Wrap a time difference (s) into [-302400, 302400) (week crossover)."""
-    return (np.asarray(dt, dtype=float) + HALF_WEEK) % WEEK_S - HALF_WEEK
 
 
 _FLOAT_FIELDS = ("toe", "toc", "af0", "af1", "af2", "tgd", "sqrt_a", "e", "i0", "omega0", "omega",

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ephemeris import Ephemeris, IonoUtc, GPS_PI, WEEK_S, HALF_WEEK, wrap_week_seconds
+from .ephemeris import Ephemeris, IonoUtc, GPS_PI
+from .time import HALF_WEEK, WEEK_S, wrap_week_seconds
 
 PREAMBLE = np.array([1, 0, 0, 0, 1, 0, 1, 1], dtype=np.uint8)
 SUBFRAME_BITS = 300

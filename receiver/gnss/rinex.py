@@ -5,15 +5,13 @@ Only GPS records are used; records of other systems in RINEX 3 mixed files are s
 from __future__ import annotations
 
 import datetime as _dt
-import math
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError
-from .ephemeris import Ephemeris, IonoUtc, WEEK_S
-
-GPS_EPOCH = _dt.datetime(1980, 1, 6)
+from .ephemeris import Ephemeris, IonoUtc
+from .time import WEEK_S, calendar_from_gps_time, gps_time_from_calendar
 
 # URA index -> upper bound of the URA (m), IS-GPS-200 20.3.3.3.1.3
 _URA_BOUNDS = (2.40, 3.40, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0,
@@ -35,20 +33,6 @@ def ura_index_from_m(ura_m: float) -> int:
 
 def ura_m_from_index(idx: int) -> float:
     return _URA_NOMINAL[min(max(int(idx), 0), 15)]
-
-
-def gps_time_from_calendar(y, mo, d, h, mi, s):
-    """Calendar date/time (GPS time scale) -> (full GPS week, seconds of week)."""
-    whole = int(math.floor(s))
-    t = _dt.datetime(y, mo, d, h, mi, whole)
-    sec = (t - GPS_EPOCH).total_seconds() + (s - whole)
-    week = int(sec // WEEK_S)
-    return week, sec - week * WEEK_S
-
-
-def calendar_from_gps_time(week, sow):
-    """(full GPS week, seconds of week) -> datetime (GPS time scale)."""
-    return GPS_EPOCH + _dt.timedelta(seconds=week * WEEK_S + sow)
 
 
 def _num(text: str) -> float:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import UserError
-from ..runfile.writer import open_h5
+from ..runfile.reader import open_h5
 from ..gnss.geodesy import lla2ecef
 from ..gnss.signals import C_LIGHT
 from .constellation import Constellation, to_datetime64

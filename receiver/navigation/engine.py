@@ -21,7 +21,7 @@ from collections import deque
 import numpy as np
 
 from ..gnss.geodesy import ecef2lla
-from ..runfile.writer import FIX_DTYPE, OBS_DTYPE
+from ..runfile.record import FIX_DTYPE, OBS_DTYPE
 from ..runfile.record import STATE_BIT_SYNC
 from ..gnss.signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
 from ..gnss.lnav import LnavDecoder, SubframeEvent

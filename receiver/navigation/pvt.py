@@ -17,7 +17,8 @@ import numpy as np
 from ..gnss.geodesy import azel, ecef2lla, enu_matrix
 from ..gnss.signals import C_LIGHT, LAMBDA_L1
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
-from ..gnss.ephemeris import earth_rotation, sat_state, select, wrap_week_seconds
+from ..gnss.ephemeris import earth_rotation, sat_state, select
+from ..gnss.time import normalize_week_tow, wrap_week_seconds
 
 
 @dataclass
@@ -297,11 +298,7 @@ class NavSolver:
             v_res[ok] = y - hv @ sv
 
         tow = rx_tow - b / C_LIGHT
-        gps_week = int(week)
-        if tow < 0:
-            tow, gps_week = tow + 604800.0, gps_week - 1
-        elif tow >= 604800.0:
-            tow, gps_week = tow - 604800.0, gps_week + 1
+        gps_week, tow = normalize_week_tow(int(week), tow)
         return Fix(
             gps_week=gps_week, gps_tow=float(tow), ecef=x, velocity_ecef=np.asarray(v_rx, float),
             clock_bias_m=float(b), clock_drift_mps=drift, n_sats=len(idx),

@@ -70,17 +70,14 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..gnss.clock import OSCILLATORS, h0_h2
 from ..gnss.signals import C_LIGHT
+from ..gnss.time import HALF_WEEK, WEEK_S, normalize_week_tow, week_seconds_since
 from ..estimation.filters import ExtendedKalmanFilter, SquareRootCubatureKalmanFilter, tria
 from .pvt import Fix
 
-#: (h0, h_-2) of the fractional-frequency PSD of common oscillator classes (textbook values; the same
-#: classes as ``vector.clock_class``)
-CLOCK_CLASSES = {
-    "tcxo": (2e-19, 2e-20),
-    "ocxo": (8e-20, 4e-23),
-    "rubidium": (2e-20, 4e-29),
-}
+#: (h0, h_-2) of the fractional-frequency PSD of the oscillator classes (receiver.gnss.clock)
+CLOCK_CLASSES = {k: h0_h2(k) for k in OSCILLATORS}
 
 #: PSD of the code-minus-carrier drift random walk ((m/s)^2/s)
 Q_CODE_CARRIER_DRIFT = 1e-4
@@ -363,14 +360,11 @@ class PvtFilter:
         if np.isfinite(fix.rx_tow):
             tow = fix.rx_tow - b / C_LIGHT
             # the WLS fix may sit on the other side of a week boundary than rx_tow - b / c
-            if tow - fix.gps_tow > 302400.0:
-                tow -= 604800.0
-            elif tow - fix.gps_tow < -302400.0:
-                tow += 604800.0
-            if tow < 0:
-                tow, week = tow + 604800.0, week - 1
-            elif tow >= 604800.0:
-                tow, week = tow - 604800.0, week + 1
+            if tow - fix.gps_tow > HALF_WEEK:
+                tow -= WEEK_S
+            elif tow - fix.gps_tow < -HALF_WEEK:
+                tow += WEEK_S
+            week, tow = normalize_week_tow(week, tow)
         return replace(fix, gps_week=week, gps_tow=float(tow), ecef=x[0:3].copy(),
                        velocity_ecef=x[3:6].copy(), clock_bias_m=b, clock_drift_mps=float(x[ID]))
 
@@ -397,16 +391,15 @@ def replay_run(run_h5, ephemerides, iono_utc=None, nav_cfg=None, kinds=("ekf", "
     Returns dict: ``time_s`` (epochs of the run), ``wls`` (list of Fix or None), and one list of Fix (or
     None where the WLS failed) per kind.
     """
-    import h5py
-
+    from ..runfile.reader import RunFile
     from .pvt import NavSolver, Observation
-    with h5py.File(run_h5, "r") as f:
-        nav = {k: f["navigation"][k][:] for k in ("gps_week", "gps_tow", "time_s", "clock_bias_m")}
-        obs = {k: f["observables"][k][:] for k in ("time_s", "prn", "pseudorange_m", "doppler_hz",
-                                                   "cn0_dbhz", "carrier_phase_cycles")}
+    with RunFile(run_h5) as rf:
+        nav = rf.fix_columns(("gps_week", "gps_tow", "time_s", "clock_bias_m"))
+        obs = rf.observable_columns(("time_s", "prn", "pseudorange_m", "doppler_hz", "cn0_dbhz",
+                                     "carrier_phase_cycles"))
     # receiver clock: rx_tow = tow0 + (s - s0) / fs is affine in time_s; the median removes rounding
     week0 = int(nav["gps_week"][0])
-    rx = (nav["gps_week"] - week0) * 604800.0 + nav["gps_tow"] + nav["clock_bias_m"] / C_LIGHT
+    rx = week_seconds_since(nav["gps_week"], nav["gps_tow"], week0) + nav["clock_bias_m"] / C_LIGHT
     offset = float(np.median(rx - nav["time_s"]))
     solver = NavSolver(nav_cfg)
     kw = {} if nav_cfg is None else {"nav_cfg": nav_cfg}
@@ -420,9 +413,7 @@ def replay_run(run_h5, ephemerides, iono_utc=None, nav_cfg=None, kinds=("ekf", "
     for a, b in zip(starts, np.r_[starts[1:], len(t_all)]):
         rows = order[a:b]
         t = float(t_all[a])
-        rx_tow, week = offset + t, week0
-        while rx_tow >= 604800.0:
-            rx_tow, week = rx_tow - 604800.0, week + 1
+        week, rx_tow = normalize_week_tow(week0, offset + t)
         observations = [Observation(prn=int(obs["prn"][i]),
                                     tx_tow=rx_tow - float(obs["pseudorange_m"][i]) / C_LIGHT,
                                     doppler_hz=float(obs["doppler_hz"][i]),

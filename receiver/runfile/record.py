@@ -1,4 +1,5 @@
-"""The channel-epoch record: the one unit that flows from tracking to navigation and into HDF5.
+"""The records of a run: the channel-epoch record (the one unit that flows from tracking to navigation and into
+HDF5), the fix and observable rows of the navigation stage and the vector-loop log row.
 
 One record is written per channel per integration epoch.  Epochs start on a code-period boundary of the
 local replica: ``sample_index`` is the first sample of the epoch (counted from the first sample of the
@@ -40,3 +41,29 @@ STATE_BIT_SYNC = 2    # bit boundary known (epochs may be longer than 1 ms)
 STATE_LOST = 3
 STATE_NAMES = {STATE_PULL_IN: "pull_in", STATE_TRACK: "track", STATE_BIT_SYNC: "bit_sync",
                STATE_LOST: "lost"}
+
+# ---- navigation and vector-loop rows (/navigation, /observables, /vector of the run file)
+MODE_NAMES = {0: "scalar", 1: "vector"}
+
+FIX_DTYPE = np.dtype([
+    ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("ecef", "f8", (3,)),
+    ("velocity_ecef", "f8", (3,)), ("clock_bias_m", "f8"), ("clock_drift_mps", "f8"),
+    ("n_sats", "i4"), ("pdop", "f8"), ("hdop", "f8"), ("vdop", "f8"), ("gdop", "f8"),
+    ("mode", "u1"), ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
+])
+
+OBS_DTYPE = np.dtype([
+    ("epoch", "i4"), ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("prn", "i4"),
+    ("pseudorange_m", "f8"), ("pseudorange_rate_mps", "f8"), ("doppler_hz", "f8"),
+    ("carrier_phase_cycles", "f8"), ("cn0_dbhz", "f4"), ("lock_time_s", "f4"),
+    ("half_cycle_resolved", "u1"), ("used_in_fix", "u1"), ("elevation_deg", "f4"),
+    ("azimuth_deg", "f4"), ("residual_m", "f4"),
+])
+
+#: vector-loop diagnostics (/vector), decimated to output.vector_log_hz; PRN-indexed columns (column prn-1)
+#: are NaN for satellites without a vector channel
+VECTOR_LOG_DTYPE = np.dtype([
+    ("time_s", "f8"), ("tag_code", "f4"), ("tag_carrier", "f4"), ("manoeuvre", "u1"), ("n_valid", "u1"),
+    ("n_lock", "u1"), ("sigma_pos_m", "f4", (3,)), ("sigma_vel_mps", "f4", (3,)), ("sigma_bias_m", "f4"),
+    ("sigma_drift_mps", "f4"), ("r_code_m2", "f4", (32,)), ("r_carrier_m2s2", "f4", (32,)),
+])

@@ -13,45 +13,7 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from ..errors import UserError
 from .record import EPOCH_DTYPE, STATE_NAMES
-
-MODE_NAMES = {0: "scalar", 1: "vector"}
-
-FIX_DTYPE = np.dtype([
-    ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("ecef", "f8", (3,)),
-    ("velocity_ecef", "f8", (3,)), ("clock_bias_m", "f8"), ("clock_drift_mps", "f8"),
-    ("n_sats", "i4"), ("pdop", "f8"), ("hdop", "f8"), ("vdop", "f8"), ("gdop", "f8"),
-    ("mode", "u1"), ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
-])
-
-OBS_DTYPE = np.dtype([
-    ("epoch", "i4"), ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("prn", "i4"),
-    ("pseudorange_m", "f8"), ("pseudorange_rate_mps", "f8"), ("doppler_hz", "f8"),
-    ("carrier_phase_cycles", "f8"), ("cn0_dbhz", "f4"), ("lock_time_s", "f4"),
-    ("half_cycle_resolved", "u1"), ("used_in_fix", "u1"), ("elevation_deg", "f4"),
-    ("azimuth_deg", "f4"), ("residual_m", "f4"),
-])
-
-#: vector-loop diagnostics (/vector), decimated to output.vector_log_hz; PRN-indexed columns (column prn-1)
-#: are NaN for satellites without a vector channel
-VECTOR_LOG_DTYPE = np.dtype([
-    ("time_s", "f8"), ("tag_code", "f4"), ("tag_carrier", "f4"), ("manoeuvre", "u1"), ("n_valid", "u1"),
-    ("n_lock", "u1"), ("sigma_pos_m", "f4", (3,)), ("sigma_vel_mps", "f4", (3,)), ("sigma_bias_m", "f4"),
-    ("sigma_drift_mps", "f4"), ("r_code_m2", "f4", (32,)), ("r_carrier_m2s2", "f4", (32,)),
-])
-
-
-def open_h5(path, what: str = "file") -> h5py.File:
-    """Open an HDF5 file for reading; a missing or non-HDF5 file is a one-line UserError naming `what`."""
-    path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise UserError(f"{what} not found: {path}")
-    try:
-        return h5py.File(path, "r")
-    except OSError:
-        raise UserError(f"{path} is not an HDF5 file") from None
-
 
 def _append(group: h5py.Group, name: str, data: np.ndarray):
     if name not in group:

@@ -25,18 +25,18 @@ def simulate(scenario, out, sets, quiet):
         out = os.path.splitext(os.path.basename(scenario))[0] + ".bin"
     paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet)
     if not quiet:
-        import h5py
-        with h5py.File(paths["truth"], "r") as f:
-            a = f.attrs
-            sats = f["satellites"]
-            vis = [k for k in sats if sats[k]["visible"].size and bool(sats[k]["visible"][:].any())]
+        from ..runfile.truth import TruthFile
+        with TruthFile(paths["truth"]) as tf:
+            a = tf.attrs
+            sats = tf.satellites(("visible",))
+            vis = [k for k, s in sats.items() if s["visible"].size and bool(s["visible"].any())]
             click.echo(f"wrote {paths['if']} ({a['n_samples'] / a['sample_rate_hz']:.1f} s, {a['format']}, "
                        f"{a['sample_rate_hz'] / 1e6:g} MS/s, IF {a['if_hz']:g} Hz)")
             click.echo(f"truth {paths['truth']}: {len(vis)} satellites with signal: {' '.join(vis)}")
-            if "blockage" in f and f["blockage/kind"].size:
+            b = tf.table("blockage")
+            if b and b["kind"].size:
                 from .blockage import KIND_OUTAGE, KIND_RANDOM, KIND_TOTAL
-                b = f["blockage"]
-                kind, start, end = b["kind"][:], b["start_s"][:], b["end_s"][:]
+                kind, start, end = b["kind"], b["start_s"], b["end_s"]
                 parts = []
                 tot = kind == KIND_TOTAL
                 if tot.any():
@@ -45,7 +45,7 @@ def simulate(scenario, out, sets, quiet):
                 if (kind == KIND_OUTAGE).any():
                     parts.append(f"{int((kind == KIND_OUTAGE).sum())} satellite outages")
                 if (kind == KIND_RANDOM).any():
-                    ra = b.attrs
+                    ra = tf.group_attrs("blockage")
                     parts.append(f"{int((kind == KIND_RANDOM).sum())} random blockages in "
                                  f"{ra['random_start_s']:g}-{ra['random_end_s']:g} s, >= "
                                  f"{int(ra['random_min_visible'])} satellites visible "

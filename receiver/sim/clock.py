@@ -31,11 +31,13 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-#: (h0, h_1, h_2) of common oscillators (typical values quoted in GNSS textbooks)
+from ..gnss.clock import OSCILLATORS
+
+#: (h0, h_1, h_2) of the scenario's ``clock.noise`` presets (the oscillator table of receiver.gnss.clock)
 CLOCK_PRESETS = {
     "none": (0.0, 0.0, 0.0),
-    "tcxo": (2e-19, 7e-21, 2e-20),
-    "ocxo": (8e-20, 2e-21, 4e-23),
+    "tcxo": OSCILLATORS["tcxo"],
+    "ocxo": OSCILLATORS["ocxo"],
 }
 
 

@@ -14,9 +14,10 @@ import numpy as np
 
 from ..config import read_yaml
 from ..errors import UserError
-from ..gnss.ephemeris import Ephemeris, IonoUtc, WEEK_S, select
+from ..gnss.ephemeris import Ephemeris, IonoUtc, select
 from ..gnss.lnav import EPH_LSB, IONO_LSB
 from ..gnss.rinex import read_rinex_nav
+from ..gnss.time import WEEK_S
 
 #: fields of Ephemeris that are broadcast as scaled integers (floats in SI units)
 _SCALED = ("toe", "toc", "af0", "af1", "af2", "tgd", "sqrt_a", "e", "i0", "omega0", "omega", "m0",

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..gnss.clock import OSCILLATORS
 from ..gnss.signals import C_LIGHT
 
 DT = 0.5e-3
@@ -39,8 +40,8 @@ class CorrScenario:
     s4: float = 0.0
     sigma_phi: float = 0.0
     tau0_s: float = 0.5
-    h0: float = 2e-19                          # receiver oscillator (TCXO)
-    h_2: float = 2e-20
+    h0: float = OSCILLATORS["tcxo"][0]         # receiver oscillator (TCXO)
+    h_2: float = OSCILLATORS["tcxo"][2]
     dynamics: str = "static"                   # static | manoeuvre
     accel_g: float = 2.0
     doppler_hz: float = 0.0
@@ -230,24 +231,17 @@ def tracking_threshold(t, err_cycles, cn0_true, window_s=1.0, max_std_deg=30.0, 
 
 def if_phase_error(run_h5, truth_h5, prn, if_hz=0.0):
     """Phase error of an IF-level run against the simulator truth: per epoch (state bit_sync), the truth
-    carrier phase minus the NCO phase at the epoch midpoint (cycles).  Returns (t_mid, err, prompt I, Q,
-    integration s)."""
-    import h5py
-    with h5py.File(run_h5, "r") as f:
-        g = f["channels"][f"G{prn:02d}"]
-        st = g["state"][:]
-        sel = st == 2
-        t0 = g["time_s"][:][sel]
-        T = g["integration_ms"][:][sel] * 1e-3
-        carr = g["carrier_phase_cycles"][:][sel]
-        dop = g["doppler_hz"][:][sel]
-        ip = g["prompt_i"][:][sel].astype(float)
-        qp = g["prompt_q"][:][sel].astype(float)
-    with h5py.File(truth_h5, "r") as f:
-        s = f["satellites"][f"G{prn:02d}"]
-        tt = s["time_s"][:]
-        tc = s["carrier_phase_cycles"][:]
-    tm = t0 + T / 2.0
-    nco = carr + (dop + if_hz) * T / 2.0 - if_hz * tm
-    err = np.interp(tm, tt, tc) - nco
-    return tm, err, ip, qp, T
+    carrier phase minus the NCO phase at the epoch midpoint (cycles;
+    :func:`receiver.runfile.truth.carrier_phase_error`).  Returns (t_mid, err, prompt I, Q, integration s)."""
+    from ..runfile.reader import RunFile
+    from ..runfile.truth import TruthFile, carrier_phase_error
+    name = f"G{prn:02d}"
+    with RunFile(run_h5) as rf:
+        ch = rf.channel(name, ("state", "time_s", "integration_ms", "carrier_phase_cycles", "doppler_hz",
+                               "prompt_i", "prompt_q"))
+    with TruthFile(truth_h5) as tf:
+        sat = tf.satellite(name, ("time_s", "carrier_phase_cycles", "doppler_hz"))
+    sel = ch["state"] == 2
+    ch = {k: v[sel] for k, v in ch.items()}
+    tm, err = carrier_phase_error(ch, sat, if_hz, at="mid")
+    return tm, err, ch["prompt_i"].astype(float), ch["prompt_q"].astype(float), ch["integration_ms"] * 1e-3

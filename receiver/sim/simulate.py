@@ -40,14 +40,16 @@ import yaml
 
 from .. import __version__
 from ..errors import UserError
+from ..estimation.interpolation import hermite
 from ..gnss.geodesy import ecef2lla
 from ..source.io import is_complex
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
-from ..gnss.ephemeris import IonoUtc, WEEK_S, earth_rotation, sat_state
+from ..gnss.ephemeris import IonoUtc, earth_rotation, sat_state
 from ..gnss.lnav import encode_subframes
 from ..gnss.registry import get_signal
 from ..gnss.signals import CA_CHIP_RATE, C_LIGHT, L1_HZ, OMEGA_E, ca_code  # noqa: F401
 from ..gnss.signals_bds import data_signs
+from ..gnss.time import WEEK_S
 from .blockage import Blockage
 from .clock import ClockGenerator
 from .constellation import load_constellation, quantize_iono
@@ -177,27 +179,6 @@ class _Cn0:
 
 
 # ------------------------------------------------------------------------------------------ geometry
-def hermite(xn, yn, dyn, x, deriv=False):
-    """Cubic Hermite interpolation through nodes xn (increasing) with values yn and slopes dyn.
-
-    yn / dyn may have trailing dimensions (n, ...).  With deriv, the derivative of the interpolant."""
-    xn = np.asarray(xn, dtype=float)
-    k = np.clip(np.searchsorted(xn, x, side="right") - 1, 0, xn.size - 2)
-    h = xn[k + 1] - xn[k]
-    s = (x - xn[k]) / h
-    s2 = s * s
-    if deriv:
-        c = (6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s)
-    else:
-        s3 = s2 * s
-        c = (2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2)
-    extra = (slice(None),) + (None,) * (np.ndim(yn) - 1)
-    c = [ci[extra] for ci in c]
-    hh = h[extra]
-    out = c[0] * yn[k] + c[1] * hh * dyn[k] + c[2] * yn[k + 1] + c[3] * hh * dyn[k + 1]
-    return out / hh if deriv else out
-
-
 class SatelliteTrack:
     """Satellite position, velocity and clock at TRUE GPS times, by cubic Hermite interpolation.
 

@@ -15,7 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ...gnss.signals import C_LIGHT, L1_HZ
+from ...gnss.signals import C_LIGHT, GPS_L1CA
 from .base import CarrierLoop
 from .. import kernel as K
 
@@ -27,7 +27,7 @@ class PythonLoop(CarrierLoop):
         super().__init__(cfg)
         self.car = cfg.carrier if cfg is not None else None
         self.epoch_s = None
-        self.carrier_hz = L1_HZ
+        self.carrier_hz = GPS_L1CA.carrier_hz      # until start() is given the channel signal's carrier
 
     def start(self, doppler_hz: float, T: float, rate_hz_s: float = 0.0, carrier_hz: float | None = None):
         self.doppler_hz = float(doppler_hz)

@@ -15,16 +15,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...gnss.clock import OSCILLATORS, h0_h2
 from ...gnss.geodesy import ecef2lla, enu_matrix
 from ...gnss.signals import C_LIGHT
 from .kalman import FORM_NONE
 
-#: oscillator classes, (h0, h_-2) of the fractional-frequency PSD (textbook values)
-CLOCK_CLASSES = {
-    "tcxo": (2e-19, 2e-20),
-    "ocxo": (8e-20, 4e-23),
-    "rubidium": (2e-20, 4e-29),
-}
+#: oscillator classes, (h0, h_-2) of the fractional-frequency PSD (receiver.gnss.clock)
+CLOCK_CLASSES = {k: h0_h2(k) for k in OSCILLATORS}
 
 
 def clock_psd(clock_class: str):

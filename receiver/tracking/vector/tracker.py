@@ -27,7 +27,7 @@ import numpy as np
 from .. import kernel as K
 from ...gnss.geodesy import ecef2lla, enu_matrix
 from ...gnss.ephemeris import select
-from ...runfile.writer import FIX_DTYPE, VECTOR_LOG_DTYPE
+from ...runfile.record import FIX_DTYPE, VECTOR_LOG_DTYPE
 from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
 from ..scalar import Channel, to_records
 from . import loop as L

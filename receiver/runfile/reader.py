@@ -1,70 +1,180 @@
-"""Read a finished gnssrx run file (HDF5) for the exporters, the report and ``gnssrx info``.
+"""Reading run files: the one place that opens a gnssrx run file (HDF5) for reading.
 
-:func:`load_run` returns a :class:`RunData` with the fix table (``/navigation``, as a FIX_DTYPE array), the
-observables table (``/observables``, OBS_DTYPE), the decoded ephemerides (``/ephemeris``) and the parsed
-configuration.  The Klobuchar/UTC parameters (:meth:`RunData.iono`) are taken, in this order, from a
-``/iono_utc`` group (its attributes named like the :class:`IonoUtc` fields) when the file has one, from the
-RINEX navigation file of an assisted run (``navigation.ephemeris``, when it can still be read), or by decoding
-the LNAV message again from the stored prompt correlator outputs of ``/channels``.
+:class:`RunFile` gives typed access to one open run file -- attributes and configuration, the fix table
+(``/navigation`` as a FIX_DTYPE array), the observables (OBS_DTYPE), per-channel epoch records (any subset of
+the EPOCH_DTYPE columns, optionally decimated), the vector-loop log (``/vector``), the acquisition table, the
+stored ephemerides and iono/UTC parameters -- reading only the columns asked for, so memory stays bounded by
+one channel's columns however long the run.
 
-Time helpers turn GPS week/seconds into UTC with the leap seconds broadcast in the message (or the table
-below when they were not decoded).
+:func:`load_run` returns a :class:`RunData` for the exporters, the report and ``gnssrx info``: the fix and
+observable tables, the decoded ephemerides and the parsed configuration.  The Klobuchar/UTC parameters
+(:meth:`RunData.iono`) are taken, in this order, from a ``/iono_utc`` group (its attributes named like the
+:class:`IonoUtc` fields) when the file has one, from the RINEX navigation file of an assisted run
+(``navigation.ephemeris``, when it can still be read), or by decoding the LNAV message again from the stored
+prompt correlator outputs of ``/channels``.
+
+GPS week/seconds become UTC with the leap seconds broadcast in the message (or the table in
+:mod:`receiver.gnss.time` when they were not decoded).  The simulator's truth file has its own reader,
+:mod:`receiver.runfile.truth`.
 """
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import os
 from dataclasses import dataclass, field
 
+import h5py
 import numpy as np
 import yaml
 
 from ..errors import UserError
 from ..gnss.ephemeris import Ephemeris, IonoUtc
-from ..runfile.writer import FIX_DTYPE, OBS_DTYPE, open_h5
 from ..gnss.signals import C_LIGHT
-
-GPS_EPOCH = _dt.datetime(1980, 1, 6)
-WEEK_S = 604800.0
-
-# GPS - UTC (s) in force from each UTC date on (the leap seconds inserted since the GPS epoch)
-_LEAP_TABLE = (
-    (_dt.datetime(1981, 7, 1), 1), (_dt.datetime(1982, 7, 1), 2), (_dt.datetime(1983, 7, 1), 3),
-    (_dt.datetime(1985, 7, 1), 4), (_dt.datetime(1988, 1, 1), 5), (_dt.datetime(1990, 1, 1), 6),
-    (_dt.datetime(1991, 1, 1), 7), (_dt.datetime(1992, 7, 1), 8), (_dt.datetime(1993, 7, 1), 9),
-    (_dt.datetime(1994, 7, 1), 10), (_dt.datetime(1996, 1, 1), 11), (_dt.datetime(1997, 7, 1), 12),
-    (_dt.datetime(1999, 1, 1), 13), (_dt.datetime(2006, 1, 1), 14), (_dt.datetime(2009, 1, 1), 15),
-    (_dt.datetime(2012, 7, 1), 16), (_dt.datetime(2015, 7, 1), 17), (_dt.datetime(2017, 1, 1), 18),
-)
+from ..gnss.time import gps_datetime, leap_seconds_at
+from .record import FIX_DTYPE, OBS_DTYPE, STATE_BIT_SYNC
 
 
-def leap_seconds_at(gps_time: _dt.datetime) -> int:
-    """GPS - UTC (s) from the built-in table (used when the message's value is not known)."""
-    n = 0
-    for since, value in _LEAP_TABLE:
-        if gps_time >= since + _dt.timedelta(seconds=value):
-            n = value
-    return n
+def open_h5(path, what: str = "file") -> h5py.File:
+    """Open an HDF5 file for reading; a missing or non-HDF5 file is a one-line UserError naming `what`."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise UserError(f"{what} not found: {path}")
+    try:
+        return h5py.File(path, "r")
+    except OSError:
+        raise UserError(f"{path} is not an HDF5 file") from None
 
 
-def gps_datetime(week: int, tow: float) -> _dt.datetime:
-    """GPS week + seconds of week -> naive datetime on the GPS time scale (microsecond resolution)."""
-    whole = math.floor(tow)
-    return (GPS_EPOCH + _dt.timedelta(days=7 * int(week), seconds=int(whole))
-            + _dt.timedelta(microseconds=round((tow - whole) * 1e6)))
+def _plain(v):
+    return v.decode() if isinstance(v, bytes) else v
 
 
-def split_gps_time(week: int, tow: float, decimals: int):
-    """GPS week + seconds of week -> (datetime to the whole second, fractional seconds rounded to
-    ``decimals``) without losing precision (a datetime keeps only microseconds)."""
-    whole = math.floor(tow)
-    scale = 10 ** decimals
-    frac = round((tow - whole) * scale)
-    if frac >= scale:
-        whole, frac = whole + 1, frac - scale
-    t = GPS_EPOCH + _dt.timedelta(days=7 * int(week), seconds=int(whole))
-    return t, frac / scale
+def _read(ds, step: int = 1):
+    return ds[:] if step == 1 else ds[::step]
+
+
+class RunFile:
+    """One run file open for reading (a context manager; :meth:`close` releases the file).
+
+    Column access returns plain numpy arrays; a column the file does not have is left out of the returned
+    dict (older files, hand-made files); the typed tables (:meth:`fixes`, :meth:`observables`) fill it with
+    NaN / 0 instead."""
+
+    def __init__(self, path, what: str = "run file"):
+        self.path = os.fspath(path)
+        self.f = open_h5(self.path, what)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
+        if self.f is not None:
+            self.f.close()
+            self.f = None
+
+    # ---------------------------------------------------------------------------------- file level
+    @property
+    def attrs(self) -> dict:
+        return {k: _plain(v) for k, v in self.f.attrs.items()}
+
+    def config(self) -> dict:
+        """The run's configuration (the ``config`` attribute, parsed); {} when absent or unreadable."""
+        try:
+            cfg = yaml.safe_load(_plain(self.f.attrs.get("config", ""))) or {}
+        except yaml.YAMLError:
+            cfg = {}
+        return cfg if isinstance(cfg, dict) else {}
+
+    def has(self, path: str) -> bool:
+        return path in self.f
+
+    def groups(self) -> list[str]:
+        return list(self.f.keys())
+
+    def is_run_file(self) -> bool:
+        return "config" in self.f.attrs or "navigation" in self.f or "channels" in self.f
+
+    def datasets(self) -> list[tuple[str, tuple, np.dtype]]:
+        """(path, shape, dtype) of every dataset in the file."""
+        rows = []
+
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset):
+                rows.append((name, obj.shape, obj.dtype))
+        self.f.visititems(visit)
+        return rows
+
+    def group_attrs(self, path: str) -> dict | None:
+        """Attributes of a group, or None when the file has no such group."""
+        return {k: _plain(v) for k, v in self.f[path].attrs.items()} if path in self.f else None
+
+    def length(self, path: str) -> int:
+        """Rows of a table group (the length of its ``time_s``, else of its first dataset); 0 when absent."""
+        if path not in self.f:
+            return 0
+        g = self.f[path]
+        names = ["time_s"] if "time_s" in g else [k for k in g if isinstance(g[k], h5py.Dataset)]
+        return int(g[names[0]].shape[0]) if names else 0
+
+    def columns(self, path: str, names=None, step: int = 1) -> dict:
+        """Datasets of a table group as a dict (``names``: the subset wanted; ``step``: every step-th row)."""
+        if path not in self.f:
+            return {}
+        g = self.f[path]
+        names = list(g.keys()) if names is None else [k for k in names if k in g]
+        return {k: _read(g[k], step) for k in names if isinstance(g[k], h5py.Dataset)}
+
+    # ---------------------------------------------------------------------------------- tables
+    def fixes(self) -> np.ndarray:
+        """``/navigation`` as a FIX_DTYPE array."""
+        return _table(self.f["navigation"], FIX_DTYPE) if "navigation" in self.f else np.zeros(0, FIX_DTYPE)
+
+    def fix_columns(self, names=None) -> dict | None:
+        """``/navigation`` columns as a dict, or None when the run has no fixes table."""
+        if "navigation" not in self.f or "gps_tow" not in self.f["navigation"]:
+            return None
+        return self.columns("navigation", names)
+
+    def observables(self) -> np.ndarray:
+        """``/observables`` as an OBS_DTYPE array."""
+        return _table(self.f["observables"], OBS_DTYPE) if "observables" in self.f else np.zeros(0, OBS_DTYPE)
+
+    def observable_columns(self, names=None) -> dict:
+        return self.columns("observables", names)
+
+    def vector_log(self, names=None, step: int = 1) -> dict | None:
+        """``/vector`` columns (VECTOR_LOG_DTYPE names), or None when the run has no vector log."""
+        if not self.length("vector"):
+            return None
+        return self.columns("vector", names, step)
+
+    def acquisition(self, names=None) -> dict:
+        return self.columns("acquisition", names)
+
+    def ephemerides(self) -> list:
+        """The decoded ephemerides stored in ``/ephemeris``."""
+        return _ephemerides(self.f["ephemeris"]) if "ephemeris" in self.f else []
+
+    def iono_utc_attrs(self) -> dict | None:
+        return self.group_attrs("iono_utc")
+
+    # ---------------------------------------------------------------------------------- channels
+    def channel_names(self) -> list[str]:
+        return list(self.f["channels"].keys()) if "channels" in self.f else []
+
+    def channel_prn(self, name: str) -> int:
+        g = self.f["channels"][name]
+        return int(g.attrs.get("prn", int(name[1:]) if name[1:].isdigit() else 0))
+
+    def channel_length(self, name: str) -> int:
+        return self.length(f"channels/{name}")
+
+    def channel(self, name: str, names=None, step: int = 1) -> dict:
+        """Epoch-record columns (EPOCH_DTYPE names) of one channel; ``step``: every step-th record."""
+        return self.columns(f"channels/{name}", names, step)
 
 
 @dataclass
@@ -116,11 +226,10 @@ class RunData:
         return self._iono
 
     def _stored_iono(self):
-        import h5py
-        with h5py.File(self.path, "r") as f:
-            if "iono_utc" not in f:
-                return None
-            a = dict(f["iono_utc"].attrs)
+        with RunFile(self.path) as rf:
+            a = rf.iono_utc_attrs()
+        if a is None:
+            return None
         try:
             return IonoUtc(alpha=tuple(float(v) for v in a["alpha"]), beta=tuple(float(v) for v in a["beta"]),
                            a0=float(a.get("a0", 0.0)), a1=float(a.get("a1", 0.0)),
@@ -292,36 +401,25 @@ def _ephemerides(group) -> list:
 def load_run(path) -> RunData:
     """Read a run file.  Raises UserError when it is missing or not a gnssrx run file."""
     path = os.fspath(path)
-    f = open_h5(path, "run file")
-    with f:
-        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
-        if "config" not in attrs and "navigation" not in f and "channels" not in f:
+    with RunFile(path) as rf:
+        if not rf.is_run_file():
             raise UserError(f"{path} is not a gnssrx run file (no config attribute, no /navigation, /channels)")
-        try:
-            config = yaml.safe_load(attrs.get("config", "")) or {}
-        except yaml.YAMLError:
-            config = {}
-        fixes = _table(f["navigation"], FIX_DTYPE) if "navigation" in f else np.zeros(0, FIX_DTYPE)
-        obs = _table(f["observables"], OBS_DTYPE) if "observables" in f else np.zeros(0, OBS_DTYPE)
-        ephs = _ephemerides(f["ephemeris"]) if "ephemeris" in f else []
-        groups = list(f.keys())
-    return RunData(path=path, attrs=attrs, config=config if isinstance(config, dict) else {},
-                   fixes=fixes, obs=obs, ephemerides=ephs, groups=groups)
+        return RunData(path=path, attrs=rf.attrs, config=rf.config(), fixes=rf.fixes(), obs=rf.observables(),
+                       ephemerides=rf.ephemerides(), groups=rf.groups())
 
 
 # --------------------------------------------------------------------------------------------------
 # LNAV decoding from stored channel records (for files that do not store the iono/UTC parameters)
 # --------------------------------------------------------------------------------------------------
-def _bit_sums(g):
-    """Soft 20-ms bits of one channel group: (bit indices, sums), from the bit-synchronised epochs."""
-    from ..runfile.record import STATE_BIT_SYNC
-    state = g["state"][:]
-    sync = state == STATE_BIT_SYNC
+def _bit_sums(ch: dict):
+    """Soft 20-ms bits of one channel (columns state, code_period, prompt_i[, integration_ms]):
+    (bit indices, sums), from the bit-synchronised epochs."""
+    sync = ch["state"] == STATE_BIT_SYNC
     if np.count_nonzero(sync) < 200:
         return None
-    cp = g["code_period"][:][sync]
-    pi = g["prompt_i"][:][sync].astype(float)
-    ms = g["integration_ms"][:][sync].astype(float) if "integration_ms" in g else np.ones(len(cp))
+    cp = ch["code_period"][sync]
+    pi = ch["prompt_i"][sync].astype(float)
+    ms = ch["integration_ms"][sync].astype(float) if "integration_ms" in ch else np.ones(len(cp))
     # the bit boundary: sign changes of the prompt happen only there
     s = np.sign(pi)
     change = np.nonzero(s[1:] * s[:-1] < 0)[0] + 1
@@ -338,20 +436,18 @@ def _bit_sums(g):
 
 def decode_channels(path, week_hint=None):
     """Decode the LNAV message of every stored channel again.  Returns (prn -> Ephemeris, IonoUtc or None)."""
-    import h5py
     from ..gnss.lnav import LnavDecoder
     ephs, iono = {}, None
-    with h5py.File(path, "r") as f:
-        if "channels" not in f:
-            return ephs, iono
-        for name, g in f["channels"].items():
-            if not all(k in g for k in ("state", "code_period", "prompt_i")):
+    with RunFile(path) as rf:
+        for name in rf.channel_names():
+            ch = rf.channel(name, ("state", "code_period", "prompt_i", "integration_ms"))
+            if not all(k in ch for k in ("state", "code_period", "prompt_i")):
                 continue
-            bits = _bit_sums(g)
+            bits = _bit_sums(ch)
             if bits is None:
                 continue
             idx, sums = bits
-            prn = int(g.attrs.get("prn", int(name[1:]) if name[1:].isdigit() else 0))
+            prn = rf.channel_prn(name)
             dec = LnavDecoder(prn, week_hint=week_hint)
             runs = np.split(np.arange(len(idx)), np.nonzero(np.diff(idx) != 1)[0] + 1)
             for r in runs:
@@ -362,63 +458,3 @@ def decode_channels(path, week_hint=None):
             if iono is None and dec.iono_utc is not None:
                 iono = dec.iono_utc
     return ephs, iono
-
-
-# --------------------------------------------------------------------------------------------------
-# truth (for the report)
-# --------------------------------------------------------------------------------------------------
-def load_truth(path):
-    """Truth trajectory: a simulator truth HDF5 (/receiver/{gps_tow, ecef, velocity_ecef}, attr gps_week)
-    or a YAML file with a static ``truth`` mapping (``ecef_m`` or ``lat_deg``/``lon_deg``/``height_m``).
-
-    Returns dict(week, gps_tow (n,), ecef (n,3), velocity_ecef (n,3)) -- n = 1 for a static truth
-    (velocity 0)."""
-    path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise UserError(f"truth file not found: {path}")
-    if path.lower().endswith((".yaml", ".yml")):
-        from ..config import read_yaml
-        raw = read_yaml(path)
-        t = raw.get("truth", raw)
-        if not isinstance(t, dict):
-            raise UserError(f"truth file {path}: no 'truth' mapping")
-        if "ecef_m" in t:
-            ecef = np.asarray(t["ecef_m"], float).reshape(1, 3)
-        elif all(k in t for k in ("lat_deg", "lon_deg")):
-            from ..gnss.geodesy import lla2ecef
-            ecef = lla2ecef(float(t["lat_deg"]), float(t["lon_deg"]), float(t.get("height_m", 0.0))).reshape(1, 3)
-        else:
-            raise UserError(f"truth file {path}: 'truth' needs ecef_m or lat_deg/lon_deg/height_m")
-        return {"week": None, "gps_tow": np.zeros(1), "ecef": ecef, "velocity_ecef": np.zeros((1, 3)),
-                "static": True}
-    import h5py
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise UserError(f"truth file {path} is neither YAML nor HDF5") from None
-    with f:
-        if "receiver" not in f:
-            raise UserError(f"truth file {path} has no /receiver group (not a gnssrx simulator truth file)")
-        g = f["receiver"]
-        out = {"week": int(f.attrs.get("gps_week", 0)), "gps_tow": g["gps_tow"][:].astype(float),
-               "ecef": g["ecef"][:].astype(float),
-               "velocity_ecef": (g["velocity_ecef"][:].astype(float) if "velocity_ecef" in g
-                                 else np.zeros((len(g["gps_tow"]), 3))),
-               "static": False}
-    return out
-
-
-def truth_at(truth, week, tow):
-    """Truth position and velocity at the given GPS times (arrays); NaN outside the truth's span."""
-    tow = np.asarray(tow, float)
-    if truth.get("static"):
-        n = len(tow)
-        return np.repeat(truth["ecef"], n, axis=0), np.zeros((n, 3))
-    t = tow + (np.asarray(week, float) - truth["week"]) * WEEK_S if truth["week"] else tow
-    tt = truth["gps_tow"]
-    inside = (t >= tt[0]) & (t <= tt[-1])
-    pos = np.stack([np.interp(t, tt, truth["ecef"][:, k]) for k in range(3)], axis=1)
-    vel = np.stack([np.interp(t, tt, truth["velocity_ecef"][:, k]) for k in range(3)], axis=1)
-    pos[~inside] = np.nan
-    vel[~inside] = np.nan
-    return pos, vel

@@ -1,0 +1,86 @@
+"""The two worker tasks of a batch -- simulate one recording, run the receiver on one config and score it --
+executed in this process, a process-pool worker or a Dask worker (see :mod:`receiver.batch.executors`).
+Neither raises for a failing run: the failure is recorded in the result."""
+from __future__ import annotations
+
+import io
+import math
+import os
+import time
+import traceback
+
+from ..config import RECEIVER_SCHEMA, build
+from ..logs import capture
+from .cache import _write_json
+from .metrics import METRICS_VERSION, compute_metrics
+
+
+def write_nav_for_scenario(scenario: dict, path: str):
+    """The ephemerides and iono/UTC the simulator broadcasts for this scenario, as a RINEX 3.04 nav file."""
+    from ..gnss.ephemeris import IonoUtc
+    from ..gnss.rinex import write_rinex_nav
+    from ..sim.constellation import load_constellation, quantize_iono
+    from ..sim.scenario import load_scenario, resolve_path
+    sc = load_scenario(scenario)
+    con, tm, atm = sc.constellation, sc.time, sc.atmosphere
+    cons = load_constellation(con.source, resolve_path(con.rinex, "RINEX file") if con.rinex else None,
+                              resolve_path(con.nominal_file, "constellation file"), tm.gps_week, tm.tow_s,
+                              tm.tow_s + tm.duration_s / 2.0)
+    ephs = dict(cons.ephemerides)
+    if con.prns:
+        ephs = {p: e for p, e in ephs.items() if p in con.prns}
+    for p in con.exclude_prns:
+        ephs.pop(p, None)
+    iono = cons.iono_utc
+    if atm.klobuchar_alpha is not None or atm.klobuchar_beta is not None:
+        base = iono or IonoUtc(wnt=tm.gps_week, dt_ls=18, tot=math.floor(tm.tow_s / 4096.0) * 4096.0)
+        iono = quantize_iono(IonoUtc(**{**base.__dict__, "alpha": tuple(atm.klobuchar_alpha or base.alpha),
+                                        "beta": tuple(atm.klobuchar_beta or base.beta)}))
+    tmp = path + ".tmp"
+    write_rinex_nav(tmp, {p: [e] for p, e in sorted(ephs.items())}, iono)
+    os.replace(tmp, path)
+
+
+def simulate_recording(task: dict) -> dict:
+    """Worker: simulate one recording (IF, truth, input fragment, RINEX nav, then the JSON marker)."""
+    t0 = time.perf_counter()
+    try:
+        from ..sim.simulate import simulate
+        paths = task["paths"]
+        os.makedirs(os.path.dirname(paths["if"]), exist_ok=True)
+        if os.path.exists(paths["meta"]):
+            os.remove(paths["meta"])
+        with capture(io.StringIO()):
+            simulate(task["scenario"], paths["if"], progress=False)
+        write_nav_for_scenario(task["scenario"], paths["nav"])
+        wall = time.perf_counter() - t0
+        _write_json(paths["meta"], {"key": task["key"], "input": task["input"], "seed": task["seed"],
+                                    "scenario": task["scenario"], "sim_wall_s": wall,
+                                    "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
+        return {"status": "ok", "wall_s": wall}
+    except Exception as exc:   # recorded, the batch continues
+        return {"status": "failed", "error": f"simulation failed: {type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc(limit=8), "wall_s": time.perf_counter() - t0}
+
+
+def execute_run(task: dict) -> dict:
+    """Worker: run the receiver on one config, then score it.  Never raises for a failing run."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = {"key": task["key"], "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    log = io.StringIO()
+    try:
+        from ..pipeline import run
+        cfg = build(RECEIVER_SCHEMA, task["config"])
+        with capture(log):                            # log records of the stages go to the run's record
+            run(cfg, quiet=True, log=lambda *a, **k: None)
+        m = compute_metrics(task["h5"], task["truth"], task["reference_llh"], task["carrier_settle_s"])
+        m["job_wall_s"] = time.perf_counter() - t0
+        m["job_cpu_s"] = time.process_time() - c0
+        out.update(status="ok", error="", metrics=m)
+    except Exception as exc:   # recorded, the batch continues
+        out.update(status="failed", error=f"{type(exc).__name__}: {exc}".strip(),
+                   traceback=traceback.format_exc(limit=12), metrics={"job_wall_s": time.perf_counter() - t0})
+    out["log"] = log.getvalue()[-4000:]
+    out["metrics_version"] = METRICS_VERSION
+    out["host"] = os.uname().nodename if hasattr(os, "uname") else ""
+    return out

@@ -1,0 +1,40 @@
+"""Each variant list has one owner, the registry of the module that implements the variants; the receiver
+config schema (which sits below those modules and cannot import them) must offer exactly the registered
+names, and the schema's help must not drift from them."""
+from receiver.config import RECEIVER_SCHEMA
+
+
+def _choices(dotted):
+    node = RECEIVER_SCHEMA
+    for part in dotted.split("."):
+        node = node[part]
+    return tuple(node.choices)
+
+
+def test_input_formats_are_the_readers():
+    from receiver.source.io import FORMATS
+    assert set(_choices("input.format")) == set(FORMATS)
+
+
+def test_signals_are_the_signal_registry():
+    from receiver.gnss.registry import SIGNAL_NAMES, get_signal
+    assert set(_choices("signal")) == set(SIGNAL_NAMES)
+    for name in SIGNAL_NAMES:
+        assert get_signal(name).name == name
+
+
+def test_carrier_loops_are_the_carrier_registry():
+    from receiver.tracking.carrier import REGISTRY
+    assert set(_choices("tracking.carrier.variant")) == set(REGISTRY)
+    assert all(cls.name == name for name, cls in REGISTRY.items())
+
+
+def test_vector_variants_are_the_vector_registry():
+    from receiver.tracking.vector import REGISTRY
+    assert set(_choices("vector.variant")) == set(REGISTRY)
+
+
+def test_oscillator_classes_are_the_clock_table():
+    from receiver.gnss.clock import OSCILLATORS
+    assert set(_choices("navigation.filter_clock")) == set(OSCILLATORS)
+    assert set(_choices("vector.clock_class")) == set(OSCILLATORS)
