@@ -197,14 +197,31 @@ def apply_overrides(raw: dict, overrides) -> dict:
     return raw
 
 
+def read_utf8(path, what: str = "file") -> str:
+    """The text of a UTF-8 file; another encoding (or binary data) is a one-line UserError naming the
+    first bad byte and its line."""
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise UserError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise UserError(f"{what} {path} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                        f"save it as UTF-8") from None
+
+
 def read_yaml(path) -> dict:
     """Read a YAML mapping; errors become one-line UserErrors."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise UserError(f"config file not found: {path}")
+    text = read_utf8(path, "config file")
     try:
-        with open(path) as fh:
-            raw = yaml_load(fh)
+        raw = yaml_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark else ""
@@ -254,6 +271,29 @@ RECEIVER_SCHEMA = {
                                          "time-tagging before the first decoded TOW)", nullable=True),
         "start_gps_tow_s": P(None, "float", "approximate GPS time of week of the first sample",
                              nullable=True),
+        "conditioning": {
+            "dc_removal": P(True, "bool", "remove the DC offset / LO leakage (a ~dc_bw_hz wide notch at 0 Hz "
+                                          "that follows a drifting offset)"),
+            "tone_detection": P(True, "bool", "detect CW tones / spurs in the spectrum of the first detect_ms "
+                                              "(reported in the run summary and /conditioning)"),
+            "tone_excision": P(True, "bool", "cancel the detected tones (one adaptive notch of notch_bw_hz "
+                                             "per tone, causal, continuous across blocks)"),
+            "detect_ms": P(100.0, "float", "span analysed by the tone detector (ms; shorter files: all of "
+                                           "it)", lo=1.0),
+            "fft_size": P(4096, "int", "periodogram length of the tone detector (bin = sample rate / "
+                                       "fft_size)", lo=64, hi=1 << 20),
+            "pfa": P(1e-3, "float", "probability of one or more false tone detections over the whole "
+                                    "spectrum of white noise", lo=1e-12, hi=0.5),
+            "min_db": P(6.0, "float", "a tone must also exceed the local noise floor of its periodogram "
+                                       "bin by this much (dB)", lo=0.0),
+            "max_tones": P(32, "int", "largest number of tones cancelled (the strongest; up to max(16, max_tones) are "
+                                      "reported)", lo=0, hi=64),
+            "notch_bw_hz": P(100.0, "float", "-3 dB width of each tone notch (Hz)", lo=1.0),
+            "dc_bw_hz": P(100.0, "float", "-3 dB width of the DC notch (Hz)", lo=1.0),
+            "pulse_blanking": P(False, "bool", "zero samples whose magnitude exceeds blank_sigma x the RMS "
+                                               "of the conditioned detection span (pulsed interference)"),
+            "blank_sigma": P(5.0, "float", "pulse blanking threshold in RMS units", lo=1.0),
+        },
     },
     "signal": P("gps_l1ca", "str", "signal to acquire and track (bds_b1i: BeiDou B1I, no navigation "
                                    "decoding)", choices=("gps_l1ca", "bds_b1i")),
@@ -269,6 +309,17 @@ RECEIVER_SCHEMA = {
                                       "non-Gaussian tail that strong signals' cross-correlation adds (README)",
                        lo=0.1),
         "start_s": P(0.0, "float", "time into the processed span where acquisition starts", lo=0.0),
+        "width_ratio": P(0.3, "float", "a peak is rejected when the mean power 2-4 chips beside it, above "
+                                       "the floor, exceeds this fraction of the peak's (CW tones give broad "
+                                       "maxima)", lo=0.0),
+        "verify": P(True, "bool", "verification dwell: a detection must be found again in the next, "
+                                  "independent coherent_ms x noncoherent block (skipped when the file is "
+                                  "too short)"),
+        "lo_search_hz": P(25000.0, "float", "when fewer than 4 satellites are found, search the others again "
+                                            "over this Doppler half-range (front-end LO offsets; 0 = off)",
+                          lo=0.0),
+        "lo_warn_hz": P(3000.0, "float", "warn when the median Doppler of the satellites found exceeds "
+                                         "this (a common LO / oscillator offset)", lo=0.0),
     },
     "tracking": {
         "max_channels": P(12, "int", "maximum number of tracking channels", lo=1, hi=64),
@@ -292,9 +343,31 @@ RECEIVER_SCHEMA = {
         "lock_cn0_min_dbhz": P(25.0, "float", "C/N0 below which lock is declared lost", lo=0.0),
         "lock_ratio_min": P(1.5, "float", "PLL lock detector: lock while low-passed |I| exceeds this "
                                           "times low-passed |Q|", lo=1.0),
-        "lost_ms": P(1000, "int", "time below the lock thresholds before a channel is dropped", lo=10),
-        "reacquire_s": P(5.0, "float", "interval between re-acquisition attempts for missing PRNs",
-                         lo=0.1),
+        "lost_ms": P(200, "int", "time below the lock thresholds before a channel declares the signal lost "
+                                "(its satellite is then re-acquired around the prediction, README: outages)",
+                     lo=10),
+        "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
+                                       "or no longer predictable", lo=0.1),
+        "reacquisition": {
+            "doppler_hz": P(40.0, "float", "Doppler half-window of the hot search right after a loss (error of "
+                                           "the Doppler extrapolated from the last tracked state)", lo=0.0),
+            "code_chips": P(1.5, "float", "code-phase half-window of the hot search right after a loss",
+                            lo=0.0),
+            "accel_mps2": P(5.0, "float", "receiver acceleration bound along the line of sight: the windows "
+                                          "widen by accel t / lambda (Doppler) and accel t^2 / 2 (code) with "
+                                          "the outage length t (warm start)", lo=0.0),
+            "speed_mps": P(60.0, "float", "receiver speed bound: caps the widening at 2 speed / lambda "
+                                          "(Doppler) and 2 speed t (code)", lo=0.0),
+            "max_age_s": P(300.0, "float", "outages longer than this fall back to the cold full-grid search",
+                           lo=0.0),
+            "coherent_ms": P(2, "int", "coherent integration of the narrow search (ms)", lo=1, hi=10),
+            "noncoherent": P(10, "int", "non-coherent sums of the narrow search", lo=1, hi=100),
+            "pfa": P(1e-4, "float", "false-alarm probability over the narrow search window", lo=1e-12,
+                     hi=0.5),
+            "pull_in_ms": P(100, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
+            "settle_s": P(0.3, "float", "a re-acquired channel's measurements are used this long after its "
+                                        "pull-in", lo=0.0),
+        },
         "carrier": {
             "variant": P("pll", "str", "carrier loop variant: pll (built-in FLL-assisted PLL), cpll_atan "
                                        "(ATAN Costas PLL, loop filter of order `order`), ekf (I/Q extended "
@@ -344,6 +417,9 @@ RECEIVER_SCHEMA = {
                        choices=("elevation", "cn0", "none", "rtklib")),
         "residual_threshold_m": P(30.0, "float", "drop the worst satellite when a residual exceeds this",
                                   lo=0.0),
+        "max_pdop": P(20.0, "float", "no fix when the PDOP of the satellites used exceeds this (4-satellite "
+                                     "fixes in urban canyons reach PDOP > 100 and errors of hundreds of m)",
+                      lo=1.0),
         "filter": P("wls", "str", "navigation solution: wls (single-epoch weighted least squares and "
                                   "Doppler velocity), ekf (extended Kalman filter) or ckf (square-root "
                                   "cubature Kalman filter) over position, velocity, clock bias and drift, fed "
@@ -418,9 +494,18 @@ RECEIVER_SCHEMA = {
                                                  "exceeds this many standard deviations (0 = off, the papers' "
                                                  "setting); the innovation still feeds the adaptive R",
                                    lo=0.0),
-        "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, tracking.cn0_window_ms) above which a "
+        "cn0_window_ms": P(200, "int", "C/N0 (M2M4) window of the vector channels: it decides vector lock and "
+                                       "coasting, so it sets how fast a lost signal is noticed", lo=20),
+        "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, vector.cn0_window_ms) above which a "
                                           "vector channel counts as tracked (records' pll_lock, fixes' "
                                           "n_sats and DOPs; M2M4 on noise alone reads 20-30 dB-Hz)"),
+        "coast_mask": P(True, "bool", "while fewer than 4 channels carry signal (C/N0 above lock_cn0_dbhz) the "
+                                      "channels without signal are predicted only (no measurement update): "
+                                      "the filter coasts on its motion model instead of on noise"),
+        "reinit_sigma_m": P(30.0, "float", "an outage the filter cannot bridge: when its 3D position standard "
+                                           "deviation passes this while coasting, the channels fall back to "
+                                           "scalar tracking and the handover starts again from the next scalar "
+                                           "fix (0 = never)", lo=0.0),
         "drop_elevation_deg": P(-2.0, "float", "vector channels whose satellite sets below this elevation are "
                                                "dropped", lo=-90.0, hi=90.0),
         "add_predicted": P(True, "bool", "open channels predicted from the navigation solution for "
@@ -495,4 +580,29 @@ def load_receiver_config(path=None, overrides=None) -> Section:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
             raw[sec][key] = resolve_path(raw[sec][key], path)
     cfg = build(RECEIVER_SCHEMA, raw, overrides)
+    validate_receiver(cfg)
+    return cfg
+
+
+def validate_receiver(cfg: Section) -> Section:
+    """Checks of meaning that span several keys (one-line UserErrors): the IF inside the sampled band,
+    a non-empty PRN list (duplicates are removed with a warning)."""
+    i = cfg.input
+    half = i.sample_rate_hz / 2
+    if i.format.endswith("_real"):
+        if not 0.0 < i.if_hz < half:
+            raise UserError(f"config key 'input.if_hz' must be in (0, sample_rate_hz/2 = {half:g}) for the "
+                            f"real format {i.format}, got {i.if_hz:g}")
+    elif abs(i.if_hz) >= half:
+        raise UserError(f"config key 'input.if_hz' must be within +/- sample_rate_hz/2 = {half:g}, "
+                        f"got {i.if_hz:g}")
+    prns = cfg.acquisition.prns
+    if not prns:
+        raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
+    unique = list(dict.fromkeys(prns))
+    if len(unique) < len(prns):
+        from .errors import warn
+        dup = sorted({p for p in prns if prns.count(p) > 1})
+        warn(f"acquisition.prns lists PRN {', '.join(map(str, dup))} more than once; each is searched once")
+        cfg.acquisition._values["prns"] = unique
     return cfg

@@ -217,3 +217,24 @@ def test_week_rollover(brdc, rx):
     f = NavSolver(cfg()).fix(WEEK + 1, rx_tow, obs, ephs, iono)
     assert (f.gps_week, f.gps_tow) == (WEEK, pytest.approx(t_true, abs=1e-9))
     assert np.linalg.norm(f.ecef - rx) < 0.05
+
+
+def test_pdop_mask_refuses_weak_geometry(brdc, rx):
+    """navigation.max_pdop: a 4-satellite subset with a weak geometry gives no fix (its errors would be
+    PDOP x the pseudorange noise), the same subset with the mask lifted does, strong subsets always do."""
+    from itertools import combinations
+    ephs, iono = brdc
+    rx_tow, obs = simulate(ephs, iono, rx, sigma_m=2.0, seed=3)
+    open_solver = NavSolver(cfg(max_pdop=1e9))
+    fixes = [(sub, open_solver.fix(WEEK, rx_tow, list(sub), ephs, iono)) for sub in combinations(obs, 4)]
+    fixes = [(sub, f) for sub, f in fixes if f is not None]
+    weak = [(sub, f) for sub, f in fixes if f.pdop > 20.0]
+    strong = [(sub, f) for sub, f in fixes if f.pdop < 5.0]
+    assert weak and strong
+    masked = NavSolver(cfg(max_pdop=20.0))
+    for sub, f in weak:
+        assert masked.fix(WEEK, rx_tow, list(sub), ephs, iono) is None
+    assert max(np.linalg.norm(f.ecef - rx) for _, f in weak) > max(np.linalg.norm(f.ecef - rx) for _, f in strong)
+    for sub, f in strong:
+        g = masked.fix(WEEK, rx_tow, list(sub), ephs, iono)
+        assert g is not None and np.allclose(g.ecef, f.ecef)

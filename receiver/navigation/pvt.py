@@ -104,7 +104,7 @@ class NavSolver:
 
     nav_cfg: the receiver config ``navigation`` section (or any object with the attributes
     elevation_mask_deg, weighting ('elevation'|'cn0'|'none'), troposphere ('saastamoinen'|
-    'none'), ionosphere ('klobuchar'|'none'), residual_threshold_m); missing ones default.
+    'none'), ionosphere ('klobuchar'|'none'), residual_threshold_m, max_pdop); missing ones default.
 
     Weights: elevation -> sin^2(el); cn0 -> 10^(cn0/10); none -> 1; all scaled so the largest
     weight is 1.  Residual check: the normalised residual of satellite i is
@@ -126,6 +126,7 @@ class NavSolver:
         self.troposphere = str(g("troposphere", "saastamoinen"))
         self.ionosphere = str(g("ionosphere", "klobuchar"))
         self.residual_threshold_m = float(g("residual_threshold_m", 30.0))
+        self.max_pdop = float(g("max_pdop", 20.0))
         if self.weighting not in ("elevation", "cn0", "none", "rtklib"):
             raise ValueError(f"unknown weighting {self.weighting!r}")
 
@@ -279,6 +280,8 @@ class NavSolver:
         vdop = float(np.sqrt(q_enu[2, 2]))
         pdop = float(np.sqrt(np.trace(q_enu)))
         gdop = float(np.sqrt(np.trace(q)))
+        if not pdop <= self.max_pdop:       # geometry too weak for a usable position (e.g. 4 satellites in a line)
+            return None
 
         # velocity and clock drift from Doppler
         rate_raw = -s.doppler[idx] * LAMBDA_L1
