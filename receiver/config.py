@@ -403,6 +403,8 @@ RECEIVER_SCHEMA = {
                 "cn0_tau_s": P(0.5, "float", "ekf/pli_ekf: NWPR C/N0 smoothing time constant", lo=0.0),
                 "pli_tau_s": P(0.1, "float", "pli_ekf: low-pass time constant of I^2, Q^2 in the PLI "
                                              "(0: the epoch's own I, Q)", lo=0.0),
+                "pli_min": P(0.0, "float", "pli_ekf: the PLI weight is clipped to [pli_min, 1] (0: ours, a "
+                                           "weight; -1: the paper's unclipped PLI = cos 2 phi)", lo=-1.0, hi=1.0),
             },
         },
     },
