@@ -83,7 +83,8 @@ def open_input(cfg) -> SampleReader:
     i = cfg.input
     if not i.path:
         raise UserError("no input file: set input.path in the config or pass --input")
-    return SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap)
+    return SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
+                        header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
 
 
 def acquire(cfg, reader: SampleReader, start: int, prns) -> list:

@@ -42,7 +42,7 @@ from .. import __version__
 from ..errors import UserError
 from ..estimation.interpolation import hermite
 from ..gnss.geodesy import ecef2lla
-from ..source.io import is_complex
+from ..source.io import Encoder, is_complex
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import IonoUtc, earth_rotation, sat_state
 from ..gnss.lnav import encode_subframes
@@ -357,6 +357,10 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     return paths
 
 
+# formats written by the numba quantiser in kernel.py; the others go through source.io.Encoder
+_FAST_FORMATS = ("int8_iq", "int16_iq", "complex64", "float32_real", "int8_real", "int16_real")
+
+
 class _Simulator:
     """Models of one scenario and the block loop (see the module docstring for the conventions)."""
 
@@ -485,6 +489,8 @@ class _Simulator:
         self.writer = _TruthWriter(paths["truth"], self.attrs(), self.prns, sat_attrs)
         self.blockage.write(self.writer.f)
         self.fh = open(paths["if"], "wb")
+        fe = self.sc.frontend
+        self.encoder = None if self.fmt in _FAST_FORMATS else Encoder(self.fmt, 1.0, fe.bit_order, fe.encoding)
         bar = None
         try:
             if progress:
@@ -498,12 +504,15 @@ class _Simulator:
                 if bar is not None:
                     bar.update(round(n * GRID_S, 3))
                 g0 += n
+            if self.encoder is not None:
+                self.fh.write(self.encoder.flush())
         finally:
             self.fh.close()
             self.writer.close()
             if bar is not None:
                 bar.close()
-        frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt,
+        packed = {"bit_order": fe.bit_order, "encoding": fe.encoding} if "packed" in self.fmt else {}
+        frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt, **packed,
                           "sample_rate_hz": self.fs, "if_hz": self.if_hz, "start_gps_week": self.week,
                           "start_gps_tow_s": self.t_ref}}
         with open(paths["yaml"], "w") as f:
@@ -628,7 +637,10 @@ class _Simulator:
                     view += np.float32(self.sigma) * self.rng.standard_normal(view.size, dtype=np.float32)
                 else:
                     view[0::2] += np.float32(self.sigma) * self.rng.standard_normal(n_samp, dtype=np.float32)
-            quantize_fast(out, self.fmt).tofile(self.fh)
+            if self.encoder is None:
+                quantize_fast(out, self.fmt).tofile(self.fh)
+            else:
+                self.fh.write(self.encoder.encode(out))
 
         if rows.size:
             gr = nodes[rows]
