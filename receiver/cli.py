@@ -46,14 +46,13 @@ def _load(config, input_path, sets, output=None):
 @click.option("--input", "input_path", type=str, help="IF file (overrides input.path)")
 @click.option("--output", "-o", type=str, help="HDF5 output (overrides output.path)")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a config key")
-@click.option("--quiet", "-q", is_flag=True, help="no progress bar or summary")
+@click.option("--quiet", "-q", is_flag=True, help="no progress bar (the summary is still printed)")
 def run(config, input_path, output, sets, quiet):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
     from .pipeline import run as run_pipeline
     cfg = _load(config, input_path, sets, output)
     summary = run_pipeline(cfg, quiet=quiet, log=logging.getLogger("receiver.pipeline").info)
-    if not quiet:
-        click.echo(summary.text())
+    click.echo(summary.text())                   # --quiet silences the progress bar only
 
 
 @main.command()
