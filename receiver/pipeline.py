@@ -17,6 +17,8 @@ import numpy as np
 from .acquisition import reject_cross_correlations, search
 from .errors import UserError
 from .source.io import SampleReader
+from .source.metadata import apply_metadata
+from .config import RECEIVER_SCHEMA
 from .runfile.writer import RunWriter
 from .runfile.record import EPOCH_DTYPE
 from .gnss.registry import get_signal
@@ -83,6 +85,8 @@ def open_input(cfg) -> SampleReader:
     i = cfg.input
     if not i.path:
         raise UserError("no input file: set input.path in the config or pass --input")
+    apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items()},
+                   get_signal(cfg.signal).carrier_hz)           # SigMF .sigmf-meta beside the file
     return SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
                         header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
 

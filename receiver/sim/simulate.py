@@ -43,6 +43,7 @@ from ..errors import UserError
 from ..estimation.interpolation import hermite
 from ..gnss.geodesy import ecef2lla
 from ..source.io import Encoder, is_complex
+from ..source.metadata import write_sigmf
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import IonoUtc, earth_rotation, sat_state
 from ..gnss.lnav import encode_subframes
@@ -66,10 +67,14 @@ _WEEK_FRAMES = int(WEEK_S) // 30
 
 # ------------------------------------------------------------------------------------------ helpers
 def output_paths(out_path) -> dict:
-    """IF file, truth file (<stem>.truth.h5) and receiver input fragment (<stem>.yaml)."""
+    """IF file, truth file (<stem>.truth.h5), receiver input fragment (<stem>.yaml) and SigMF metadata
+    (<stem>.sigmf-meta; <stem> drops a .bin or .sigmf-data extension)."""
     out_path = os.fspath(out_path)
-    stem = os.path.splitext(out_path)[0] if out_path.endswith(".bin") else out_path
-    return {"if": out_path, "truth": stem + ".truth.h5", "yaml": stem + ".yaml"}
+    stem = out_path
+    for ext in (".bin", ".sigmf-data"):
+        if out_path.endswith(ext):
+            stem = out_path[:-len(ext)]
+    return {"if": out_path, "truth": stem + ".truth.h5", "yaml": stem + ".yaml", "sigmf": stem + ".sigmf-meta"}
 
 
 def enu_components(vec, lat_deg, lon_deg):
@@ -515,6 +520,9 @@ class _Simulator:
         frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt, **packed,
                           "sample_rate_hz": self.fs, "if_hz": self.if_hz, "start_gps_week": self.week,
                           "start_gps_tow_s": self.t_ref}}
+        write_sigmf(paths["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
+                    description="gnssrx simulator output; truth: " + os.path.basename(paths["truth"]),
+                    bit_order=fe.bit_order, encoding=fe.encoding, version=__version__)
         with open(paths["yaml"], "w") as f:
             f.write(f"# gnssrx simulator output (gnssrx {__version__}): receiver input section for "
                     f"{os.path.basename(paths['if'])}\n# truth: {os.path.basename(paths['truth'])}\n")
