@@ -239,7 +239,7 @@ def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, st
 # the formats of receiver/source/io.py (FORMATS), then the GNSS-SDR / SigMF aliases (ALIASES);
 # tests/test_registries.py checks both
 INPUT_FORMATS = ("int8_iq", "int16_iq", "uint8_iq", "complex64", "float32_real", "int8_real", "int16_real",
-                 "int4_iq", "packed2_real", "packed2_iq", "packed4_real", "packed4_iq")
+                 "int4_iq", "packed1_real", "packed1_iq", "packed2_real", "packed2_iq", "packed4_real", "packed4_iq")
 INPUT_FORMAT_ALIASES = ("gr_complex", "cshort", "ishort", "cbyte", "ibyte", "byte", "short", "float",
                         "cf32_le", "ci16_le", "ci8", "cu8", "rf32_le", "ri16_le", "ri8")
 CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
@@ -255,9 +255,10 @@ RECEIVER_SCHEMA = {
         "bit_order": P("msb_first", "str", "packed formats: the first field of a byte is in its most "
                                            "(msb_first) or least (lsb_first) significant bits",
                        choices=("msb_first", "lsb_first")),
-        "encoding": P("sign_magnitude", "str", "packed2/packed4 formats: field encoding (sign_magnitude: "
-                                               "top bit = sign, value +/-(2m+1); twos_complement: value 2s+1)",
-                      choices=("sign_magnitude", "twos_complement")),
+        "encoding": P("sign_magnitude", "str", "packed1/2/4 formats: field encoding (sign_magnitude: "
+                                               "top bit = sign, value +/-(2m+1); twos_complement: value 2s+1; "
+                                               "offset_binary: value 2u-(2^bits-1))",
+                      choices=("sign_magnitude", "twos_complement", "offset_binary")),
         "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
         "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),

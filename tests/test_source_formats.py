@@ -16,6 +16,12 @@ ROOT = Path(__file__).resolve().parents[1]
 # 2-bit codes: sign-magnitude 00 +1, 01 +3, 10 -1, 11 -3; two's complement 00 +1, 01 +3, 10 -3, 11 -1
 # 4-bit codes: sign-magnitude 0001 +3, 1011 -7; two's complement 0001 +3, 1011 (-5) -9
 VECTORS = [
+    # gps-sdr-sim -b 1: I0 Q0 I1 Q1 ... sign bits, MSB first, 1 = positive (offset binary)
+    ("packed1_iq", "msb_first", "offset_binary", [0b10011100], [1 - 1j, -1 + 1j, 1 + 1j, -1 - 1j]),
+    ("packed1_iq", "lsb_first", "sign_magnitude", [0b10011100], [1 + 1j, -1 - 1j, -1 + 1j, 1 - 1j]),
+    ("packed1_real", "msb_first", "twos_complement", [0x0F], [1, 1, 1, 1, -1, -1, -1, -1]),
+    ("packed2_real", "msb_first", "offset_binary", [0x1B], [-3, -1, 1, 3]),
+    ("packed4_iq", "lsb_first", "offset_binary", [0x0F], [15 - 15j]),
     # format, bit order, encoding, bytes, expected samples
     ("packed2_real", "msb_first", "sign_magnitude", [0x1B, 0xE4], [1, 3, -1, -3, -3, -1, 3, 1]),
     ("packed2_real", "lsb_first", "sign_magnitude", [0x1B, 0xE4], [-3, -1, 3, 1, 1, 3, -1, -3]),
@@ -53,7 +59,8 @@ def test_fixed_byte_vectors(tmp_path, fmt, order, enc, data, expect):
 
 
 @pytest.mark.parametrize("fmt", sorted(FORMATS))
-@pytest.mark.parametrize("order,enc", [("msb_first", "sign_magnitude"), ("lsb_first", "twos_complement")])
+@pytest.mark.parametrize("order,enc", [("msb_first", "sign_magnitude"), ("lsb_first", "twos_complement"),
+                                       ("msb_first", "offset_binary")])
 def test_streaming_writer_round_trip(tmp_path, fmt, order, enc):
     """Blocks of odd sizes through the writer: the file equals the one-shot quantisation (padded), and
     the reader returns the nearest level of every sample."""

@@ -144,7 +144,7 @@ SCENARIO_SCHEMA = {
         "format": P("int8_iq", "str", "sample format (README \"Input formats\")", choices=tuple(FORMATS)),
         "bit_order": P("msb_first", "str", "packed formats: bit order (as input.bit_order)",
                        choices=BIT_ORDERS),
-        "encoding": P("sign_magnitude", "str", "packed2/packed4 formats: field encoding (as input.encoding)",
+        "encoding": P("sign_magnitude", "str", "packed formats: field encoding (as input.encoding)",
                       choices=ENCODINGS),
         "noise": P(True, "bool", "add thermal noise (false: signals only, amplitudes unchanged)"),
         "noise_sigma": P(None, "float", "noise standard deviation per real component in output units "

@@ -9,8 +9,9 @@ Formats (``input.format``; the table ``FORMATS``; README "Input formats" maps de
   int8_real, int16_real  signed real samples at an IF
   int4_iq                one byte per complex sample: I in the high nibble, Q in the low nibble, each a
                          two's-complement integer -8..7
-  packed2_real, packed2_iq, packed4_real, packed4_iq
-                         2- or 4-bit fields packed into bytes (MAX2769/MAX2771/NT1065-style front ends);
+  packed1_real, packed1_iq, packed2_real, packed2_iq, packed4_real, packed4_iq
+                         1-, 2- or 4-bit fields packed into bytes (MAX2769/MAX2771/NT1065-style front ends,
+                         gps-sdr-sim -b 1);
                          ``iq``: I field then Q field.  Two settings describe them:
                            ``bit_order``  msb_first: the first field of a byte occupies its most significant
                                           bits (bits 7-6 for 2-bit); lsb_first: bits 1-0 first.
@@ -63,6 +64,8 @@ FORMATS = {f.name: f for f in (
     Format("int8_real", "int", np.int8, 1),
     Format("int16_real", "int", np.int16, 1),
     Format("int4_iq", "packed", np.uint8, 2, 4, True),
+    Format("packed1_real", "packed", np.uint8, 1, 1),
+    Format("packed1_iq", "packed", np.uint8, 2, 1),
     Format("packed2_real", "packed", np.uint8, 1, 2),
     Format("packed2_iq", "packed", np.uint8, 2, 2),
     Format("packed4_real", "packed", np.uint8, 1, 4),
@@ -80,10 +83,10 @@ ALIASES = {
     "rf32_le": "float32_real", "ri16_le": "int16_real", "ri8": "int8_real",
 }
 BIT_ORDERS = ("msb_first", "lsb_first")
-ENCODINGS = ("sign_magnitude", "twos_complement")
+ENCODINGS = ("sign_magnitude", "twos_complement", "offset_binary")
 # noise standard deviation per component that suits each format's range (simulator default)
 NOISE_SIGMA = {"int8_iq": 8.0, "int8_real": 8.0, "uint8_iq": 8.0, "int16_iq": 1000.0, "int16_real": 1000.0,
-               "complex64": 1.0, "float32_real": 1.0, "int4_iq": 2.0,
+               "complex64": 1.0, "float32_real": 1.0, "int4_iq": 2.0, "packed1_real": 1.0, "packed1_iq": 1.0,
                # step 2 between levels = the MSE-optimal step for a Gaussian input (Max 1960)
                "packed2_real": 2.0 / 0.9957, "packed2_iq": 2.0 / 0.9957,
                "packed4_real": 2.0 / 0.3352, "packed4_iq": 2.0 / 0.3352}
@@ -122,6 +125,8 @@ def field_values(f: Format, encoding: str = "sign_magnitude") -> np.ndarray:
         return s.astype(np.float32)
     if encoding == "twos_complement":
         return (2 * s + 1).astype(np.float32)
+    if encoding == "offset_binary":
+        return (2 * c - (2 ** b - 1)).astype(np.float32)
     if encoding != "sign_magnitude":
         raise UserError(f"unknown encoding '{encoding}' (one of {', '.join(ENCODINGS)})")
     sign, mag = c >> (b - 1), c & (2 ** (b - 1) - 1)
@@ -287,6 +292,8 @@ def field_codes(v: np.ndarray, f: Format, encoding: str = "sign_magnitude") -> n
     s = np.clip(np.floor(v / 2.0), -2 ** (b - 1), 2 ** (b - 1) - 1).astype(np.int64)   # level 2s+1
     if encoding == "twos_complement":
         return (s & (2 ** b - 1)).astype(np.uint8)
+    if encoding == "offset_binary":
+        return (s + 2 ** (b - 1)).astype(np.uint8)
     if encoding != "sign_magnitude":
         raise UserError(f"unknown encoding '{encoding}' (one of {', '.join(ENCODINGS)})")
     return np.where(s >= 0, s, (1 << (b - 1)) | (-s - 1)).astype(np.uint8)
