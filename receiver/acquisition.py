@@ -1,11 +1,17 @@
-"""Acquisition: FFT parallel code-phase search, non-coherent integration, fine Doppler refinement.
+"""Acquisition: FFT parallel code-phase search, non-coherent integration, fine Doppler refinement, and
+the integrity checks that keep spurs and strong signals from opening channels.
 
-Detection statistic: the peak of the (non-coherently summed) correlation power divided by the mean
-power over the whole search grid of that PRN.  Under noise only each cell is Gamma(K, 1/K) distributed
-(K non-coherent sums of exponential cells, normalised to mean 1), so the threshold for a given
+Detection statistic: every cell of the (non-coherently summed) correlation power grid is divided by the
+robust noise floor of its Doppler row (median / median of Gamma(K, 1/K)).  Under noise only each cell is
+then Gamma(K, 1/K) distributed (K non-coherent sums of exponential cells), so the threshold for a given
 probability of false alarm over the whole grid ``pfa`` is ``gamma.isf(pfa / n_cells, K, scale=1/K)``.
-The reported ``metric`` is the peak-to-mean ratio divided by that threshold: ``metric >= 1`` means
-detected.  Use ``acquisition.threshold`` to scale it (default 1.0).
+The row floor makes the test hold when a CW tone or a strong signal raises whole rows.  The reported
+``metric`` is the peak-to-floor ratio divided by that threshold; a detection also needs a narrow peak
+(``width_ratio``).  Use ``acquisition.threshold`` to scale the threshold (default 1.25).
+
+Then (receiver/pipeline.py ``acquire``): a verification dwell on the next independent block
+(:func:`verify`) and the rejection of cross-correlation images of stronger satellites at the same
+Doppler or at whole-kHz offsets (:func:`reject_cross_correlations`).
 """
 from __future__ import annotations
 
@@ -16,6 +22,7 @@ import scipy.fft as sfft
 from scipy.stats import gamma
 
 from .gnss.signals import GPS_L1CA, sample_code
+from .runfile.record import ACQ_REASONS
 
 
 @dataclass
@@ -25,18 +32,88 @@ class AcqResult:
     doppler_hz: float          # carrier Doppler (fine if detected)
     code_phase_chips: float    # code phase of the signal at the first sample of the searched block
     sample_index: int          # file index of that first sample
-    metric: float              # peak-to-mean / threshold (>= 1: detected)
-    peak_to_mean: float
+    metric: float              # peak-to-floor / threshold (>= 1: above the threshold)
+    peak_to_mean: float        # peak over the noise floor of its Doppler row
     cn0_dbhz_est: float
+    reason: str = ""           # why not detected: threshold, width, xcorr, verify ("" if detected)
+    verified: int = -1         # verification dwell: 1 passed, 0 failed, -1 not run
+
+
+#: codes of AcqResult.reason in the run file (/acquisition/reason)
+REASONS = ACQ_REASONS
 
 
 def _threshold(pfa: float, n_cells: int, k: int) -> float:
     return float(gamma.isf(pfa / n_cells, k, scale=1.0 / k))
 
 
+def _has_energy(x: np.ndarray) -> bool:
+    """False when the block is constant (all zero or pure DC): no correlation peak can be a signal."""
+    return bool(np.any(x != x[0])) if len(x) else False
+def _gamma_median(k: int) -> float:
+    return float(gamma.median(k, scale=1.0 / k))
+
+
+class _Spectra:
+    """FFTs of the K coherent blocks of ``samples`` for a set of Doppler bins (shared by all PRNs)."""
+
+    def __init__(self, samples, fs, if_hz, dopplers, m, k):
+        n1 = int(round(fs * 1e-3))
+        n = n1 * m
+        T = m * 1e-3
+        pos = (if_hz + dopplers) * T
+        shift = np.floor(pos + 1e-9).astype(np.int64)
+        self.frac = np.round(pos - shift, 6)
+        self.fracs = np.unique(self.frac)
+        t = np.arange(n) / fs
+        blocks = samples[:n * k].reshape(k, n)
+        self.spectra = {}
+        for r in self.fracs:
+            mix = np.exp(-2j * np.pi * (r / T) * t).astype(np.complex64)
+            self.spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=-1)       # (K, n)
+        j = np.arange(n1)
+        # bin index of decimated line j for Doppler d: (m * j + shift_d) mod n
+        self.idx = (m * j[None, :] + shift[:, None]) % n                               # (n_dopp, n1)
+        self.n1, self.k, self.n_dopp = n1, k, len(dopplers)
+
+    def power(self, cf):
+        """Non-coherently summed correlation power (n_dopp, n1) for the conjugate code spectrum cf."""
+        power = np.zeros((self.n_dopp, self.n1), np.float32)
+        for r in self.fracs:
+            sel = np.flatnonzero(self.frac == r)
+            for k in range(self.k):
+                prod = self.spectra[r][k][self.idx[sel]] * cf[None, :]
+                corr = sfft.ifft(prod, axis=1, workers=-1)
+                power[sel] += corr.real ** 2 + corr.imag ** 2
+        return power
+
+
+def _code_fft(sig, prn, fs, n1):
+    code = sample_code(sig.code(prn), sig.chip_rate, fs, n1).astype(np.complex64)
+    return np.conj(sfft.fft(code)).astype(np.complex64)
+
+
+def _row_floor(power, k):
+    """Robust noise floor of each Doppler row: median / median of Gamma(K, 1/K).  A tone or a strong
+    signal raising whole rows (all code phases) raises their floor with them."""
+    med = np.median(power, axis=1) if power.shape[1] < 20000 else np.median(power[:, ::4], axis=1)
+    return np.maximum(med / _gamma_median(k), 1e-30)
+
+
+def _side_excess(row, si, spc):
+    """Mean normalised power 2..4 chips on both sides of the peak, minus 1 (the floor)."""
+    n1 = row.size
+    d = np.arange(int(np.ceil(2 * spc)), int(np.floor(4 * spc)) + 1)
+    if d.size == 0:
+        d = np.array([2, 3, 4])
+    cells = np.concatenate([row[(si + d) % n1], row[(si - d) % n1]])
+    return float(cells.mean()) - 1.0
+
+
 def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns, coherent_ms: int = 4,
            noncoherent: int = 10, doppler_max_hz: float = 10000.0, doppler_step_hz: float | None = None,
-           pfa: float = 1e-3, threshold: float = 1.0, fine: bool = True, signal=None) -> list[AcqResult]:
+           pfa: float = 1e-3, threshold: float = 1.0, fine: bool = True, signal=None,
+           doppler_center_hz: float = 0.0, width_ratio: float = 0.3) -> list[AcqResult]:
     """Search `prns` in `samples` (complex64, first sample = file index start_index).
 
     Each coherent block of T = coherent_ms is Fourier transformed once per distinct fractional Doppler
@@ -44,6 +121,13 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     coherent_ms code periods has spectral lines only on every coherent_ms-th bin, so the correlation
     over all code phases of one period is an inverse FFT of one period's length.
     ``signal``: a :class:`receiver.signals.SignalDef` (default GPS L1 C/A); its code period must be 1 ms.
+
+    Detection (integrity against spurs and strong signals): every cell is divided by the robust noise
+    floor of its Doppler row (:func:`_row_floor`); the largest normalised cell is tested against the
+    Pfa-derived threshold; a peak must also be narrow -- the mean power 2-4 chips on either side, above
+    the floor, below ``width_ratio`` times the peak's (a correlation peak is 2 chips wide; a CW tone
+    beating with the code's spectral lines gives maxima hundreds of chips wide).  The best few Doppler
+    rows are tried in turn.  ``doppler_center_hz``: centre of the Doppler search range.
     """
     sig = signal if signal is not None else GPS_L1CA
     n1 = fs * 1e-3
@@ -56,46 +140,42 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     if len(samples) < need:
         raise ValueError(f"acquisition needs {need} samples, got {len(samples)}")
     T = m * 1e-3
+    if not _has_energy(samples[:need]):
+        # all-zero or constant input: no signal energy once the mean is removed -> nothing detected
+        cn0_floor = float(10 * np.log10(1e-3 / T))
+        return [AcqResult(prn, False, 0.0, 0.0, start_index, 0.0, 0.0, cn0_floor) for prn in prns]
     step = doppler_step_hz or 1.0 / (2.0 * T)
-    dopplers = np.arange(-doppler_max_hz, doppler_max_hz + step / 2, step)
-    # carrier offsets in FFT bins (1/T): integer shift + one of a few fractional parts
-    pos = (if_hz + dopplers) * T
-    shift = np.floor(pos + 1e-9).astype(np.int64)
-    frac = np.round(pos - shift, 6)
-    fracs = np.unique(frac)
-    t = np.arange(n) / fs
-    blocks = samples[:need].reshape(noncoherent, n)
-    spectra = {}
-    for r in fracs:
-        mix = np.exp(-2j * np.pi * (r / T) * t).astype(np.complex64)
-        spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=-1)       # (K, n)
-    # bin index of decimated line j for Doppler d: (m * j + shift_d) mod n
-    j = np.arange(n1)
-    idx = (m * j[None, :] + shift[:, None]) % n                                  # (n_dopp, n1)
+    dopplers = doppler_center_hz + np.arange(-doppler_max_hz, doppler_max_hz + step / 2, step)
+    sp = _Spectra(samples, fs, if_hz, dopplers, m, noncoherent)
     n_cells = len(dopplers) * n1
     thr = _threshold(pfa, n_cells, noncoherent)
+    spc = fs / sig.chip_rate
     out = []
     for prn in prns:
-        code = sample_code(sig.code(prn), sig.chip_rate, fs, n1).astype(np.complex64)
-        cf = np.conj(sfft.fft(code)).astype(np.complex64)
-        power = np.zeros((len(dopplers), n1), np.float32)
-        for r in fracs:
-            sel = np.flatnonzero(frac == r)
-            for k in range(noncoherent):
-                prod = spectra[r][k][idx[sel]] * cf[None, :]
-                corr = sfft.ifft(prod, axis=1, workers=-1)
-                power[sel] += corr.real ** 2 + corr.imag ** 2
-        mean = float(power.mean())
-        di, si = np.unravel_index(int(np.argmax(power)), power.shape)
-        ptm = float(power[di, si]) / mean
+        power = sp.power(_code_fft(sig, prn, fs, n1))
+        pn = power / _row_floor(power, noncoherent)[:, None]
+        row_max = pn.max(axis=1)
+        order = np.argsort(-row_max)
+        di = int(order[0])
+        reason = "threshold"
+        for cand in order[:8]:
+            if row_max[cand] < thr * threshold:
+                break
+            s = int(np.argmax(pn[cand]))
+            if _side_excess(pn[cand], s, spc) <= width_ratio * (row_max[cand] - 1.0):
+                di, reason = int(cand), ""
+                break
+            reason = "width"
+        si = int(np.argmax(pn[di]))
+        ptm = float(pn[di, si])
         metric = ptm / thr / threshold
         # the replica starts at sample si: the signal's code phase at sample 0 is -si samples
         code_phase = (-si * sig.chip_rate / fs) % sig.code_len
         dop = float(dopplers[di])
-        # peak-to-mean - 1 ~ coherent SNR = C/N0 * T_coh (before straddle losses)
+        # peak-to-floor - 1 ~ coherent SNR = C/N0 * T_coh (before straddle losses)
         cn0 = 10 * np.log10(max(ptm - 1.0, 1e-3) / T)
-        res = AcqResult(prn, metric >= 1.0, dop, float(code_phase), start_index, float(metric), ptm,
-                        float(cn0))
+        res = AcqResult(prn, reason == "", dop, float(code_phase), start_index, float(metric), ptm,
+                        float(cn0), reason)
         if res.detected and fine:
             # symbols shorter than 10 ms (NH overlay, D2): refine over 1 ms blocks
             short = sig.secondary(prn) is not None or sig.bit_ms(prn) < 10
@@ -106,11 +186,38 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     return out
 
 
+def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: AcqResult,
+           coherent_ms: int, noncoherent: int, doppler_step_hz: float | None = None, pfa: float = 1e-3,
+           threshold: float = 1.0, signal=None, window_chips: float = 1.5) -> bool:
+    """Verification dwell: search ``res`` again in an independent block ``samples`` (first sample =
+    file index ``start_index``) over 3 Doppler bins around its Doppler and +/- ``window_chips`` around its
+    code phase carried forward at the code rate.  Passes when the largest cell of that small window,
+    over its row's noise floor, exceeds the Pfa threshold for the window's cell count."""
+    sig = signal if signal is not None else GPS_L1CA
+    n1 = int(round(fs * 1e-3))
+    step = doppler_step_hz or 1.0 / (2.0 * coherent_ms * 1e-3)
+    dopplers = res.doppler_hz + step * np.array([-1.0, 0.0, 1.0])
+    sp = _Spectra(samples, fs, if_hz, dopplers, coherent_ms, noncoherent)
+    power = sp.power(_code_fft(sig, res.prn, fs, n1))
+    pn = power / _row_floor(power, noncoherent)[:, None]
+    dt = (start_index - res.sample_index) / fs
+    phase = (res.code_phase_chips + dt * sig.chip_rate * (1.0 + res.doppler_hz / sig.carrier_hz)) \
+        % sig.code_len
+    spc = fs / sig.chip_rate
+    si0 = int(round(-phase * spc)) % n1
+    w = int(np.ceil(window_chips * spc))
+    cols = (si0 + np.arange(-w, w + 1)) % n1
+    thr = _threshold(pfa, 3 * cols.size, noncoherent)
+    return bool(pn[:, cols].max() >= thr * threshold)
+
+
 def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_phase_chips: float,
                    coarse_hz: float, bin_hz: float, block_ms: int = 10, n_blocks: int = 4,
                    signal=None) -> float:
     """Fine Doppler: wipe the code off `n_blocks` x `block_ms` blocks, zero-padded FFTs summed
     non-coherently around the coarse bin, peak interpolated.  Accuracy ~ a few Hz at 40 dB-Hz."""
+    n1 = int(round(1e-3 * fs))
+    block_ms = max(1, min(block_ms, len(samples) // n1))     # short files: what is available
     n = int(round(block_ms * 1e-3 * fs))
     total = min(n * n_blocks, len(samples))
     n_blocks = max(1, total // n)
@@ -139,22 +246,58 @@ def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_
     return float(coarse_hz + freqs[i] + d * fs / nfft)
 
 
-def reject_cross_correlations(results: list[AcqResult], coherent_ms: int,
-                              min_ratio_db: float = 15.0) -> list[AcqResult]:
+def cross_correlation_image(strong: AcqResult, weak: AcqResult, fs: float, coherent_ms: int,
+                            signal=None) -> float:
+    """|R|^2: power of the image of the signal ``strong`` in ``weak``'s replica at ``weak``'s code phase and
+    Doppler, relative to ``strong``'s own correlation peak (1 for the same code at the same phase).
+
+    Computed from the sampled codes over ``coherent_ms`` (the product of two C/A codes is 1 ms periodic,
+    with spectral lines every 1 kHz: a Doppler difference of k x 1 kHz lets a line through); the largest
+    over +/- half a sample of ``weak``'s code phase (its resolution)."""
+    sig = signal if signal is not None else GPS_L1CA
+    n = int(round(fs * 1e-3)) * coherent_ms
+    t = np.arange(n) / fs
+    dd = strong.doppler_hz - weak.doppler_hz
+    s = sample_code(sig.code(strong.prn), sig.chip_rate, fs, n, strong.code_phase_chips) \
+        * np.exp(2j * np.pi * dd * t)
+    best = 0.0
+    for off in (-0.5, 0.0, 0.5):
+        r = sample_code(sig.code(weak.prn), sig.chip_rate, fs, n, weak.code_phase_chips
+                        + off * sig.chip_rate / fs)
+        best = max(best, abs(np.sum(s * r)) / n)
+    return best ** 2
+
+
+def reject_cross_correlations(results: list[AcqResult], coherent_ms: int, min_ratio_db: float = 15.0,
+                              fs: float | None = None, signal=None, max_k: int = 60,
+                              image_fraction: float = 0.25) -> list[AcqResult]:
     """Un-detect weak peaks that are cross-correlation images of a much stronger detected signal.
 
-    Gold-code cross-correlation sidelobes reach -24 dB; they show up at the strong signal's Doppler
-    (within one bin).  A detection whose coherent SNR is more than ``min_ratio_db`` below another
-    detection's within half a Doppler bin (1/(2 T_coh)) is flagged as not detected.
+    Same Doppler: Gold-code cross-correlation sidelobes reach -24 dB; a detection whose coherent SNR is
+    more than ``min_ratio_db`` below another detection's within half a Doppler bin (1/(2 T_coh)) is
+    flagged as not detected.
+    Whole-kHz offsets (needs ``fs``): a detection whose Doppler differs from a stronger detection's by
+    k x 1 kHz (0 < |k| <= max_k, within half a bin) is flagged when the image of the stronger signal
+    predicted at the weak one's code phase (:func:`cross_correlation_image`, from the two codes) is at
+    least ``image_fraction`` of the weak peak's power: the code phase is consistent with
+    cross-correlation.  A real satellite at such an offset but another code phase is kept.
     """
     half_bin = 1.0 / (2.0 * coherent_ms * 1e-3)
-    strong = [r for r in results if r.detected]
+    strong = sorted([r for r in results if r.detected], key=lambda r: -r.peak_to_mean)
     for r in strong:
         for s in strong:
-            if s is r or not s.detected:
+            if s is r or not s.detected or s.peak_to_mean <= r.peak_to_mean:
                 continue
             ratio = 10 * np.log10(max(s.peak_to_mean - 1, 1e-9) / max(r.peak_to_mean - 1, 1e-9))
-            if abs(s.doppler_hz - r.doppler_hz) <= half_bin and ratio > min_ratio_db:
-                r.detected = False
+            dd = s.doppler_hz - r.doppler_hz
+            if abs(dd) <= half_bin and ratio > min_ratio_db:
+                r.detected, r.reason = False, "xcorr"
+                break
+            k = round(dd / 1000.0)
+            if fs is None or k == 0 or abs(k) > max_k or abs(dd - 1000.0 * k) > half_bin:
+                continue
+            image = (s.peak_to_mean - 1) * cross_correlation_image(s, r, fs, coherent_ms, signal)
+            if image >= image_fraction * (r.peak_to_mean - 1):
+                r.detected, r.reason = False, "xcorr"
                 break
     return results

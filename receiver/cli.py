@@ -1,7 +1,9 @@
 """Command-line interface: ``gnssrx run | acquire | simulate | eval | leo ...``.
 
 Bad user input (config keys/values, missing or malformed files) raises UserError anywhere below; it is
-reported here as one line on stderr with exit code 2 and no traceback.
+reported here as one line on stderr with exit code 2 and no traceback.  SIGINT and SIGTERM stop a command
+(at the next chunk boundary in ``run`` and ``simulate``, see receiver/interrupt.py), remove its temporary
+files and exit with 130 / 143 and one line.
 """
 from __future__ import annotations
 
@@ -10,18 +12,60 @@ import sys
 
 import click
 
-from . import __version__
+from . import __version__, interrupt
 from .errors import UserError
 from .logs import setup_cli
 
 
 class _Group(click.Group):
+    def main(self, *args, **kwargs):
+        import signal
+        saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGXFSZ)}
+        interrupt.install()
+        try:
+            return super().main(*args, **kwargs)
+        except interrupt.Interrupted as exc:       # outside a command (argument parsing, exit)
+            click.echo(f"gnssrx: interrupted by {exc.name}", err=True)
+            sys.exit(exc.exit_code)
+        finally:
+            interrupt.reset()
+            try:
+                for s, h in saved.items():
+                    if h is not None:
+                        signal.signal(s, h)
+            except ValueError:          # not the main thread
+                pass
+
     def invoke(self, ctx):
         try:
-            return super().invoke(ctx)
+            result = super().invoke(ctx)
+            interrupt.check()           # a signal during the last steps still stops with 130/143
+            return result
         except UserError as exc:
             click.echo(f"gnssrx: error: {exc}", err=True)
             ctx.exit(2)
+        except (interrupt.Interrupted, KeyboardInterrupt) as exc:
+            sig = exc if isinstance(exc, interrupt.Interrupted) else interrupt.Interrupted(2)
+            click.echo(f"gnssrx: interrupted by {sig.name}; unfinished output files removed", err=True)
+            ctx.exit(sig.exit_code)
+
+
+class _StderrWarnings(logging.Handler):
+    """receiver.errors.warn -> one line ``gnssrx: warning: ...`` on the current sys.stderr."""
+
+    def emit(self, record):
+        try:
+            sys.stderr.write(f"gnssrx: warning: {record.getMessage()}\n")
+            sys.stderr.flush()
+        except Exception:  # noqa: BLE001 - logging must not break the run
+            self.handleError(record)
+
+
+def _warnings_to_stderr():
+    lg = logging.getLogger("receiver.warnings")
+    if not any(isinstance(h, _StderrWarnings) for h in lg.handlers):
+        lg.addHandler(_StderrWarnings())
+    lg.propagate = False
 
 
 @click.group(cls=_Group)
@@ -29,6 +73,7 @@ class _Group(click.Group):
 def main():
     """gnssrx - GNSS software receiver for recorded IF samples."""
     setup_cli()
+    _warnings_to_stderr()
 
 
 def _load(config, input_path, sets, output=None):
@@ -51,7 +96,7 @@ def run(config, input_path, output, sets, quiet):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
     from .pipeline import run as run_pipeline
     cfg = _load(config, input_path, sets, output)
-    summary = run_pipeline(cfg, quiet=quiet, log=logging.getLogger("receiver.pipeline").info)
+    summary = run_pipeline(cfg, quiet=quiet, log=logging.getLogger("receiver.pipeline").info, reads=[config])
     click.echo(summary.text())                   # --quiet silences the progress bar only
 
 
@@ -65,13 +110,16 @@ def acquire(config, input_path, sets):
     cfg = _load(config, input_path, sets)
     reader = open_input(cfg)
     start = reader.first + int(round(cfg.acquisition.start_s * reader.fs))
-    res = do_acquire(cfg, reader, start, cfg.acquisition.prns)
+    notes = []
+    res = do_acquire(cfg, reader, start, cfg.acquisition.prns, widen=True, notes=notes)
     click.echo(f"{'PRN':>4} {'detected':>8} {'doppler_hz':>11} {'code_phase':>11} {'metric':>7} "
                f"{'C/N0~':>6}")
     for r in res:
         click.echo(f"{r.prn:4d} {('yes' if r.detected else 'no'):>8} {r.doppler_hz:11.1f} "
                    f"{r.code_phase_chips:11.2f} {r.metric:7.2f} {r.cn0_dbhz_est:6.1f}")
     click.echo(f"detected: {' '.join(str(r.prn) for r in res if r.detected) or 'none'}")
+    for line in (reader.summary_lines() if hasattr(reader, "summary_lines") else []) + notes:
+        click.echo(line)
 
 
 def _register_commands():

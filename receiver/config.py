@@ -197,14 +197,31 @@ def apply_overrides(raw: dict, overrides) -> dict:
     return raw
 
 
+def read_utf8(path, what: str = "file") -> str:
+    """The text of a UTF-8 file; another encoding (or binary data) is a one-line UserError naming the
+    first bad byte and its line."""
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise UserError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise UserError(f"{what} {path} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                        f"save it as UTF-8") from None
+
+
 def read_yaml(path) -> dict:
     """Read a YAML mapping; errors become one-line UserErrors."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise UserError(f"config file not found: {path}")
+    text = read_utf8(path, "config file")
     try:
-        with open(path) as fh:
-            raw = yaml_load(fh)
+        raw = yaml_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark else ""
@@ -242,6 +259,7 @@ INPUT_FORMATS = ("int8_iq", "int16_iq", "uint8_iq", "complex64", "float32_real",
                  "int4_iq", "packed1_real", "packed1_iq", "packed2_real", "packed2_iq", "packed4_real", "packed4_iq")
 INPUT_FORMAT_ALIASES = ("gr_complex", "cshort", "ishort", "cbyte", "ibyte", "byte", "short", "float",
                         "cf32_le", "ci16_le", "ci8", "cu8", "rf32_le", "ri16_le", "ri8")
+REAL_FORMAT_ALIASES = ("byte", "short", "float", "rf32_le", "ri16_le", "ri8")
 CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
 
 RECEIVER_SCHEMA = {
@@ -269,6 +287,29 @@ RECEIVER_SCHEMA = {
                                          "time-tagging before the first decoded TOW)", nullable=True),
         "start_gps_tow_s": P(None, "float", "approximate GPS time of week of the first sample",
                              nullable=True),
+        "conditioning": {
+            "dc_removal": P(True, "bool", "remove the DC offset / LO leakage (a ~dc_bw_hz wide notch at 0 Hz "
+                                          "that follows a drifting offset)"),
+            "tone_detection": P(True, "bool", "detect CW tones / spurs in the spectrum of the first detect_ms "
+                                              "(reported in the run summary and /conditioning)"),
+            "tone_excision": P(True, "bool", "cancel the detected tones (one adaptive notch of notch_bw_hz "
+                                             "per tone, causal, continuous across blocks)"),
+            "detect_ms": P(100.0, "float", "span analysed by the tone detector (ms; shorter files: all of "
+                                           "it)", lo=1.0),
+            "fft_size": P(4096, "int", "periodogram length of the tone detector (bin = sample rate / "
+                                       "fft_size)", lo=64, hi=1 << 20),
+            "pfa": P(1e-3, "float", "probability of one or more false tone detections over the whole "
+                                    "spectrum of white noise", lo=1e-12, hi=0.5),
+            "min_db": P(6.0, "float", "a tone must also exceed the local noise floor of its periodogram "
+                                       "bin by this much (dB)", lo=0.0),
+            "max_tones": P(32, "int", "largest number of tones cancelled (the strongest; up to max(16, max_tones) are "
+                                      "reported)", lo=0, hi=64),
+            "notch_bw_hz": P(100.0, "float", "-3 dB width of each tone notch (Hz)", lo=1.0),
+            "dc_bw_hz": P(100.0, "float", "-3 dB width of the DC notch (Hz)", lo=1.0),
+            "pulse_blanking": P(False, "bool", "zero samples whose magnitude exceeds blank_sigma x the RMS "
+                                               "of the conditioned detection span (pulsed interference)"),
+            "blank_sigma": P(5.0, "float", "pulse blanking threshold in RMS units", lo=1.0),
+        },
     },
     "signal": P("gps_l1ca", "str", "signal to acquire and track (bds_b1i: BeiDou B1I, no navigation "
                                    "decoding)", choices=("gps_l1ca", "bds_b1i")),
@@ -284,6 +325,17 @@ RECEIVER_SCHEMA = {
                                       "non-Gaussian tail that strong signals' cross-correlation adds (README)",
                        lo=0.1),
         "start_s": P(0.0, "float", "time into the processed span where acquisition starts", lo=0.0),
+        "width_ratio": P(0.3, "float", "a peak is rejected when the mean power 2-4 chips beside it, above "
+                                       "the floor, exceeds this fraction of the peak's (CW tones give broad "
+                                       "maxima)", lo=0.0),
+        "verify": P(True, "bool", "verification dwell: a detection must be found again in the next, "
+                                  "independent coherent_ms x noncoherent block (skipped when the file is "
+                                  "too short)"),
+        "lo_search_hz": P(25000.0, "float", "when fewer than 4 satellites are found, search the others again "
+                                            "over this Doppler half-range (front-end LO offsets; 0 = off)",
+                          lo=0.0),
+        "lo_warn_hz": P(3000.0, "float", "warn when the median Doppler of the satellites found exceeds "
+                                         "this (a common LO / oscillator offset)", lo=0.0),
     },
     "tracking": {
         "max_channels": P(12, "int", "maximum number of tracking channels", lo=1, hi=64),
@@ -508,4 +560,29 @@ def load_receiver_config(path=None, overrides=None) -> Section:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
             raw[sec][key] = resolve_path(raw[sec][key], path)
     cfg = build(RECEIVER_SCHEMA, raw, overrides)
+    validate_receiver(cfg)
+    return cfg
+
+
+def validate_receiver(cfg: Section) -> Section:
+    """Checks of meaning that span several keys (one-line UserErrors): the IF inside the sampled band,
+    a non-empty PRN list (duplicates are removed with a warning)."""
+    i = cfg.input
+    half = i.sample_rate_hz / 2
+    if i.format.endswith("_real") or i.format in REAL_FORMAT_ALIASES:
+        if not 0.0 < i.if_hz < half:
+            raise UserError(f"config key 'input.if_hz' must be in (0, sample_rate_hz/2 = {half:g}) for the "
+                            f"real format {i.format}, got {i.if_hz:g}")
+    elif abs(i.if_hz) >= half:
+        raise UserError(f"config key 'input.if_hz' must be within +/- sample_rate_hz/2 = {half:g}, "
+                        f"got {i.if_hz:g}")
+    prns = cfg.acquisition.prns
+    if not prns:
+        raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
+    unique = list(dict.fromkeys(prns))
+    if len(unique) < len(prns):
+        from .errors import warn
+        dup = sorted({p for p in prns if prns.count(p) > 1})
+        warn(f"acquisition.prns lists PRN {', '.join(map(str, dup))} more than once; each is searched once")
+        cfg.acquisition._values["prns"] = unique
     return cfg

@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .acquisition import reject_cross_correlations, search
-from .errors import UserError
+from .acquisition import reject_cross_correlations, search, verify
+from . import interrupt
+from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
 from .config import RECEIVER_SCHEMA
@@ -42,6 +43,8 @@ class RunSummary:
     mean_llh: tuple | None = None
     scatter_m: tuple | None = None     # (east, north, up) standard deviation
     parity_failures: int = 0
+    nonfinite_samples: int = 0         # NaN/Inf input samples replaced by zeros
+    notes: list = field(default_factory=list)   # input conditioning / acquisition lines
 
     @property
     def realtime_factor(self) -> float:
@@ -63,7 +66,9 @@ class RunSummary:
                       "scatter (1 sd)  E {:.2f} N {:.2f} U {:.2f} m".format(*self.scatter_m)]
         else:
             lines.append("fixes           none")
-        return "\n".join(lines)
+        if self.nonfinite_samples:
+            lines.append(f"input           {self.nonfinite_samples} non-finite samples replaced by zeros")
+        return "\n".join(lines + self.notes)
 
 
 def default_output_path(cfg, input_path: str) -> str:
@@ -85,23 +90,67 @@ def open_input(cfg) -> SampleReader:
     i = cfg.input
     if not i.path:
         raise UserError("no input file: set input.path in the config or pass --input")
-    apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items()},
+    apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items() if hasattr(v, "default")},
                    get_signal(cfg.signal).carrier_hz)           # SigMF .sigmf-meta beside the file
-    return SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
-                        header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
+    reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
+                          header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
+    c = i.conditioning
+    if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
+        from .source.conditioning import ConditionedReader
+        reader = ConditionedReader(reader, c)
+    return reader
 
 
-def acquire(cfg, reader: SampleReader, start: int, prns) -> list:
+def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None) -> list:
+    """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
+    (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
+    found, search the others again over +/- acquisition.lo_search_hz.  Lines for the user are appended to
+    ``notes`` (a list)."""
     a = cfg.acquisition
-    # the search needs T_coh x K; the fine Doppler estimate uses up to 200 ms (20 blocks of 10 ms)
-    n = max(int(round(a.coherent_ms * a.noncoherent * 1e-3 * reader.fs)), int(0.2 * reader.fs))
-    block = reader.read(start, n)
-    if len(block) < n:
+    fs, if_hz, sig = reader.fs, cfg.input.if_hz, get_signal(cfg.signal)
+    notes = [] if notes is None else notes
+    # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
+    # uses up to 200 ms (20 blocks of 10 ms) where the file has them
+    dwell = int(round(a.coherent_ms * a.noncoherent * 1e-3 * fs))
+    block = reader.read(start, max(2 * dwell, int(0.2 * fs)))
+    if len(block) < dwell:
         raise UserError("input too short for acquisition "
-                        f"({len(block) / reader.fs * 1e3:.0f} ms available, {n / reader.fs * 1e3:.0f} needed)")
-    res = search(block, start, reader.fs, cfg.input.if_hz, prns, a.coherent_ms, a.noncoherent,
-                  a.doppler_max_hz, a.doppler_step_hz, a.pfa, a.threshold, signal=get_signal(cfg.signal))
-    return reject_cross_correlations(res, a.coherent_ms)
+                        f"({len(block) / fs * 1e3:.0f} ms available, {dwell / fs * 1e3:.0f} needed)")
+
+    centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
+
+    def _search(prns_, dmax):
+        res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
+                      a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
+                      doppler_center_hz=centre if dmax == a.doppler_max_hz else 0.0)
+        for r in res_:
+            if r.detected and a.verify and len(block) >= 2 * dwell:
+                ok = verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r, a.coherent_ms,
+                            a.noncoherent, a.doppler_step_hz, a.pfa, a.threshold, signal=sig)
+                r.verified = int(ok)
+                if not ok:
+                    r.detected, r.reason = False, "verify"
+        return res_
+
+    res = _search(prns, a.doppler_max_hz)
+    reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
+    found = sum(r.detected for r in res)
+    if widen and found < 4 and a.lo_search_hz > a.doppler_max_hz:
+        missing = [r.prn for r in res if not r.detected]
+        wide = {r.prn: r for r in _search(missing, a.lo_search_hz)}
+        res = [wide.get(r.prn, r) for r in res]
+        reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
+        notes.append(f"acquisition     {found} satellite(s) within +/-{a.doppler_max_hz / 1e3:g} kHz: searched "
+                     f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
+                     f"{sum(r.detected for r in res)} found")
+    dop = [r.doppler_hz for r in res if r.detected]
+    if len(dop) >= 3 and abs(np.median(dop) - centre) > a.lo_warn_hz:
+        med = float(np.median(dop))
+        notes.append(f"warning         the {len(dop)} satellites found share a common Doppler offset of "
+                     f"{med / 1e3:+.2f} kHz (median): front-end LO / oscillator error of about "
+                     f"{-med / sig.carrier_hz * 1e6:+.1f} ppm; later searches are centred there")
+        reader.doppler_centre_hz = round(med / 100.0) * 100.0     # re-acquisitions search around it
+    return res
 
 
 def _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet=False):
@@ -114,14 +163,17 @@ def _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet=False):
     return handover(cfg, channels, nav, start, fs)
 
 
-def run(cfg, quiet: bool = False, log=print) -> RunSummary:
-    """Run the receiver on cfg.input.path; write cfg.output.path (HDF5)."""
+@interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk
+def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
+    """Run the receiver on cfg.input.path; write cfg.output.path (HDF5).
+    ``reads``: further files the command reads (the config file): the output must not be one of them."""
     make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
     reader = open_input(cfg)
     out_path = default_output_path(cfg, cfg.input.path)
+    check_meaning(cfg, reader)
     ephemerides, iono = None, None
     if cfg.navigation.enabled and cfg.navigation.ephemeris:
         from .gnss.rinex import read_rinex_nav
@@ -130,11 +182,12 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
     writer = RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
-        "command": " ".join(sys.argv)})
+        "command": " ".join(sys.argv)}, reads=_reads(cfg, out_path, reader, reads))
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
         summary.output = out_path
+        _nonfinite(reader, writer, summary)
         ok = True
         return summary
     finally:
@@ -144,13 +197,49 @@ def run(cfg, quiet: bool = False, log=print) -> RunSummary:
             export_all(out_path, cfg.output, log=None if quiet else log)
 
 
+def check_meaning(cfg, reader):
+    """Checks of meaning (receiver.config.validate_receiver: IF, PRN list) and those that need the input
+    file: vector.start_s inside the processed span (else a warning)."""
+    from .config import validate_receiver
+    validate_receiver(cfg)
+    v = cfg.vector
+    if v.enabled and v.start_s is not None and v.start_s >= reader.duration_s:
+        warn(f"vector.start_s={v.start_s:g} s is after the end of the processed span "
+             f"({reader.duration_s:.3f} s): the run stays scalar")
+
+
+def _reads(cfg, out_path, reader, extra) -> list:
+    """The files the run reads (the output must be none of them); the standard outputs written beside
+    the run file (output.rinex, nmea, ...) must not overwrite one of them either."""
+    from .export import KINDS, _enabled, output_paths
+    from .safeio import _samefile
+    reads = [reader.path, cfg.navigation.ephemeris, *extra]
+    paths = output_paths(out_path)
+    for kind in KINDS:
+        if _enabled(cfg.output, kind):
+            for key in (("obs", "nav") if kind == "rinex" else (kind,)):
+                for r in reads:
+                    if r and os.path.exists(paths[key]) and _samefile(paths[key], r):
+                        raise UserError(f"output.{kind} would overwrite {r}, which the run reads")
+    return reads
+
+
+def _nonfinite(reader, writer, summary):
+    """NaN/Inf input samples (zeroed by the reader): summary line, run-file attribute, warning."""
+    summary.nonfinite_samples = reader.n_nonfinite
+    writer.set_attrs("/", {"nonfinite_samples": reader.n_nonfinite})
+    if reader.n_nonfinite:
+        warn(f"{reader.n_nonfinite} non-finite input samples (NaN/Inf) were replaced by zeros")
+
+
 def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     from .navigation.engine import NavigationEngine
     fs, if_hz = reader.fs, cfg.input.if_hz
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
-    results = acquire(cfg, reader, acq_start, cfg.acquisition.prns)
-    writer.write_acquisition(results, {"fs": fs, "pfa": cfg.acquisition.pfa})
+    notes = []
+    results = acquire(cfg, reader, acq_start, cfg.acquisition.prns, widen=True, notes=notes)
+    writer.write_acquisition(results, {"fs": fs, "pfa": cfg.acquisition.pfa, "notes": "\n".join(notes)})
     detected = sorted([r for r in results if r.detected], key=lambda r: -r.metric)
     channels: dict[int, Channel] = {}
     for r in detected[:cfg.tracking.max_channels]:
@@ -172,6 +261,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     bar = _progress(reader.duration_s, quiet)
     start = acq_start
     while start < reader.end:
+        interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
         block = reader.read(start, chunk + overlap)
         if vector is None and cfg.vector.enabled:
             vector = _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet)
@@ -236,6 +326,10 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     s.tracked = sorted(s.mean_cn0)
     s.n_fixes = n_fixes
     s.first_fix_s = first_fix
+    if hasattr(reader, "summary_lines"):         # the input conditioning stage
+        s.notes += reader.summary_lines()
+        reader.write(writer)
+    s.notes += notes
     if nav is not None:
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
         writer.write_ephemerides({p: ch.decoder.ephemeris for p, ch in nav.channels.items()

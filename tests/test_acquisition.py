@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from receiver.acquisition import search
+from receiver.acquisition import reject_cross_correlations, search
 
 from synth import make_signal
 
@@ -38,3 +38,127 @@ def test_false_alarm_rate_on_noise():
     res = search(x, 0, FS, 0.0, range(1, 33), pfa=1e-2)
     assert sum(r.detected for r in res) <= 2
     assert max(r.metric for r in res) < 1.3
+
+
+# ---------------------------------------------------------------------------------------- integrity
+def test_cw_tone_gives_no_false_detection_even_without_conditioning():
+    """A CW tone 30 dB above the noise power correlates with every C/A code at whole-kHz Dopplers; the
+    per-row noise floor and the peak-width test reject those maxima (reason 'width') and the two real
+    satellites are still found.  (The pipeline also cancels the tone before acquisition.)"""
+    sats = [dict(prn=5, doppler_hz=2345.0, code_phase_chips=300.25, cn0_dbhz=42.0),
+            dict(prn=17, doppler_hz=-1120.0, code_phase_chips=812.6, cn0_dbhz=40.0)]
+    x = make_signal(sats, FS, 0.05, seed=4)
+    n = np.arange(len(x))
+    x = x + (np.sqrt(1000.0) * np.exp(2j * np.pi * 3000.0 / FS * n)).astype(np.complex64)
+    res = search(x, 0, FS, 0.0, [5, 17, 1, 2, 3, 9, 22, 30])
+    assert [r.prn for r in res if r.detected] == [5, 17]
+    assert sum(r.reason == "width" for r in res) >= 4        # the tone did produce candidate peaks
+
+
+def test_whole_khz_cross_correlation_images_of_a_strong_satellite_rejected():
+    """A 55 dB-Hz satellite's C/A code leaks into other PRNs' replicas at k x 1 kHz Doppler offsets
+    (-21..-24 dB): those peaks are flagged 'xcorr' from the two codes' cross-correlation at the observed
+    code phase; a real 40 dB-Hz satellite exactly 2 kHz from the strong one (other code phase) is kept."""
+    strong = dict(prn=11, doppler_hz=-1065.0, code_phase_chips=667.7, cn0_dbhz=55.0)
+    weak = dict(prn=24, doppler_hz=-1065.0 + 2000.0, code_phase_chips=100.3, cn0_dbhz=40.0)
+    x = make_signal([strong, weak], FS, 0.05, seed=7)
+    # PRNs 9, 13, 16, 27 show images of PRN 11 in this geometry
+    res = search(x, 0, FS, 0.0, [11, 24, 9, 13, 16, 27, 32])
+    images = [r.prn for r in res if r.detected and r.prn not in (11, 24)]
+    assert images, "no image to reject: the test would prove nothing"
+    reject_cross_correlations(res, 4, fs=FS)
+    assert [r.prn for r in res if r.detected] == [11, 24]
+    assert all(r.reason == "xcorr" for r in res if r.prn in images)
+
+
+def test_cross_correlation_image_power_from_the_codes():
+    from receiver.acquisition import AcqResult, cross_correlation_image
+    a = AcqResult(3, True, 0.0, 10.0, 0, 9.0, 100.0, 50.0)
+    same = AcqResult(3, True, 0.0, 10.0, 0, 9.0, 100.0, 50.0)
+    assert cross_correlation_image(a, same, FS, 1) == pytest.approx(1.0, abs=0.02)
+    other = AcqResult(4, True, 1000.0, 500.0, 0, 1.0, 2.0, 30.0)
+    assert cross_correlation_image(a, other, FS, 1) < 10 ** (-20 / 10)      # Gold-code bound (-21 dB)
+
+
+def test_verification_dwell():
+    """The verification dwell finds a real satellite again in the next block (code phase carried at the
+    code rate) and fails on a block where the signal is absent."""
+    from receiver.acquisition import verify
+    sat = dict(prn=7, doppler_hz=3210.0, code_phase_chips=512.3, cn0_dbhz=40.0)
+    x = make_signal([sat], FS, 0.08, seed=9)
+    r = search(x[:104000], 0, FS, 0.0, [7])[0]
+    assert r.detected
+    assert verify(x[104000:208000], 104000, FS, 0.0, r, 4, 10)
+    noise = make_signal([], FS, 0.04, seed=10)
+    assert not verify(noise, 104000, FS, 0.0, r, 4, 10)
+
+
+# ---------------------------------------------------------------------------------------- short files
+def _write_int8(path, x):
+    from receiver.source.io import quantize
+    quantize(x, "int8_iq", 8.0).tofile(path)
+
+
+def test_acquire_cli_on_a_10ms_file(tmp_path):
+    """`gnssrx acquire` on a 10 ms file with coherent_ms 1, noncoherent 10: the dwell is all it needs
+    (no verification block, fine Doppler from the 10 ms available)."""
+    from click.testing import CliRunner
+    from receiver.cli import main
+    sat = dict(prn=12, doppler_hz=-2480.0, code_phase_chips=211.0, cn0_dbhz=48.0)
+    _write_int8(tmp_path / "short.bin", make_signal([sat], FS, 0.010, seed=12))
+    (tmp_path / "rx.yaml").write_text(
+        f"input: {{path: {tmp_path / 'short.bin'}, format: int8_iq, sample_rate_hz: {FS}}}\n"
+        "acquisition: {coherent_ms: 1, noncoherent: 10, prns: [12, 3, 19]}\n")
+    out = CliRunner().invoke(main, ["acquire", str(tmp_path / "rx.yaml")])
+    assert out.exit_code == 0, out.output
+    rows = {int(line.split()[0]): line.split() for line in out.output.splitlines()
+            if line.strip()[:1].isdigit()}
+    assert rows[12][1] == "yes" and abs(float(rows[12][2]) + 2480.0) < 60.0
+    assert rows[3][1] == "no" and rows[19][1] == "no"
+    # shorter than the dwell: one line, exit 2
+    _write_int8(tmp_path / "short.bin", make_signal([sat], FS, 0.008, seed=12))
+    out = CliRunner().invoke(main, ["acquire", str(tmp_path / "rx.yaml")])
+    assert out.exit_code == 2 and "too short" in out.output
+
+
+def test_lo_offset_widens_the_search_and_warns(tmp_path):
+    """A front end whose LO is 20 kHz off puts every satellite outside +/-10 kHz: fewer than 4 found, the
+    search widens to +/-25 kHz, finds them and the common offset is reported."""
+    from receiver.config import load_receiver_config
+    from receiver.pipeline import acquire, open_input
+    dops = {3: 18500.0, 8: 21300.0, 14: 19800.0, 22: 23100.0}
+    sats = [dict(prn=p, doppler_hz=d, code_phase_chips=37.0 * p, cn0_dbhz=45.0) for p, d in dops.items()]
+    _write_int8(tmp_path / "lo.bin", make_signal(sats, FS, 0.08, seed=13))
+    cfg = load_receiver_config(None, [("input.path", str(tmp_path / "lo.bin")),
+                                      ("acquisition.prns", [3, 8, 14, 22, 5])])
+    reader = open_input(cfg)
+    notes = []
+    res = acquire(cfg, reader, reader.first, cfg.acquisition.prns, widen=True, notes=notes)
+    got = {r.prn: r.doppler_hz for r in res if r.detected}
+    assert sorted(got) == sorted(dops)
+    assert all(abs(got[p] - d) < 30 for p, d in dops.items())
+    assert any("+/-25 kHz" in n for n in notes)
+    assert any("common Doppler offset of +20" in n and "ppm" in n for n in notes)
+    # a later (re-)acquisition searches +/-10 kHz around the offset: found without widening
+    later = acquire(cfg, reader, reader.first + int(0.04 * FS), [22, 8], widen=False)
+    assert all(r.detected and abs(r.doppler_hz - dops[r.prn]) < 30 for r in later)
+
+
+def test_channel_opened_on_a_false_detection_is_released_quickly():
+    """Integrity end to end: a channel opened on noise (a false detection that got through) never reports
+    lock and is released (lost) within 1.5 s -- pull-in, then tracking.lost_ms of failed lock tests."""
+    from receiver.config import load_receiver_config
+    from receiver.gnss.registry import get_signal
+    from receiver.tracking.scalar import Channel
+    cfg = load_receiver_config(None)
+    x = make_signal([], FS, 2.0, seed=3)
+    chunk, ov = int(0.5 * FS), int(0.03 * FS)
+    ch = Channel(9, -3000.0, 123.0, 0, cfg.tracking, FS, 0.0, channel_id=0, signal=get_signal("gps_l1ca"))
+    lock, lost_at = 0, None
+    for s in range(0, len(x) - chunk, chunk):
+        lock += int((ch.process(x[s:s + chunk + ov], s)["pll_lock"] > 0).sum())
+        if ch.lost:
+            lost_at = (s + chunk) / FS
+            break
+    assert lock == 0
+    assert lost_at is not None and lost_at <= 1.5

@@ -18,6 +18,8 @@ def test_input_formats_are_the_readers():
     assert set(_choices("input.format")) == set(FORMATS) | set(ALIASES)
     assert set(_choices("input.bit_order")) == set(BIT_ORDERS)
     assert set(_choices("input.encoding")) == set(ENCODINGS)
+    from receiver.config import REAL_FORMAT_ALIASES
+    assert set(REAL_FORMAT_ALIASES) == {a for a, f in ALIASES.items() if not FORMATS[f].complex}
 
 
 def test_signals_are_the_signal_registry():

@@ -157,7 +157,7 @@ def _position_metrics(out, run_h5, nav, truth_h5, reference_llh):
         return
     if truth_h5:
         from ..evaluate import evaluate
-        s = evaluate(run_h5, truth_h5)
+        s = evaluate(run_h5, truth_h5, require_overlap=False)   # a failed run scores n/a
         for k in ("n_scored", "pos_3d_rms_m", "pos_3d_max_m", "pos_h_rms_m", "pos_v_rms_m", "vel_3d_rms_mps",
                   "clock_drift_err_rms_mps", "n_sats_mean", "pdop_mean"):
             out[k] = float(s.get(k, math.nan))

@@ -17,6 +17,7 @@ import os
 
 import numpy as np
 
+from ..errors import UserError
 from ..estimation.interpolation import interp_columns
 from ..gnss.geodesy import ecef2lla, enu_matrix
 from ..gnss.time import week_seconds_since
@@ -45,8 +46,11 @@ def _read_run(path):
                                "clock_drift_mps", "n_sats", "pdop", "mode"))
 
 
-def evaluate(run_h5, truth_h5) -> dict:
-    """Statistics of the run's fixes against the truth (see the module docstring)."""
+def evaluate(run_h5, truth_h5, require_overlap: bool = True) -> dict:
+    """Statistics of the run's fixes against the truth (see the module docstring).
+
+    A run whose fixes all lie outside the truth's time span is a one-line UserError (the two files are
+    not from the same recording) unless ``require_overlap`` is False."""
     truth = _read_truth(os.fspath(truth_h5))
     nav = _read_run(os.fspath(run_h5))
     t_tr = truth["gps_tow"]
@@ -63,6 +67,11 @@ def evaluate(run_h5, truth_h5) -> dict:
         out["ttff_s"] = float(np.min(t[ok]) - t_tr[0])
     ok &= (t >= t_tr[0]) & (t <= t_tr[-1])
     out["n_scored"] = int(np.count_nonzero(ok))
+    if not out["n_scored"] and out["n_fixes"] and require_overlap:
+        tf = t[np.all(np.isfinite(ecef), axis=1) & np.isfinite(t)]
+        raise UserError(f"the run's fixes (GPS seconds {tf.min():.1f} .. {tf.max():.1f} of week "
+                        f"{truth['week']}) do not overlap the truth file's span ({t_tr[0]:.1f} .. "
+                        f"{t_tr[-1]:.1f}): not the same recording?")
     if not out["n_scored"]:
         return _fill_nan(out)
     t = t[ok]

@@ -50,6 +50,8 @@ def report(run_h5, truth, output):
     d = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(d):
         raise UserError(f"output directory does not exist: {d}")
+    from ..safeio import check_output
+    check_output(out, reads=[run_h5, truth], what="report", suffixes=(), make_dirs=False)
     try:
         write_report(run, out, truth=tr)
     except OSError as exc:

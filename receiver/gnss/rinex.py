@@ -192,6 +192,9 @@ def read_rinex_nav(path):
         except (ValueError, IndexError) as exc:
             raise UserError(f"{path}: bad GPS navigation record '{head.strip()[:23]}': {exc}") from None
         out.setdefault(prn, []).append(eph)
+    if not out:
+        raise UserError(f"{path}: no usable GPS navigation records (header only, no GPS records, or records "
+                        f"not in the RINEX {version:g} layout the header declares)")
     for prn in out:
         out[prn].sort(key=lambda e: (e.week, e.toe))
     return out, iono

@@ -31,6 +31,7 @@ from ..errors import UserError
 from ..gnss.ephemeris import Ephemeris, IonoUtc
 from ..gnss.signals import C_LIGHT
 from ..gnss.time import gps_datetime, leap_seconds_at
+from .check import check_run_file
 from .record import FIX_DTYPE, OBS_DTYPE, STATE_BIT_SYNC
 
 
@@ -63,6 +64,12 @@ class RunFile:
     def __init__(self, path, what: str = "run file"):
         self.path = os.fspath(path)
         self.f = open_h5(self.path, what)
+        if what == "run file":
+            try:
+                check_run_file(self.f, self.path)     # dataset types/shapes: one line naming the dataset
+            except BaseException:
+                self.close()
+                raise
 
     def __enter__(self):
         return self

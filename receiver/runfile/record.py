@@ -42,6 +42,9 @@ STATE_LOST = 3
 STATE_NAMES = {STATE_PULL_IN: "pull_in", STATE_TRACK: "track", STATE_BIT_SYNC: "bit_sync",
                STATE_LOST: "lost"}
 
+#: codes of an acquisition result's ``reason`` (why a PRN was not detected) in /acquisition/reason
+ACQ_REASONS = {"": 0, "threshold": 1, "width": 2, "xcorr": 3, "verify": 4}
+
 # ---- navigation and vector-loop rows (/navigation, /observables, /vector of the run file)
 MODE_NAMES = {0: "scalar", 1: "vector"}
 

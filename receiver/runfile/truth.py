@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import UserError
 from ..estimation.interpolation import hermite, interp_columns
 from ..gnss.time import week_seconds_since
+from .check import check_truth_file
 from .reader import _plain, open_h5
 
 
@@ -25,6 +26,11 @@ class TruthFile:
     def __init__(self, path):
         self.path = os.fspath(path)
         self.f = open_h5(self.path, "truth file")
+        try:
+            check_truth_file(self.f, self.path)       # dataset types/shapes: one line naming the dataset
+        except BaseException:
+            self.close()
+            raise
 
     def __enter__(self):
         return self
@@ -109,7 +115,9 @@ def load_truth(path):
                 "static": True}
     try:
         tf = TruthFile(path)
-    except UserError:
+    except UserError as exc:
+        if "is not an HDF5 file" not in str(exc):
+            raise                                   # an HDF5 file with a bad dataset: named as such
         raise UserError(f"truth file {path} is neither YAML nor HDF5") from None
     with tf:
         r = tf.receiver(("gps_tow", "ecef", "velocity_ecef"))

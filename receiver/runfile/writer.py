@@ -13,7 +13,10 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from .record import EPOCH_DTYPE, STATE_NAMES
+from .. import interrupt
+from ..safeio import AtomicH5
+from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_NAMES
+
 
 def _append(group: h5py.Group, name: str, data: np.ndarray):
     if name not in group:
@@ -30,23 +33,27 @@ def _append(group: h5py.Group, name: str, data: np.ndarray):
 class RunWriter:
     FLUSH_ROWS = 20000
 
-    def __init__(self, path, config_yaml: str, attrs: dict | None = None):
+    def __init__(self, path, config_yaml: str, attrs: dict | None = None, reads=()):
+        """Checks the output path first (safeio.check_output: directory, name length, not one of `reads`,
+        not locked by another run), then opens ``<path>.partial``."""
         self._buffers: dict[int, list] = {}
-        self.path = os.fspath(path)
-        d = os.path.dirname(os.path.abspath(self.path))
-        os.makedirs(d, exist_ok=True)
-        self.tmp = self.path + ".partial"
-        self.f = h5py.File(self.tmp, "w")
-        a = self.f.attrs
-        a["gnssrx_version"] = __version__
-        a["config"] = config_yaml
-        a["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-        a["schema"] = "gnssrx-run-1"
-        for k, v in (attrs or {}).items():
-            a[k] = v
-        self.f.create_group("channels")
-        g = self.f.create_group("navigation")
-        g.attrs["mode_mapping"] = "0=scalar,1=vector"
+        self._out = AtomicH5(path, "output", reads=reads)
+        self.path, self.tmp, self.f = self._out.path, self._out.tmp, self._out.f
+        try:
+            a = self.f.attrs
+            a["gnssrx_version"] = __version__
+            a["config"] = config_yaml
+            a["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+            a["schema"] = "gnssrx-run-1"
+            for k, v in (attrs or {}).items():
+                a[k] = v
+            self.f.create_group("channels")
+            g = self.f.create_group("navigation")
+            g.attrs["mode_mapping"] = "0=scalar,1=vector"
+            self._out.check()
+        except BaseException:
+            self.close(ok=False)
+            raise
 
     # ------------------------------------------------------------------ acquisition
     def write_acquisition(self, results, attrs: dict | None = None):
@@ -59,7 +66,11 @@ class RunWriter:
             "detected": np.array([r.detected for r in results], bool),
             "cn0_dbhz_est": np.array([r.cn0_dbhz_est for r in results]),
             "time_s": np.array([r.sample_index for r in results], float) / (attrs or {}).get("fs", 1.0),
+            # integrity: why a peak was not detected (attrs reason_codes) and the verification dwell
+            "reason": np.array([ACQ_REASONS.get(getattr(r, "reason", ""), 0) for r in results], np.int8),
+            "verified": np.array([getattr(r, "verified", -1) for r in results], np.int8),
         }
+        g.attrs["reason_codes"] = ",".join(f"{v}={k or 'detected'}" for k, v in ACQ_REASONS.items())
         for k, v in rows.items():
             _append(g, k, v)
         for k, v in (attrs or {}).items():
@@ -86,6 +97,7 @@ class RunWriter:
             g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
         for name in EPOCH_DTYPE.names:
             _append(g, name, np.ascontiguousarray(records[name]))
+        self._out.check()
 
     # ------------------------------------------------------------------ navigation
     def _append_table(self, group: str, rows: np.ndarray):
@@ -95,6 +107,7 @@ class RunWriter:
         g = self.f.require_group(group)
         for name in rows.dtype.names:
             _append(g, name, np.ascontiguousarray(rows[name]))
+        self._out.check()
 
     def append_fixes(self, fixes: np.ndarray):
         self._append_table("navigation", fixes)             # FIX_DTYPE
@@ -138,17 +151,26 @@ class RunWriter:
         for k, v in attrs.items():
             g.attrs[k] = v
 
+    def check(self):
+        """Raise a one-line UserError if a write failed (disk full, file size limit)."""
+        self._out.check()
+
     def close(self, ok: bool = True):
+        """ok: flush, close, fsync and rename to the final name (only if every write succeeded and no
+        SIGINT/SIGTERM is pending); otherwise, or if any of that fails, remove the temporary file."""
         if self.f is None:
             return
-        try:
-            if ok:
-                for prn in list(self._buffers):
-                    self._flush_channel(prn)
-            self.f.close()
-        finally:
+        if not ok:
             self.f = None
-            if ok:
-                os.replace(self.tmp, self.path)
-            elif os.path.exists(self.tmp):
-                os.remove(self.tmp)
+            self._out.abort()
+            return
+        try:
+            for prn in list(self._buffers):
+                self._flush_channel(prn)
+            self._out.check()
+        except BaseException:
+            self.f = None
+            self._out.abort()
+            raise
+        self.f = None
+        self._out.commit(before_rename=interrupt.check)

@@ -152,6 +152,24 @@ SCENARIO_SCHEMA = {
                                         "2.0 / 6.0 for packed 2 / 4 bit); sets the "
                                         "signal amplitudes through C/N0", nullable=True, lo=1e-6),
     },
+    "impairments": {
+        "tones": P([], "list", "CW interference: list of {freq_hz (offset from the nominal carrier: at "
+                               "frontend.if_hz + freq_hz in the band), power_db (over the noise power of the "
+                               "sampled band), phase_deg}"),
+        "dc_offset": P([0.0, 0.0], "list_float", "DC offset / LO leakage [I, Q] in units of the noise sigma "
+                                                 "(added after the filter)"),
+        "filter": {
+            "bandwidth_hz": P(None, "float", "two-sided bandwidth of a Butterworth band-limiting filter "
+                                             "centred on the IF (empty: none)", nullable=True, lo=1e3),
+            "order": P(6, "int", "order of the band-limiting filter", lo=1, hi=12),
+        },
+        "quantization": {
+            "bits": P(None, "int", "quantise to this many bits with an AGC on the total power (levels "
+                                   "+/-1, +/-3, ... for <= 7 bits; -128..127 for 8); empty: the format's "
+                                   "own rounding of the scaled samples", nullable=True,
+                      choices=(1, 2, 3, 4, 5, 6, 7, 8)),
+        },
+    },
     "output": {
         "truth_rate_hz": P(100.0, "float", "rate of the truth file (a divisor of 1000)", lo=1.0, hi=1000.0),
         "block_s": P(0.5, "float", "samples generated per block (memory vs overhead)", lo=0.01, hi=10.0),

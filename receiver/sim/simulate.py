@@ -39,8 +39,10 @@ import numpy as np
 import yaml
 
 from .. import __version__
+from .. import interrupt
 from ..errors import UserError
 from ..estimation.interpolation import hermite
+from ..safeio import TMP_SUFFIX, GuardedFile, OutputLock, check_output, write_error_message
 from ..gnss.geodesy import ecef2lla
 from ..source.io import Encoder, is_complex
 from ..source.metadata import write_sigmf
@@ -54,6 +56,7 @@ from ..gnss.time import WEEK_S
 from .blockage import Blockage
 from .clock import ClockGenerator
 from .constellation import load_constellation, quantize_iono
+from .impairments import Impairments
 from .kernel import quantize_fast, synth_block
 from .scenario import clock_h, load_scenario, noise_sigma, resolve_path
 from .scintillation import Scintillation
@@ -279,9 +282,11 @@ class _TruthWriter:
     def __init__(self, path, attrs, prns, sat_attrs, flush_rows=6000):
         import h5py
         self.flush_rows = flush_rows
+        self.path = path
         self._buf = []
         self._rows = 0
-        self.f = h5py.File(path, "w")
+        self._file = GuardedFile(path)      # a write error (disk full) is kept, not passed to HDF5
+        self.f = h5py.File(self._file, "w")
         for k, v in attrs.items():
             self.f.attrs[k] = v
         self.rx = self.f.create_group("receiver")
@@ -323,6 +328,11 @@ class _TruthWriter:
             for k in self._buf[0][1][prn]:
                 self._append(grp, k, np.concatenate([b[1][prn][k] for b in self._buf]))
         self._buf, self._rows = [], 0
+        self.check()
+
+    def check(self):
+        if self._file.error is not None:
+            raise UserError(write_error_message("truth file", self.path, self._file.error))
 
     def close(self):
         if self.f is not None:
@@ -331,6 +341,9 @@ class _TruthWriter:
             finally:
                 self.f.close()
                 self.f = None
+                self._file.sync()
+                self._file.close()
+            self.check()
 
 
 # ------------------------------------------------------------------------------------------ simulate
@@ -343,22 +356,61 @@ def _remove(paths):
             pass
 
 
+def _files_read(scenario, sc) -> list:
+    """The scenario file and every existing file a scenario value names (RINEX, trajectory CSV, ...)."""
+    out = [os.fspath(scenario)] if isinstance(scenario, (str, os.PathLike)) else []
+
+    def walk(v):
+        if isinstance(v, dict):
+            for x in v.values():
+                walk(x)
+        elif isinstance(v, list):
+            for x in v:
+                walk(x)
+        elif isinstance(v, str) and v and ("/" in v or "." in v):
+            try:
+                p = resolve_path(v)
+            except UserError:
+                return
+            if os.path.isfile(p):
+                out.append(p)
+    walk(sc.to_dict())
+    return out
+
+
+@interrupt.deferred()     # SIGINT/SIGTERM only set a flag, checked once per block
 def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     """Simulate a scenario (YAML path, dict or Section) into ``out_path`` (+ truth and fragment files).
 
-    Returns {"if": ..., "truth": ..., "yaml": ...}.  On any error no partial output is left behind.
+    Returns {"if": ..., "truth": ..., "yaml": ...}.  The three files are written under temporary names
+    (``.partial``) and renamed together at the end; on any error or SIGINT/SIGTERM none is left behind.
     """
     sc = load_scenario(scenario, overrides)
     paths = output_paths(out_path)
-    d = os.path.dirname(os.path.abspath(paths["if"]))
-    if not os.path.isdir(d):
-        raise UserError(f"output directory does not exist: {d}")
+    reads = _files_read(scenario, sc)
+    if len(set(map(os.path.abspath, paths.values()))) < 4:
+        raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
+                        f"(use a .bin name)")
+    for kind, p in paths.items():
+        check_output(p, reads, what={"if": "output", "truth": "truth file",
+                                     "yaml": "receiver-input fragment", "sigmf": "SigMF metadata"}[kind],
+                     make_dirs=False)
     sim = _Simulator(sc)                 # input errors surface here, before any file is touched
+    lock = OutputLock(paths["if"]).acquire()
+    tmp = {k: v + TMP_SUFFIX for k, v in paths.items()}
     try:
-        sim.run(paths, progress)
+        try:
+            sim.run(paths, progress, tmp)
+        except OSError as exc:
+            raise UserError(write_error_message("output", paths["if"], exc)) from None
+        interrupt.check()
+        for k in ("truth", "yaml", "sigmf", "if"):  # the IF file last: its presence means complete
+            os.replace(tmp[k], paths[k])
     except BaseException:
-        _remove(paths.values())
+        _remove(tmp.values())
         raise
+    finally:
+        lock.release()
     return paths
 
 
@@ -438,6 +490,7 @@ class _Simulator:
             aging_per_s=sc.clock.aging_ppb_per_s * 1e-9, white_fm_corner_hz=sc.clock.white_fm_corner_hz).take)
         self.scint = self._scintillation(sc.scintillation, tm.seed)
         self.cn0 = _Cn0(sc.cn0)
+        self.impair = Impairments(sc.impairments, self.fs, self.if_hz, self.sigma, self.cplx)
         self.blockage = Blockage(sc.blockage, self.prns, duration, tm.seed, el_scan, self.mask)
         self.nav = {p: _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
                                 sc.navigation.data) for p in self.prns}
@@ -489,21 +542,26 @@ class _Simulator:
                 "signal = A code data exp(+j 2 pi (if_hz time_s + carrier_phase_cycles))"),
         }
 
-    def run(self, paths, progress):
+    def run(self, paths, progress, tmp=None):
+        """Write the files under the names ``tmp`` (default: ``paths``); the receiver input fragment
+        names the final ones."""
+        tmp = tmp or paths
         sat_attrs = {p: {"toe": e.toe, "iode": e.iode, "week": e.week} for p, e in self.ephs.items()}
-        self.writer = _TruthWriter(paths["truth"], self.attrs(), self.prns, sat_attrs)
-        self.blockage.write(self.writer.f)
-        self.fh = open(paths["if"], "wb")
+        self.writer = None
+        self.fh = open(tmp["if"], "wb")
+        self.writer = _TruthWriter(tmp["truth"], self.attrs(), self.prns, sat_attrs)
         fe = self.sc.frontend
         self.encoder = None if self.fmt in _FAST_FORMATS else Encoder(self.fmt, 1.0, fe.bit_order, fe.encoding)
         bar = None
         try:
+            self.blockage.write(self.writer.f)
             if progress:
                 from tqdm import tqdm
                 bar = tqdm(total=round(self.duration, 3), unit="s", desc="simulate", leave=False,
                            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s [{elapsed}<{remaining}]")
             g0 = 0
             while g0 < self.n_grid:
+                interrupt.check()                   # SIGINT/SIGTERM: stop between blocks
                 n = min(self.blk, self.n_grid - g0)
                 self._block(g0, n)
                 if bar is not None:
@@ -513,17 +571,18 @@ class _Simulator:
                 self.fh.write(self.encoder.flush())
         finally:
             self.fh.close()
-            self.writer.close()
+            if self.writer is not None:
+                self.writer.close()
             if bar is not None:
                 bar.close()
         packed = {"bit_order": fe.bit_order, "encoding": fe.encoding} if "packed" in self.fmt else {}
         frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt, **packed,
                           "sample_rate_hz": self.fs, "if_hz": self.if_hz, "start_gps_week": self.week,
                           "start_gps_tow_s": self.t_ref}}
-        write_sigmf(paths["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
+        write_sigmf(tmp["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
                     description="gnssrx simulator output; truth: " + os.path.basename(paths["truth"]),
-                    bit_order=fe.bit_order, encoding=fe.encoding, version=__version__)
-        with open(paths["yaml"], "w") as f:
+                    bit_order=fe.bit_order, encoding=fe.encoding, version=__version__, meta=tmp["sigmf"])
+        with open(tmp["yaml"], "w") as f:
             f.write(f"# gnssrx simulator output (gnssrx {__version__}): receiver input section for "
                     f"{os.path.basename(paths['if'])}\n# truth: {os.path.basename(paths['truth'])}\n")
             yaml.safe_dump(frag, f, sort_keys=False)
@@ -645,6 +704,7 @@ class _Simulator:
                     view += np.float32(self.sigma) * self.rng.standard_normal(view.size, dtype=np.float32)
                 else:
                     view[0::2] += np.float32(self.sigma) * self.rng.standard_normal(n_samp, dtype=np.float32)
+            out = self.impair.apply(out, first)          # front-end impairments (sim/impairments.py)
             if self.encoder is None:
                 quantize_fast(out, self.fmt).tofile(self.fh)
             else:

@@ -167,23 +167,23 @@ def read_csv_trajectory(path, columns: str = "ecef", time_offset_s: float = 0.0)
     """
     if not os.path.isfile(path):
         raise UserError(f"trajectory CSV not found: {path}")
+    from ..config import read_utf8
     rows = []
-    with open(path) as fh:
-        for lineno, line in enumerate(fh, 1):
-            text = line.split("#", 1)[0].strip()
-            if not text:
+    for lineno, line in enumerate(read_utf8(path, "trajectory CSV").splitlines(), 1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        parts = [p for p in text.replace(";", ",").replace("\t", ",").split(",")]
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            if not rows:            # header
                 continue
-            parts = [p for p in text.replace(";", ",").replace("\t", ",").split(",")]
-            try:
-                vals = [float(p) for p in parts]
-            except ValueError:
-                if not rows:            # header
-                    continue
-                raise UserError(f"trajectory CSV {path} line {lineno}: not numbers") from None
-            if len(vals) < 4:
-                raise UserError(f"trajectory CSV {path} line {lineno}: expected 4 columns "
-                                f"(time and 3 coordinates), got {len(vals)}")
-            rows.append(vals[:4])
+            raise UserError(f"trajectory CSV {path} line {lineno}: not numbers") from None
+        if len(vals) < 4:
+            raise UserError(f"trajectory CSV {path} line {lineno}: expected 4 columns "
+                            f"(time and 3 coordinates), got {len(vals)}")
+        rows.append(vals[:4])
     arr = np.array(rows, dtype=float).reshape(-1, 4)
     t = arr[:, 0] - time_offset_s
     xyz = arr[:, 1:] if columns == "ecef" else lla2ecef(arr[:, 1], arr[:, 2], arr[:, 3])

@@ -25,6 +25,10 @@ Formats (``input.format``; the table ``FORMATS``; README "Input formats" maps de
 
 Aliases: GNSS-SDR ``item_type`` names and SigMF ``core:datatype`` names (``ALIASES``) resolve to these.
 
+Non-finite samples (NaN/Inf, possible only in float files) are replaced by zeros on reading and
+counted once each as the reading front advances (``SampleReader.n_nonfinite``): a burst of NaN then costs
+the channels a few microseconds of signal instead of their loop state.
+
 Reading never loads the whole file: :class:`SampleReader` memory-maps it (after ``header_bytes``) and
 returns complex64 blocks; packed formats are unpacked per block by a numba kernel through a byte lookup
 table.  Real formats come back as complex64 with zero imaginary part; the correlator's carrier NCO at
@@ -221,6 +225,9 @@ class SampleReader:
                             f"({self.n_file / self.fs:.3f} s)")
         end = self.n_file if duration_s is None else self.first + int(round(duration_s * self.fs))
         self.end = min(end, self.n_file)
+        self.n_nonfinite = 0           # NaN/Inf samples zeroed so far (each counted once)
+        self.first_nonfinite = None    # file index of the first one
+        self._front = 0                # samples before this file index have been counted
 
     @property
     def n_samples(self) -> int:
@@ -263,7 +270,22 @@ class SampleReader:
             out.imag = 0.0
             if self.iq_swap:        # spectral inversion of a real IF signal
                 out.real[1::2] *= -1.0
+        if self._raw.dtype.kind == "f":
+            self._sanitize(out, start, stop)
         return out
+
+    def _sanitize(self, out: np.ndarray, start: int, stop: int):
+        """Zero NaN/Inf samples in place; count those at or after the reading front."""
+        bad = ~np.isfinite(out)
+        if bad.any():
+            out[bad] = 0
+            idx = np.flatnonzero(bad)
+            new = idx[idx + start >= self._front]
+            if len(new):
+                self.n_nonfinite += len(new)
+                if self.first_nonfinite is None:
+                    self.first_nonfinite = int(start + new[0])
+        self._front = max(self._front, stop)
 
     def chunks(self, chunk_samples: int, overlap: int = 0):
         """Yield (start_index, block) over the span; blocks overlap by `overlap` samples."""

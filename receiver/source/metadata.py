@@ -89,8 +89,9 @@ def read_sigmf(path, carrier_hz: float) -> dict | None:
 
 def write_sigmf(data_path, fmt: str, sample_rate_hz: float, if_hz: float, carrier_hz: float,
                 start_week: int | None = None, start_tow_s: float | None = None, description: str = "",
-                bit_order: str = "msb_first", encoding: str = "sign_magnitude", version: str = "") -> str:
-    """Write ``<stem>.sigmf-meta`` for a recording; returns its path."""
+                bit_order: str = "msb_first", encoding: str = "sign_magnitude", version: str = "",
+                meta: str | None = None) -> str:
+    """Write ``<stem>.sigmf-meta`` (or ``meta``) for a recording; returns its path."""
     f = resolve_format(fmt)
     g = {"core:datatype": SIGMF_DATATYPE.get(f.name, "ru8"), "core:sample_rate": float(sample_rate_hz),
          "core:version": SIGMF_VERSION, "core:description": description,
@@ -104,7 +105,7 @@ def write_sigmf(data_path, fmt: str, sample_rate_hz: float, if_hz: float, carrie
         gps = GPS_EPOCH + _dt.timedelta(seconds=start_week * WEEK_S + start_tow_s)
         utc = gps - _dt.timedelta(seconds=leap_seconds_at(gps))
         cap["core:datetime"] = utc.strftime("%Y-%m-%dT%H:%M:%S.%f") + "Z"
-    mp = meta_path(data_path)
+    mp = meta or meta_path(data_path)
     with open(mp, "w") as fh:
         json.dump({"global": g, "captures": [cap], "annotations": []}, fh, indent=2)
         fh.write("\n")

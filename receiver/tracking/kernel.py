@@ -87,6 +87,27 @@ MODE_BIT_SYNC = 2
 MODE_LOST = 3
 
 
+#: state entries of the C/N0 estimator and the lock / PLI filters (reset if they become non-finite)
+_ESTIMATOR_STATE = (S_CN0, S_PLI_I2, S_PLI_Q2, S_ACC_ABSI, S_ACC_Q2, S_ACC_M2, S_ACC_M4, S_ACC_N, S_ACC_I2,
+                    S_LOCK_ABSI, S_LOCK_ABSQ, S_LAST_PI, S_LAST_PQ, S_PREV_I)
+
+
+def repair_state(st: np.ndarray) -> bool:
+    """Called once per block outside the compiled loop (which runs with fastmath, where NaN checks do
+    not hold): a non-finite C/N0 estimate or lock filter (corrupt input, overflow) is reset to zero so the
+    estimator starts a new window; non-finite NCO or loop-filter state cannot be repaired and marks the
+    channel lost (it is re-acquired).  Returns True if anything was non-finite."""
+    bad = ~np.isfinite(st)
+    if not bad.any():
+        return False
+    est = list(_ESTIMATOR_STATE)
+    st[est] = np.where(np.isfinite(st[est]), st[est], 0.0)
+    if not np.isfinite(st).all():
+        st[~np.isfinite(st)] = 0.0
+        st[S_MODE] = MODE_LOST
+    return True
+
+
 @njit(cache=True)
 def _samples_needed(st, cfg, periods):
     step = st[S_CODE_RATE] / cfg[C_FS]

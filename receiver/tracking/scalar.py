@@ -155,12 +155,14 @@ class Channel:
                 self._out = np.zeros((cap, K.N_OUT))
             n = K.track_block(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
                               self._out, cap)
+            K.repair_state(self.st)              # non-finite C/N0 estimate: reset, not a dead channel
             return to_records(self._out[:n])
         limit = max_epochs if max_epochs is not None else 10 ** 9
         rows = []
         while len(rows) < limit:
             n = K.track_block(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
                               self._out, 1)
+            K.repair_state(self.st)
             if n == 0:
                 break
             row = self._out[0].copy()

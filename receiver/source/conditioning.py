@@ -1,0 +1,362 @@
+"""Input conditioning: DC removal, narrowband-interference (CW / spur) detection and cancellation, optional
+pulse blanking -- one stage between the sample file and acquisition / tracking (``input.conditioning``).
+
+Tone detector (:func:`detect_tones`)
+    Averaged periodogram of ``K`` consecutive, non-overlapping segments of ``fft_size`` samples with a
+    4-term Blackman-Harris window (sidelobes below -92 dB, so a tone 80 dB above the per-bin floor stays
+    within +/-4 bins).  Under noise only every averaged bin is ``floor * Gamma(K, 1/K)``.  The floor is
+    estimated robustly per bin as the running median over ``floor_bins`` neighbouring bins divided by the
+    median of Gamma(K, 1/K) (tones, a band-limiting filter's roll-off and the GNSS signals leave it
+    unbiased).  A bin is a detection when it exceeds ``floor * max(gamma.isf(pfa / fft_size, K, 1/K),
+    10^(min_db / 10))``: under white noise the probability of one or more detections over the whole
+    spectrum is <= ``pfa`` (union bound).  Contiguous detected bins form one tone; its frequency is the
+    parabolic interpolation of the log spectrum around the largest bin, then refined from the phase
+    slope of the tone over the detection span (sub-Hz for strong tones).  Reported per tone:
+    ``freq_hz``, ``snr_bin_db`` (peak bin over the floor) and ``jnr_db`` (tone power over the total noise
+    power in the sampled band, comparable with the simulator's ``impairments.tones[].power_db``).
+
+Tone canceller (:func:`cancel`, numba)
+    Per tone ``k`` a complex amplitude ``a_k`` is tracked by a one-pole LMS on the input mixed down by
+    the tone's phasor, and ``a_k exp(j 2 pi f_k n / fs)`` is subtracted.  This is a notch filter of
+    -3 dB width ``~ mu fs / pi`` Hz centred on the tone (``notch_bw_hz``, default 100 Hz): a few hundred
+    Hz out of the ~2 MHz C/A main lobe, so the signal loses < 0.01 dB; the depth on a stable tone is
+    > 60 dB.  DC removal is the same canceller at 0 Hz.  The filter is causal and keeps its state from
+    one block to the next (:class:`ConditionedReader` continues the stream when consecutive reads
+    overlap, as the pipeline's chunk reads do), so there are no block-edge discontinuities.
+
+Pulse blanking (optional): samples whose magnitude exceeds ``threshold_sigma`` times the RMS of the
+conditioned detection span are set to zero.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+from scipy.ndimage import median_filter
+from scipy.signal.windows import blackmanharris
+from scipy.stats import gamma
+
+# equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
+_ENBW_BH = 2.0044
+
+
+@dataclass
+class Tone:
+    freq_hz: float          # frequency of the tone in the sampled (complex) band
+    snr_bin_db: float       # peak periodogram bin over the local noise floor
+    jnr_db: float           # tone power over the total noise power of the sampled band
+    cancelled: bool = True  # a notch runs on it (False: DC, excision off, or beyond max_tones)
+    dc: bool = False        # at 0 Hz: dc_removal takes it
+
+
+@dataclass
+class Detection:
+    tones: list = field(default_factory=list)
+    fft_size: int = 0
+    segments: int = 0
+    bin_hz: float = 0.0
+    threshold_db: float = 0.0     # detection threshold over the floor
+    noise_power: float = 0.0      # total noise power (floor summed over the band), input units^2
+    dc: complex = 0j              # mean of the detection span (DC offset)
+
+
+def _bh_window(n):
+    return blackmanharris(n, sym=False).astype(np.float64)
+
+
+def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e-3, min_db: float = 6.0,
+                 max_tones: int = 32, floor_bins: int = 129) -> Detection:
+    """Detect CW tones / spurs in complex samples ``x`` (see the module doc for the test and Pfa)."""
+    x = np.asarray(x)
+    nfft = int(fft_size)
+    while nfft > 64 and len(x) < nfft:
+        nfft //= 2
+    k = len(x) // nfft
+    det = Detection(fft_size=nfft, segments=k, bin_hz=fs / nfft)
+    if k < 1:
+        return det
+    seg = x[:k * nfft].astype(np.complex128).reshape(k, nfft)
+    det.dc = complex(seg.mean())
+    w = _bh_window(nfft)
+    spec = np.fft.fftshift(np.mean(np.abs(np.fft.fft(seg * w[None, :], axis=1)) ** 2, axis=0))
+    freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
+    fb = min(floor_bins, nfft // 4) | 1
+    med = median_filter(spec, size=fb, mode="wrap")
+    floor = med / gamma.median(k, scale=1.0 / k)
+    floor = np.maximum(floor, 1e-30)
+    thr = max(float(gamma.isf(pfa / nfft, k, scale=1.0 / k)), 10 ** (min_db / 10.0))
+    det.threshold_db = 10 * np.log10(thr)
+    wp = float(np.sum(w ** 2))
+    det.noise_power = float(np.sum(floor)) / (wp * nfft)       # per-sample noise power
+    over = spec > thr * floor
+    if not over.any():
+        return det
+    # contiguous runs (circularly) -> one tone each
+    idx = np.flatnonzero(over)
+    runs, cur = [], [idx[0]]
+    for i in idx[1:]:
+        if i == cur[-1] + 1:
+            cur.append(i)
+        else:
+            runs.append(cur)
+            cur = [i]
+    runs.append(cur)
+    if len(runs) > 1 and runs[0][0] == 0 and runs[-1][-1] == nfft - 1:
+        runs[0] = runs.pop() + runs[0]
+    tones = []
+    for r in runs:
+        r = np.asarray(r)
+        i = int(r[np.argmax(spec[r])])
+        lo, hi = spec[(i - 1) % nfft], spec[(i + 1) % nfft]
+        a, b, c = np.log(max(lo, 1e-30)), np.log(spec[i]), np.log(max(hi, 1e-30))
+        den = a - 2 * b + c
+        d = 0.5 * (a - c) / den if den < 0 else 0.0
+        f = freqs[i] + float(np.clip(d, -0.5, 0.5)) * fs / nfft
+        excess = float(np.sum(np.maximum(spec[r] - floor[r], 0.0)))
+        p_tone = excess / (wp * nfft)          # Parseval: the lobe sums to the tone power
+        tones.append(Tone(f, 10 * np.log10(spec[i] / floor[i]),
+                          10 * np.log10(max(p_tone, 1e-30) / det.noise_power)))
+    tones.sort(key=lambda t: -t.jnr_db)
+    tones = tones[:max_tones]
+    for t in tones:
+        t.freq_hz = refine_tone_frequency(x, fs, t.freq_hz, nfft)
+    det.tones = tones
+    return det
+
+
+def refine_tone_frequency(x: np.ndarray, fs: float, f0: float, block: int) -> float:
+    """Frequency of a tone near ``f0``: slope of the phase of ``block``-sample sums of the mixed-down
+    signal (two passes; needs >= 3 blocks, else ``f0`` is returned)."""
+    k = len(x) // block
+    if k < 3:
+        return float(f0)
+    n = np.arange(k * block)
+    f = float(f0)
+    for _ in range(2):
+        y = x[:k * block] * np.exp(-2j * np.pi * (f / fs) * n)
+        s = y.reshape(k, block).sum(axis=1)
+        ph = np.unwrap(np.angle(s))
+        w = np.abs(s)
+        tk = np.arange(k) * block / fs
+        A = np.vstack([tk, np.ones(k)]).T * w[:, None]
+        slope = np.linalg.lstsq(A, ph * w, rcond=None)[0][0]
+        f += slope / (2 * np.pi)
+    return f
+
+
+@njit(cache=True, fastmath=True)
+def cancel(x, out, steps, rot, amp, mu, blank_level):
+    """Subtract the tracked tones from ``x`` into ``out`` (complex64); the state arrays are updated.
+
+    steps[k] = exp(j 2 pi f_k / fs) (complex128; 1 for DC: no rotation); rot[k] the tone phasor at the
+    first sample, amp[k] the tracked complex amplitude (both left at the state after the last sample);
+    mu[k] the LMS gain.  blank_level > 0: samples with |y| above it are zeroed after cancellation.
+    Real arithmetic on local scalars (the LMS recursion is the dependency chain).
+    """
+    nt = steps.size
+    blank2 = blank_level * blank_level
+    if nt == 1 and steps[0] == 1.0:                  # DC removal only: the common case, kept lean
+        ar, ai, m = amp[0].real, amp[0].imag, mu[0]
+        for n in range(x.size):
+            yr = x[n].real - ar
+            yi = x[n].imag - ai
+            ar += m * yr
+            ai += m * yi
+            if blank2 > 0.0 and yr * yr + yi * yi > blank2:
+                yr = 0.0
+                yi = 0.0
+            out[n] = complex(yr, yi)
+        amp[0] = complex(ar, ai)
+        return out
+    for n in range(x.size):
+        vr = np.float64(x[n].real)
+        vi = np.float64(x[n].imag)
+        for k in range(nt):
+            rr, ri = rot[k].real, rot[k].imag
+            ar, ai = amp[k].real, amp[k].imag
+            # z = v conj(r); a += mu (z - a); v -= a_old r
+            zr = vr * rr + vi * ri
+            zi = vi * rr - vr * ri
+            vr -= ar * rr - ai * ri
+            vi -= ar * ri + ai * rr
+            amp[k] = complex(ar + mu[k] * (zr - ar), ai + mu[k] * (zi - ai))
+            sr, si = steps[k].real, steps[k].imag
+            nr = rr * sr - ri * si
+            ni = rr * si + ri * sr
+            g = 1.5 - 0.5 * (nr * nr + ni * ni)         # keeps |rot| = 1 (same at every sample, so the
+            rot[k] = complex(nr * g, ni * g)            # output does not depend on the block split)
+        if blank2 > 0.0 and vr * vr + vi * vi > blank2:
+            vr = 0.0
+            vi = 0.0
+        out[n] = complex(vr, vi)
+    return out
+
+
+class Canceller:
+    """State of the tone cancellers (DC first if enabled)."""
+
+    def __init__(self, freqs_hz, fs: float, notch_bw_hz: float, dc_bw_hz: float | None, blank_level=0.0):
+        fl, mus = [], []
+        if dc_bw_hz is not None:
+            fl.append(0.0)
+            mus.append(min(math.pi * dc_bw_hz / fs, 0.5))
+        for f in freqs_hz:
+            fl.append(float(f))
+            mus.append(min(math.pi * notch_bw_hz / fs, 0.5))
+        self.freqs = np.array(fl, np.float64)
+        self.steps = np.exp(2j * np.pi * self.freqs / fs).astype(np.complex128)
+        self.mu = np.array(mus, np.float64)
+        self.fs = fs
+        self.blank_level = float(blank_level)
+        self.rot = np.ones(len(fl), np.complex128)
+        self.amp = np.zeros(len(fl), np.complex128)
+
+    @property
+    def active(self) -> bool:
+        return self.freqs.size > 0 or self.blank_level > 0
+
+    def reset(self, x: np.ndarray):
+        """Fresh state, amplitudes initialised from the first millisecond of ``x`` (no convergence
+        transient at a stream start)."""
+        m = max(1, min(len(x), int(self.fs * 1e-3)))
+        n = np.arange(m)
+        self.rot = np.ones(self.freqs.size, np.complex128)
+        self.amp = np.zeros(self.freqs.size, np.complex128)
+        resid = x[:m].astype(np.complex128)
+        for k, f in enumerate(self.freqs):
+            ph = np.exp(-2j * np.pi * f / self.fs * n)
+            a = complex(np.mean(resid * ph))
+            self.amp[k] = a
+            resid = resid - a * np.conj(ph)
+
+    def process(self, x: np.ndarray) -> np.ndarray:
+        out = np.empty(len(x), np.complex64)
+        if not self.active:
+            out[:] = x
+            return out
+        return cancel(np.ascontiguousarray(x, np.complex64), out, self.steps, self.rot, self.amp, self.mu,
+                      self.blank_level)
+
+
+class ConditionedReader:
+    """A :class:`receiver.io.SampleReader` whose blocks pass through the conditioning stage.
+
+    Reads that start inside the last block returned (or at its end) continue the filter stream, reusing
+    the samples already filtered, so overlapping chunk reads see one continuous causal filter.  A read
+    anywhere else restarts the stream there.  Every other attribute is the wrapped reader's.
+    """
+
+    def __init__(self, reader, cfg, detect_start: int | None = None, log=None):
+        self._reader = reader
+        self.cfg = cfg
+        fs = reader.fs
+        start = reader.first if detect_start is None else detect_start
+        n = int(round(cfg.detect_ms * 1e-3 * fs))
+        span = reader.read(start, n)
+        self.detection = detect_tones(span, fs, cfg.fft_size, cfg.pfa, cfg.min_db, max(cfg.max_tones, 16)) \
+            if cfg.tone_detection else Detection(dc=complex(np.mean(span)) if len(span) else 0j)
+        cancel_f = []
+        dc_bin = self.detection.bin_hz if self.detection.bin_hz else 0.0
+        for t in self.detection.tones:                # strongest first
+            t.dc = bool(cfg.dc_removal and abs(t.freq_hz) <= dc_bin)    # the DC canceller takes it
+            if not t.dc and cfg.tone_excision and len(cancel_f) < cfg.max_tones:
+                cancel_f.append(t.freq_hz)
+            else:
+                t.cancelled = False
+        self._make = lambda level: Canceller(cancel_f, fs, cfg.notch_bw_hz,
+                                             cfg.dc_bw_hz if cfg.dc_removal else None, level)
+        self.canceller = self._make(0.0)
+        self.blank_level = 0.0
+        if len(span) and self.canceller.active:       # one pass over the span: DC estimate, blanking RMS
+            self.canceller.reset(span)
+            y = self.canceller.process(span)
+            if cfg.dc_removal:
+                self.detection.dc = complex(self.canceller.amp[0])   # free of the tones
+        if cfg.pulse_blanking and len(span):
+            rms = math.sqrt(float(np.median(np.abs(y) ** 2)) / math.log(2.0))    # robust (complex Gaussian)
+            self.blank_level = cfg.blank_sigma * rms
+            self.canceller = self._make(self.blank_level)
+        self.blanked = 0
+        self.processed = 0
+        self._tail = np.zeros(0, np.complex64)
+        self._tail_start = None
+
+    def __getattr__(self, name):
+        return getattr(self._reader, name)
+
+    @property
+    def active(self) -> bool:
+        return self.canceller.active
+
+    def read(self, start: int, n: int) -> np.ndarray:
+        if not self.canceller.active:
+            return self._reader.read(start, n)
+        start = max(start, self._reader.first)
+        ts, tail = self._tail_start, self._tail
+        if ts is not None and ts <= start <= ts + len(tail):
+            have = tail[start - ts:]
+            pos = ts + len(tail)
+            need = start + n - pos
+            if need <= 0:
+                return have[:n].copy()
+            new = self._filter(self._reader.read(pos, need))
+            out = np.concatenate([have, new])
+        else:
+            raw = self._reader.read(start, n)
+            self.canceller.reset(raw)
+            out = self._filter(raw)
+        self._tail, self._tail_start = out, start
+        return out
+
+    def _filter(self, raw):
+        y = self.canceller.process(raw)
+        if self.blank_level > 0:
+            self.blanked += int(np.count_nonzero(y == 0))
+        self.processed += len(y)
+        return y
+
+    # ------------------------------------------------------------------ reporting
+    def summary_lines(self) -> list:
+        d, c = self.detection, self.cfg
+        lines = []
+        parts = []
+        if c.dc_removal:
+            p = abs(d.dc) ** 2 / d.noise_power if d.noise_power else 0.0
+            parts.append(f"DC removal (offset {d.dc.real:.3g}{d.dc.imag:+.3g}j"
+                         + (f", {10 * np.log10(p):.1f} dB re noise" if p > 0 else "") + ")")
+        if c.tone_detection:
+            if d.tones:
+                parts.append(f"{len(d.tones)} tone(s): " + ", ".join(
+                    f"{t.freq_hz / 1e3:+.3f} kHz {t.jnr_db:+.1f} dB"
+                    + (" (DC removal)" if t.dc else "" if t.cancelled else " (not cancelled)")
+                    for t in d.tones))
+            else:
+                parts.append("no tones")
+        if self.blank_level > 0:
+            frac = self.blanked / self.processed if self.processed else 0.0
+            parts.append(f"pulse blanking {100 * frac:.3f} % of samples")
+        if parts:
+            lines.append("conditioning    " + "; ".join(parts))
+        return lines
+
+    def write(self, writer):
+        """/conditioning: the detected tones and the stage's settings (attrs)."""
+        d = self.detection
+        g = writer.f.require_group("conditioning")
+        for name in list(g):
+            del g[name]
+        g.create_dataset("freq_hz", data=np.array([t.freq_hz for t in d.tones], float))
+        g.create_dataset("jnr_db", data=np.array([t.jnr_db for t in d.tones], float))
+        g.create_dataset("snr_bin_db", data=np.array([t.snr_bin_db for t in d.tones], float))
+        g.create_dataset("cancelled", data=np.array([t.cancelled for t in d.tones], bool))
+        attrs = {"dc_removal": bool(self.cfg.dc_removal), "tone_detection": bool(self.cfg.tone_detection),
+                 "tone_excision": bool(self.cfg.tone_excision), "fft_size": d.fft_size,
+                 "segments": d.segments, "bin_hz": d.bin_hz, "threshold_db": d.threshold_db,
+                 "pfa": self.cfg.pfa, "noise_power": d.noise_power, "dc_i": d.dc.real, "dc_q": d.dc.imag,
+                 "notch_bw_hz": self.cfg.notch_bw_hz, "pulse_blanking": bool(self.cfg.pulse_blanking),
+                 "blank_level": self.blank_level, "blanked_samples": self.blanked,
+                 "processed_samples": self.processed}
+        for k, v in attrs.items():
+            g.attrs[k] = v
