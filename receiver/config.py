@@ -531,6 +531,9 @@ RECEIVER_SCHEMA = {
         "nmea": P(False, "bool", "write NMEA 0183 GGA/RMC/GSA/GSV sentences at the fix rate (<stem>.nmea)"),
         "kml": P(False, "bool", "write a KML track of the fixes (<stem>.kml)"),
         "gpx": P(False, "bool", "write a GPX track of the fixes (<stem>.gpx)"),
+        "compression": P("lzf", "str", "compression of the growing run-file datasets (channels, navigation, "
+                                        "observables, vector): lzf (fast), gzip (level 4, smaller, slower) or "
+                                        "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
         "vector_log_hz": P(100.0, "float", "rate of the vector-loop diagnostics in /vector (chi-square tags, "
                                            "state sigmas, each channel's R); 0 = not written", lo=0.0),
     },

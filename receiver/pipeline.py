@@ -20,6 +20,7 @@ from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
 from .config import RECEIVER_SCHEMA
+from .runfile.provenance import provenance
 from .runfile.writer import RunWriter
 from .runfile.record import EPOCH_DTYPE
 from .gnss.registry import get_signal
@@ -182,7 +183,8 @@ def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
     writer = RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
-        "command": " ".join(sys.argv)}, reads=_reads(cfg, out_path, reader, reads))
+        "command": " ".join(sys.argv), **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        compression=cfg.output.compression)
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
