@@ -359,9 +359,31 @@ RECEIVER_SCHEMA = {
         "lock_cn0_min_dbhz": P(25.0, "float", "C/N0 below which lock is declared lost", lo=0.0),
         "lock_ratio_min": P(1.5, "float", "PLL lock detector: lock while low-passed |I| exceeds this "
                                           "times low-passed |Q|", lo=1.0),
-        "lost_ms": P(1000, "int", "time below the lock thresholds before a channel is dropped", lo=10),
-        "reacquire_s": P(5.0, "float", "interval between re-acquisition attempts for missing PRNs",
-                         lo=0.1),
+        "lost_ms": P(200, "int", "time below the lock thresholds before a channel declares the signal lost "
+                                "(its satellite is then re-acquired around the prediction, README: outages)",
+                     lo=10),
+        "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
+                                       "or no longer predictable", lo=0.1),
+        "reacquisition": {
+            "doppler_hz": P(40.0, "float", "Doppler half-window of the hot search right after a loss (error of "
+                                           "the Doppler extrapolated from the last tracked state)", lo=0.0),
+            "code_chips": P(1.5, "float", "code-phase half-window of the hot search right after a loss",
+                            lo=0.0),
+            "accel_mps2": P(5.0, "float", "receiver acceleration bound along the line of sight: the windows "
+                                          "widen by accel t / lambda (Doppler) and accel t^2 / 2 (code) with "
+                                          "the outage length t (warm start)", lo=0.0),
+            "speed_mps": P(60.0, "float", "receiver speed bound: caps the widening at 2 speed / lambda "
+                                          "(Doppler) and 2 speed t (code)", lo=0.0),
+            "max_age_s": P(300.0, "float", "outages longer than this fall back to the cold full-grid search",
+                           lo=0.0),
+            "coherent_ms": P(2, "int", "coherent integration of the narrow search (ms)", lo=1, hi=10),
+            "noncoherent": P(10, "int", "non-coherent sums of the narrow search", lo=1, hi=100),
+            "pfa": P(1e-4, "float", "false-alarm probability over the narrow search window", lo=1e-12,
+                     hi=0.5),
+            "pull_in_ms": P(100, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
+            "settle_s": P(0.3, "float", "a re-acquired channel's measurements are used this long after its "
+                                        "pull-in", lo=0.0),
+        },
         "carrier": {
             "variant": P("pll", "str", "carrier loop variant: pll (built-in FLL-assisted PLL), cpll_atan "
                                        "(ATAN Costas PLL, loop filter of order `order`), ekf (I/Q extended "
@@ -483,9 +505,18 @@ RECEIVER_SCHEMA = {
                                                  "exceeds this many standard deviations (0 = off, the papers' "
                                                  "setting); the innovation still feeds the adaptive R",
                                    lo=0.0),
-        "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, tracking.cn0_window_ms) above which a "
+        "cn0_window_ms": P(200, "int", "C/N0 (M2M4) window of the vector channels: it decides vector lock and "
+                                       "coasting, so it sets how fast a lost signal is noticed", lo=20),
+        "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, vector.cn0_window_ms) above which a "
                                           "vector channel counts as tracked (records' pll_lock, fixes' "
                                           "n_sats and DOPs; M2M4 on noise alone reads 20-30 dB-Hz)"),
+        "coast_mask": P(True, "bool", "while fewer than 4 channels carry signal (C/N0 above lock_cn0_dbhz) the "
+                                      "channels without signal are predicted only (no measurement update): "
+                                      "the filter coasts on its motion model instead of on noise"),
+        "reinit_sigma_m": P(30.0, "float", "an outage the filter cannot bridge: when its 3D position standard "
+                                           "deviation passes this while coasting, the channels fall back to "
+                                           "scalar tracking and the handover starts again from the next scalar "
+                                           "fix (0 = never)", lo=0.0),
         "drop_elevation_deg": P(-2.0, "float", "vector channels whose satellite sets below this elevation are "
                                                "dropped", lo=-90.0, hi=90.0),
         "add_predicted": P(True, "bool", "open channels predicted from the navigation solution for "

@@ -3,7 +3,9 @@
 ``run(cfg)`` streams the input in chunks of ``CHUNK_S`` seconds.  Per chunk every channel runs all its
 epochs in that chunk (one compiled call per channel with the built-in loops), the records go to the HDF5
 writer and the navigation engine, and the engine produces the fixes of the navigation epochs that all
-channels have passed.  Missing PRNs are re-acquired periodically, a few per attempt.
+channels have passed.  The channels' lifecycle (acquisition, loss of signal, hot/warm re-acquisition around
+the prediction, cold re-acquisition of missing PRNs) belongs to receiver.tracking.channels.ChannelManager;
+the navigation engine keeps each satellite's memory (ephemeris, transmit-time reference) across losses.
 """
 from __future__ import annotations
 
@@ -25,11 +27,10 @@ from .runfile.writer import RunWriter
 from .runfile.record import EPOCH_DTYPE
 from .gnss.registry import get_signal
 from .tracking.carrier import make_carrier_loop
-from .tracking.scalar import Channel
+from .tracking.channels import ChannelManager
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
-REACQ_PER_ATTEMPT = 4
 
 
 @dataclass
@@ -44,6 +45,7 @@ class RunSummary:
     mean_llh: tuple | None = None
     scatter_m: tuple | None = None     # (east, north, up) standard deviation
     parity_failures: int = 0
+    reacquisitions: int = 0
     nonfinite_samples: int = 0         # NaN/Inf input samples replaced by zeros
     notes: list = field(default_factory=list)   # input conditioning / acquisition lines
 
@@ -59,6 +61,8 @@ class RunSummary:
                  + " ".join(f"G{p:02d}({self.mean_cn0[p]:.1f})" for p in self.tracked)]
         if self.mean_cn0:
             lines.append(f"mean C/N0       {np.mean(list(self.mean_cn0.values())):.1f} dB-Hz")
+        if self.reacquisitions:
+            lines.append(f"re-acquisitions {self.reacquisitions} (signal lost and found again)")
         if self.n_fixes:
             lat, lon, h = self.mean_llh
             lines += [f"first fix       {self.first_fix_s:.2f} s after the first sample",
@@ -154,14 +158,13 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     return res
 
 
-def _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet=False):
-    """Vector-loop handover hook: returns a vector tracker once vector.start_s is reached (or 5 s after
-    the first fix), else None.  The tracker's ``process(block, start)`` returns
-    ({prn: EPOCH_DTYPE records}, FIX_DTYPE fixes with mode=1) and drives the channels' NCOs."""
-    from .tracking.vector import handover
-    if quiet:
-        return handover(cfg, channels, nav, start, fs, log=lambda msg: None)
-    return handover(cfg, channels, nav, start, fs)
+def _vector_handover(cfg, channels, nav, fs, quiet=False):
+    """Vector-loop handover state (owned by the run): ``.step(start)`` returns a vector tracker once
+    vector.start_s is reached (or 5 s after the first fix), else None.  The tracker's
+    ``process(block, start)`` returns ({prn: EPOCH_DTYPE records}, FIX_DTYPE fixes, mode 1 or 2 = coast)
+    and drives the channels' NCOs; ``tracker.reinit_needed`` asks for a fall-back to scalar tracking."""
+    from .tracking.vector import Handover
+    return Handover(cfg, channels, nav, fs, log=(lambda msg: None) if quiet else None)
 
 
 @interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk
@@ -240,33 +243,27 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
     notes = []
-    results = acquire(cfg, reader, acq_start, cfg.acquisition.prns, widen=True, notes=notes)
-    writer.write_acquisition(results, {"fs": fs, "pfa": cfg.acquisition.pfa, "notes": "\n".join(notes)})
-    detected = sorted([r for r in results if r.detected], key=lambda r: -r.metric)
-    channels: dict[int, Channel] = {}
-    for r in detected[:cfg.tracking.max_channels]:
-        channels[r.prn] = Channel(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index,
-                                  cfg.tracking, fs, if_hz, channel_id=len(channels),
-                                  signal=get_signal(cfg.signal))
     week_hint = cfg.input.start_gps_week
     nav = None
     if cfg.navigation.enabled and cfg.signal == "gps_l1ca":      # no B1I navigation decoding
         nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
                                cfg.input.start_gps_tow_s)
+    manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
+    manager.start(acq_start, notes)
+    channels = manager.channels             # prn -> Channel (shared with the vector tracker)
     cn0_sum: dict[int, list] = {}
     n_fixes, first_fix, fix_ecef = 0, None, []
     chunk = int(CHUNK_S * fs)
     overlap = int(OVERLAP_S * fs)
-    next_reacq = acq_start + int(cfg.tracking.reacquire_s * fs)
-    rr = 0
     vector = None
+    handover = _vector_handover(cfg, channels, nav, fs, quiet) if cfg.vector.enabled else None
     bar = _progress(reader.duration_s, quiet)
     start = acq_start
     while start < reader.end:
         interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
         block = reader.read(start, chunk + overlap)
-        if vector is None and cfg.vector.enabled:
-            vector = _maybe_handover(cfg, channels, nav, start, fs, n_fixes, quiet)
+        if vector is None and handover is not None:
+            vector = handover.step(start)
         if vector is not None:
             block_recs, vfixes = vector.process(block, start)
             writer.append_fixes(vfixes)
@@ -282,12 +279,11 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                     acc = cn0_sum.setdefault(prn, [0.0, 0])
                     acc[0] += float(c.sum())
                     acc[1] += len(c)
+            manager.note(prn, recs)
             if nav is not None:
                 nav.add_records(prn, recs, ch.bit_offset)
-            if ch.lost:
-                del channels[prn]
-                if nav is not None:
-                    nav.drop(prn)
+        if vector is not None and vector.reinit_needed:
+            vector = handover.fall_back(vector, start + chunk)      # scalar channels, hand over again
         if nav is not None:
             fixes, obs = nav.update(start + chunk)
             if vector is None:
@@ -300,23 +296,9 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                 if first_fix is None:
                     first_fix = float(fixes["time_s"][0]) - reader.first / fs
                 fix_ecef.append(fixes["ecef"])
-        # periodic re-acquisition of missing PRNs (a few per attempt)
-        if start >= next_reacq and len(channels) < cfg.tracking.max_channels:
-            missing = [p for p in cfg.acquisition.prns if p not in channels]
-            if missing:
-                pick = [missing[(rr + k) % len(missing)] for k in range(min(REACQ_PER_ATTEMPT,
-                                                                               len(missing)))]
-                rr += REACQ_PER_ATTEMPT
-                if start + chunk + overlap < reader.end:
-                    res = acquire(cfg, reader, start + chunk, pick)
-                    writer.write_acquisition(res, {"fs": fs})
-                    for r in res:
-                        if r.detected and len(channels) < cfg.tracking.max_channels:
-                            channels[r.prn] = Channel(r.prn, r.doppler_hz, r.code_phase_chips,
-                                                      r.sample_index, cfg.tracking, fs, if_hz,
-                                                      channel_id=len(channels),
-                                                      signal=get_signal(cfg.signal))
-            next_reacq = start + int(cfg.tracking.reacquire_s * fs)
+        # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest
+        if start + chunk + overlap < reader.end:
+            manager.after_chunk(start, start + chunk)
         start += chunk
         if bar is not None:
             bar.update(round(min(chunk, reader.end - start + chunk) / fs, 3))
@@ -328,14 +310,15 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     s.tracked = sorted(s.mean_cn0)
     s.n_fixes = n_fixes
     s.first_fix_s = first_fix
+    s.reacquisitions = sum(v["reacquisitions"] for v in manager.summary().values())
     if hasattr(reader, "summary_lines"):         # the input conditioning stage
         s.notes += reader.summary_lines()
         reader.write(writer)
     s.notes += notes
     if nav is not None:
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
-        writer.write_ephemerides({p: ch.decoder.ephemeris for p, ch in nav.channels.items()
-                                  if ch.decoder.ephemeris is not None})     # the decoded ones
+        # every satellite decoded during the run (navigation memory, not only the channels still tracking)
+        writer.write_ephemerides(nav.decoded_ephemerides())
         writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else "lnav")
     if fix_ecef:
         from .gnss.geodesy import ecef2enu, ecef2lla

@@ -257,7 +257,7 @@ def test_all_zero_and_constant_inputs_find_nothing(rec, tmp_path, kind):
     with h5py.File(tmp_path / "r.h5") as f:
         assert not f["acquisition/detected"][:].any() and len(f["channels"]) == 0
     rc, out, err = cli(["acquire", rec["yaml"], "--input", tmp_path / "in.bin"])
-    assert rc == 0 and out.strip().endswith("detected: none")
+    assert rc == 0 and "detected: none" in out     # (conditioning / acquisition notes may follow)
 
 
 def test_search_on_zero_power_returns_no_detection():

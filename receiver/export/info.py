@@ -64,7 +64,8 @@ def run_info(path) -> dict:
             "span_s": float(week_seconds_since(w1, t1, w0) - t0),
             "rate_hz": (float(1.0 / np.median(np.diff(fx["time_s"]))) if len(fx) > 1 else None),
             "modes": {"scalar": int(np.count_nonzero(fx["mode"] == 0)),
-                      "vector": int(np.count_nonzero(fx["mode"] == 1))},
+                      "vector": int(np.count_nonzero(fx["mode"] == 1)),
+                      "coast": int(np.count_nonzero(fx["mode"] == 2))},
             "n_sats_mean": float(np.mean(fx["n_sats"])),
             "pdop_mean": float(np.nanmean(fx["pdop"])),
         })
@@ -125,7 +126,8 @@ def format_info(info: dict, show_config: bool = True) -> str:
         add(f"  first fix     {f0['time_s']:.2f} s after the first sample of the file")
         if nav.get("rate_hz"):
             add(f"  rate          {nav['rate_hz']:.2f} Hz")
-        add(f"  modes         scalar {nav['modes']['scalar']}, vector {nav['modes']['vector']}")
+        add(f"  modes         scalar {nav['modes']['scalar']}, vector {nav['modes']['vector']}, "
+            f"coast {nav['modes']['coast']}")
         add(f"  satellites    {nav['n_sats_mean']:.1f} used on average, mean PDOP {nav['pdop_mean']:.2f}")
         if "mean_position" in nav:
             m = nav["mean_position"]

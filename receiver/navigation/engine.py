@@ -33,7 +33,18 @@ ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bi
 
 
 class ChannelNav:
-    """Per-channel bit assembly, frame sync and transmit-time bookkeeping."""
+    """One satellite's navigation memory and its current track's bit assembly.
+
+    The object lives as long as the run (it is never dropped with a channel): the LNAV decoder (decoded
+    ephemeris, iono/UTC, week, frame alignment) and the transmit-time reference (``tow_ref`` at code period
+    ``cp_ref``, the channel's code-period count) survive a loss of signal.  ``suspend`` marks the satellite
+    untracked; ``resume`` starts a new track: when the new channel continues the old channel's code-period
+    count (hot/warm re-acquisition from the predicted transmit time, receiver.tracking.channels) the bit
+    alignment and the transmit-time reference stay valid and pseudoranges resume after the new track's pull-in
+    and ``settle_s``, without waiting for a subframe; the next decoded subframe checks them
+    (``time_mismatches``).  Otherwise the transmit time is resolved again from the predicted range
+    (:meth:`NavigationEngine._resolve_from_fix`) or frame sync.
+    """
 
     def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float):
         self.prn = prn
@@ -60,6 +71,49 @@ class ChannelNav:
         self.cur_nc = False         # the current bit has frequency-locked epochs
         self.prev_bit = None        # (bit index, second-half sum, soft value) of the last complete bit
         self.rot = 0j               # phase rotation over 10 ms (sum of B conj(A), decaying)
+        self.cn0 = 0.0
+        self.active = True          # a channel tracks this satellite
+        self.settle_s = None        # settle time of the current track (None: navigation.settle_s)
+        self.tracks = 1             # tracks (channels) of this satellite so far
+        self.resumed_with_time = 0  # re-acquisitions that kept the transmit-time reference
+
+    def suspend(self):
+        """The channel lost the signal: keep the memory, forget the track's measurement state."""
+        self.active = False
+        self.locked = False
+        self.hatch = None
+        self.recent.clear()
+
+    def resume(self, continuous: bool, settle_s: float | None = None):
+        """A new channel tracks this satellite.  continuous: it continues the old channel's code-period
+        count (same bit offset, transmit-time reference still valid)."""
+        self.active = True
+        self.tracks += 1
+        self.recent.clear()
+        self.last_sample = -1
+        self.track_start_s = None
+        self.lock_start_s = None
+        self.locked = False
+        self.hatch = None
+        self.cur_bit, self.cur_ms, self.cur_nc = None, 0, False
+        self.cur_a = self.cur_b = 0j
+        self.prev_bit = None
+        self.rot = 0j
+        self.noncoherent_from = None
+        self.settle_s = settle_s
+        self.polarity = 0           # a re-locked PLL may sit on the other half cycle: the next subframe says
+        if continuous and self.has_time:
+            self.time_assisted = True       # verified by the next subframe
+            self.resumed_with_time += 1
+        else:
+            self.cp_ref = self.tow_ref = None
+            self.time_assisted = False
+            self.bit_offset = -1
+            old = self.decoder              # bit indices restart: new frame sync, same decoded data
+            self.decoder = LnavDecoder(self.prn, week_hint=old.week_hint)
+            self.decoder.ephemeris, self.decoder.iono_utc, self.decoder.week = \
+                old.ephemeris, old.iono_utc, old.week
+            self.decoder.parity_failures = old.parity_failures
 
     def set_assisted_offset(self, tx_offset: float):
         """Transmit-time offset found by the assisted ambiguity search (until frame sync confirms)."""
@@ -76,7 +130,6 @@ class ChannelNav:
         base = -self.bit_offset * 1e-3
         k = round((tx_guess - m[0] - base) / 0.02)
         return base + 0.02 * k, m[0]
-        self.cn0 = 0.0
 
     def add(self, recs: np.ndarray, bit_offset: int):
         if len(recs) == 0:
@@ -196,7 +249,10 @@ class ChannelNav:
         return self.tow_ref - self.cp_ref * 1e-3
 
     def settled(self, s: float, settle_s: float) -> bool:
-        """True once the loops have tracked for settle_s after the pull-in (DLL transient over)."""
+        """True once the loops have tracked for settle_s after the pull-in (DLL transient over); a resumed
+        track uses its own (shorter) settle time."""
+        if self.settle_s is not None:
+            settle_s = self.settle_s
         return self.track_start_s is not None and s / self.fs - self.track_start_s >= settle_s
 
     def measure(self, s: float):
@@ -326,11 +382,45 @@ class NavigationEngine:
         """Channel prn is frequency-locked from from_sample on (None: phase-locked again)."""
         self.channel(prn).set_noncoherent(from_sample)
 
+    def suspend(self, prn: int):
+        """prn's channel lost the signal: its navigation memory stays (ephemeris, transmit-time reference)."""
+        if prn in self.channels:
+            self.channels[prn].suspend()
+
+    def resume(self, prn: int, continuous: bool, settle_s: float | None = None):
+        """A new channel tracks prn (see ChannelNav.resume)."""
+        if prn in self.channels:
+            self.channels[prn].resume(continuous, settle_s)
+
     def drop(self, prn: int):
+        """Forget prn entirely (its memory too); the pipeline uses suspend/resume instead."""
         self.channels.pop(prn, None)
 
     # ------------------------------------------------------------------------------------------
+    # Navigation interface for the trackers (vector loop, channel manager): week(), ephemeris(prn, t),
+    # ephemerides(t), iono(), last_fix, set_noncoherent(prn, sample), decoded_ephemerides(),
+    # satellite_los(prn, sample).
+    def ephemerides(self, t):
+        """prn -> Ephemeris valid at GPS time t: the RINEX file's (assisted mode) or the decoded ones, for
+        every satellite met during the run (tracked now or not)."""
+        from ..gnss.ephemeris import select
+        out = {}
+        if self.assisted:
+            for prn, lst in self.rinex_ephs.items():
+                e = select(lst, t)
+                if e is not None:
+                    out[prn] = e
+            return out
+        for prn, ch in self.channels.items():
+            if ch.decoder.ephemeris is not None:
+                out[prn] = ch.decoder.ephemeris
+        return out
+
+    def ephemeris(self, prn: int, t):
+        return self.ephemerides(t).get(prn)
+
     def _ephemerides(self, t):
+        """The ephemerides of the satellites with navigation memory (the fixes' candidates)."""
         from ..gnss.ephemeris import select
         out = {}
         for prn, ch in self.channels.items():
@@ -342,6 +432,11 @@ class NavigationEngine:
                 out[prn] = ch.decoder.ephemeris
         return out
 
+    def decoded_ephemerides(self) -> dict:
+        """prn -> the latest ephemeris decoded from the signal during the run (every satellite)."""
+        return {p: ch.decoder.ephemeris for p, ch in sorted(self.channels.items())
+                if ch.decoder.ephemeris is not None}
+
     def iono(self):
         if self.iono_utc is not None:
             return self.iono_utc
@@ -350,16 +445,45 @@ class NavigationEngine:
                 return ch.decoder.iono_utc
         return None
 
-    def _week(self):
+    def week(self):
+        """GPS week (decoded, else input.start_gps_week), or None."""
         for ch in self.channels.values():
             if ch.decoder.week is not None:
                 return ch.decoder.week
         return self.week_hint
 
+    _week = week
+
+    def gps_time(self, s: float):
+        """Predicted GPS time at sample s from the last fix (None before the first fix)."""
+        if self.last_fix is None:
+            return None
+        s_fix, fix = self.last_fix
+        return fix.gps_tow + (s - s_fix) / self.fs * (1 - fix.clock_drift_mps / C_LIGHT)
+
+    def satellite_los(self, prn: int, s: float):
+        """(range rate m/s of a receiver standing at the last fix, elevation deg, range m) of prn at sample s,
+        from its ephemeris; None without a fix or an ephemeris."""
+        from ..gnss.ephemeris import sat_state
+        t = self.gps_time(s)
+        if t is None:
+            return None
+        eph = self.ephemeris(prn, t)
+        if eph is None:
+            return None
+        _, fix = self.last_fix
+        pos, vel, _, _ = sat_state(eph, t - 0.075)
+        d = np.asarray(pos, float) - np.asarray(fix.ecef, float)
+        rng = float(np.linalg.norm(d))
+        u = d / rng
+        up = np.asarray(fix.ecef, float) / float(np.linalg.norm(fix.ecef))     # geocentric (within 0.2 deg)
+        el = math.degrees(math.asin(max(-1.0, min(1.0, float(u @ up)))))
+        return float(u @ np.asarray(vel, float)), el, rng
+
     def update(self, up_to_sample: int):
         """Fixes and observables for all navigation epochs before up_to_sample (all channels passed)."""
         fixes, obs = [], []
-        active = [ch for ch in self.channels.values() if ch.last_sample >= 0]
+        active = [ch for ch in self.channels.values() if ch.active and ch.last_sample >= 0]
         if not active:
             return np.zeros(0, FIX_DTYPE), np.zeros(0, OBS_DTYPE)
         horizon = min(up_to_sample, min(ch.last_sample for ch in active))
@@ -404,19 +528,7 @@ class NavigationEngine:
         if not pending:
             return
         if self.last_fix is not None:
-            s_fix, fix = self.last_fix
-            rx_tow = self.tow0 + (s - self.s0) / self.fs
-            for ch in pending:
-                eph = self._ephemerides(rx_tow).get(ch.prn)
-                if eph is None:
-                    continue
-                from ..gnss.ephemeris import sat_state
-                pos = sat_state(eph, fix.gps_tow - 0.075)[0]
-                rng = float(np.linalg.norm(pos - fix.ecef))
-                guess = rx_tow - (rng + fix.clock_bias_m) / C_LIGHT
-                off, _ = ch.offset_candidates(s, guess)
-                if off is not None:
-                    ch.set_assisted_offset(off)
+            self._resolve_from_fix(s, pending)
             return
         if len(pending) < 5:
             return
@@ -453,9 +565,37 @@ class NavigationEngine:
             for prn, off in best[1].items():
                 self.channels[prn].set_assisted_offset(off)
 
+    def _resolve_from_fix(self, s: float, pending=None):
+        """Transmit times of bit-synchronised channels without one, from the range predicted with the last
+        fix (receiver position and clock) and the satellite's ephemeris: the 20-ms ambiguity is the multiple of
+        20 ms (bit edges) nearest the prediction (valid while the prediction is within +/-10 ms, i.e. the
+        receiver within ~3000 km of the last fix).  Frame sync, when it comes, checks it."""
+        from ..gnss.ephemeris import sat_state
+        if pending is None:
+            pending = [ch for ch in self.channels.values()
+                       if ch.active and not ch.has_time and ch.bit_offset >= 0 and ch.locked
+                       and ch.settled(s, self.cfg.settle_s)]
+        if not pending:
+            return
+        s_fix, fix = self.last_fix
+        rx_tow = self.tow0 + (s - self.s0) / self.fs
+        ephs = self._ephemerides(rx_tow)
+        for ch in pending:
+            eph = ephs.get(ch.prn)
+            if eph is None:
+                continue
+            pos = sat_state(eph, self.gps_time(s) - 0.075)[0]
+            rng = float(np.linalg.norm(pos - fix.ecef))
+            guess = rx_tow - (rng + fix.clock_bias_m) / C_LIGHT
+            off, _ = ch.offset_candidates(s, guess)
+            if off is not None:
+                ch.set_assisted_offset(off)
+
     def _epoch(self, s: float):
         if self.assisted and self.approx_tow0 is not None:
             self._resolve_assisted(s)
+        elif self.last_fix is not None:
+            self._resolve_from_fix(s)
         meas = {}
         dt = 1.0 / self.rate
         window = int(round(self.cfg.smoothing_s * self.rate))

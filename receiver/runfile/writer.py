@@ -55,7 +55,7 @@ class RunWriter:
                 a[k] = v
             self.f.create_group("channels")
             g = self.f.create_group("navigation")
-            g.attrs["mode_mapping"] = "0=scalar,1=vector"
+            g.attrs["mode_mapping"] = "0=scalar,1=vector,2=coast"
             self._out.check()
         except BaseException:
             self.close(ok=False)

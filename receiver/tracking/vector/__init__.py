@@ -1,7 +1,12 @@
 """Vector tracking: scalar-to-vector handover, variant registry.
 
-The pipeline calls :func:`handover` once per chunk while ``vector.enabled`` until it returns a
-:class:`~receiver.tracking.vector.tracker.VectorTracker`; from then on the tracker steps every channel.
+The pipeline owns a :class:`Handover` (the handover bookkeeping: the history of scalar fixes) and calls its
+``step(start)`` once per chunk while ``vector.enabled`` until it returns a
+:class:`~receiver.tracking.vector.tracker.VectorTracker`; from then on the tracker steps every channel.  When
+the tracker cannot bridge an outage (``tracker.reinit_needed``: fewer than 4 channels with signal and the
+filter's position sigma past ``vector.reinit_sigma_m``) the pipeline calls ``fall_back``: the channels go
+back to their scalar loops (the channel manager re-acquires the lost ones) and the handover starts again
+from the next scalar fix.
 
 Variants (``vector.variant``; one module each, one line in :data:`REGISTRY`):
   fixed_r     VLL, error-state EKF [r, v, t_b, dt_d], fixed R (fixed_r.py)
@@ -19,7 +24,6 @@ the vector filter commands them.
 from __future__ import annotations
 
 import sys
-import weakref
 
 import numpy as np
 
@@ -41,7 +45,6 @@ REGISTRY: dict[str, type[VectorFilter]] = {
 }
 
 DEFAULT_DELAY_S = 5.0
-_STATE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()   # nav engine -> handover bookkeeping
 
 
 def make_filter(name: str, vcfg) -> VectorFilter:
@@ -78,13 +81,54 @@ def code_carrier_drift(history, channels) -> float:
     return 0.0
 
 
-def handover(cfg, channels, nav, start, fs, log=_log):
-    """The vector tracker once the handover time is reached and a scalar fix is available, else None."""
+class Handover:
+    """Scalar-to-vector handover state of one run (history of scalar fixes, re-initialisations)."""
+
+    def __init__(self, cfg, channels, nav, fs, log=None):
+        if nav is None:
+            raise UserError("vector tracking needs the navigation solution (navigation.enabled: true)")
+        make_filter(cfg.vector.variant, cfg.vector)     # validate early
+        self.cfg, self.channels, self.nav, self.fs = cfg, channels, nav, fs
+        self.log = log or _log
+        self.state = {"history": [], "first": None, "last": None, "not_before": None}
+        self.reinits = 0
+
+    def step(self, start):
+        """The vector tracker once the handover time is reached and a scalar fix is available, else None."""
+        return handover(self.cfg, self.channels, self.nav, start, self.fs, log=self.log, state=self.state)
+
+    def fall_back(self, tracker, start):
+        """The tracker cannot bridge the outage: every channel back to its scalar loop; the next handover
+        waits for a scalar fix computed after this moment."""
+        cfg = self.cfg
+        for prn in list(tracker.prns):
+            ch = self.channels.get(prn)
+            tracker._remove(prn, False)
+            if ch is not None:
+                _scalar_again(cfg, ch)
+        self.reinits += 1
+        self.state["not_before"] = start
+        self.log(f"vector: outage longer than the filter can bridge at {start / self.fs:.2f} s: scalar "
+                 f"tracking until the next scalar fix, then a new handover")
+        return None
+
+
+def _scalar_again(cfg, ch):
+    ch.set_external(False, False)
+    ch.cfg[K.C_LOST_MS] = cfg.tracking.lost_ms
+    ch.cfg[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[cfg.tracking.cn0_estimator]
+    ch.cfg[K.C_MAX_INT_MS] = cfg.tracking.integration_ms
+    ch.cfg[K.C_CN0_WIN_MS] = cfg.tracking.cn0_window_ms
+
+
+def handover(cfg, channels, nav, start, fs, log=_log, state=None):
+    """The vector tracker once the handover time is reached and a scalar fix is available, else None.
+    state: the handover bookkeeping (Handover.state), kept by the caller between calls."""
     v = cfg.vector
     if nav is None:
         raise UserError("vector tracking needs the navigation solution (navigation.enabled: true)")
     make_filter(v.variant, v)                       # validate early
-    st = _STATE.setdefault(nav, {"history": [], "first": None, "last": None})
+    st = state if state is not None else {"history": [], "first": None, "last": None, "not_before": None}
     lf = nav.last_fix
     if lf is not None and (st["last"] is None or lf[0] != st["last"]):
         s_fix, fix = lf
@@ -104,6 +148,8 @@ def handover(cfg, channels, nav, start, fs, log=_log):
     s_fix, fix = lf
     if start - s_fix > 2.0 * fs:                     # no recent fix (scalar positioning lost): wait
         return None
+    if st.get("not_before") is not None and s_fix < st["not_before"]:
+        return None                                 # after a fall-back: wait for a new scalar fix
     vel = np.asarray(fix.velocity_ecef, dtype=float)
     drift = float(fix.clock_drift_mps)
     sig_v = float(v.init_sigma_vel_mps)
@@ -122,10 +168,7 @@ def handover(cfg, channels, nav, start, fs, log=_log):
         for prn in list(tracker.prns):
             ch = channels[prn]
             tracker._remove(prn, False)
-            ch.set_external(False, False)
-            ch.cfg[K.C_LOST_MS] = cfg.tracking.lost_ms
-            ch.cfg[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[cfg.tracking.cn0_estimator]
-            ch.cfg[K.C_MAX_INT_MS] = cfg.tracking.integration_ms
+            _scalar_again(cfg, ch)
         return None
     log(f"vector: handover at {start / fs - first_sample / fs:.2f} s to {filt.describe()}; "
         f"{len(tracker.prns)} channels {' '.join(f'G{p:02d}' for p in tracker.prns)}; "

@@ -56,7 +56,8 @@ P_FLOOR_C = 9
 P_FLOOR_F = 10
 P_MIN_FILL = 11
 P_GATE = 12
-N_PRM = 13
+P_COAST_MASK = 13      # 1: while fewer than 4 channels carry signal, channels without signal only predict
+N_PRM = 14
 
 # ---- per-epoch log columns (besides the state)
 L_TAU = 0
@@ -180,6 +181,11 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
                 zf[j] /= cnt[j]
                 valid[j] = ST[j, K.S_CN0] >= prm[P_CN0_MASK] and abs(zc[j]) < GROSS_CODE_M and \
                     abs(zf[j]) < GROSS_RATE_MPS
+        if prm[P_COAST_MASK] > 0 and nlock < 4:
+            # coasting: a channel without signal measures noise; the filter is propagated, not pulled
+            for j in range(m):
+                if ST[j, K.S_CN0] < prm[P_LOCK_CN0]:
+                    valid[j] = False
         nvalid = 0
         for j in range(m):
             if valid[j]:

@@ -9,7 +9,15 @@ Chunk by chunk (``process(block, start)``):
   2. the satellite geometry of the vector channels is refreshed (geometry.py);
   3. the compiled loop (loop.py) runs every vector epoch that fits in the block;
   4. records go back to the pipeline (``pll_lock`` of a vector channel = vector lock, C/N0 above
-     vector.lock_cn0_dbhz), fixes are formed at navigation.rate_hz on round GPS times (mode 1).
+     vector.lock_cn0_dbhz), fixes are formed at navigation.rate_hz on round GPS times: mode 1 (vector) when
+     at least 4 channels carry signal, else mode 2 (coast: the filter's prediction); n_sats = channels
+     carrying signal.  While coasting, channels without signal only predict (vector.coast_mask).  When the
+     coasting filter's 3D position sigma passes vector.reinit_sigma_m, ``reinit_needed`` is set and the
+     pipeline falls back to scalar tracking (receiver.tracking.vector.Handover.fall_back).
+
+Navigation interface used (receiver.nav.engine.NavigationEngine): ``week()``, ``ephemerides(t)``,
+``iono()``, ``channels[prn].has_time / tx_offset / bit_offset`` (satellite memory), ``set_noncoherent``,
+``resume``.
 
 Vector channels are never dropped by the scalar lock detector (its loss timer is disabled): a blocked
 channel keeps being predicted and is re-captured without re-acquisition when the signal returns.
@@ -26,7 +34,6 @@ import numpy as np
 
 from .. import kernel as K
 from ...gnss.geodesy import ecef2lla, enu_matrix
-from ...gnss.ephemeris import select
 from ...runfile.record import FIX_DTYPE, VECTOR_LOG_DTYPE
 from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
 from ..scalar import Channel, to_records
@@ -35,6 +42,8 @@ from .geometry import satellite_polys
 
 LAMBDA = C_LIGHT / L1_HZ
 NEVER_LOST_MS = 1e15
+MODE_VECTOR = 1               # FIX_DTYPE mode values (receiver.output)
+MODE_COAST = 2
 PROMOTE_LOCKED_S = 1.0        # a scalar channel joins the vector loop after this long in lock
 
 
@@ -68,6 +77,7 @@ class VectorTracker:
         self.rate = float(cfg.navigation.rate_hz)
         self.next_fix = None
         self.stats = {"epochs": 0, "fired": 0}
+        self.reinit_needed = False           # the filter cannot bridge the current outage (see process)
         self.last_diag = None                # decimated diagnostics of the last chunk (see diagnostics())
         self.last_log = None
         self._arrays_dirty = True
@@ -92,15 +102,8 @@ class VectorTracker:
 
     def _refresh_ephemerides(self, t_gps):
         nav = self.nav
-        if nav.assisted:
-            for prn, lst in nav.rinex_ephs.items():
-                e = select(lst, t_gps)
-                if e is not None:
-                    self.ephs[prn] = e
-        for prn, ch in nav.channels.items():
-            if ch.decoder.ephemeris is not None and not nav.assisted:
-                self.ephs[prn] = ch.decoder.ephemeris
-        w = nav._week()
+        self.ephs.update(nav.ephemerides(t_gps))
+        w = nav.week()
         if w is not None:
             self.week = int(w)
 
@@ -146,6 +149,7 @@ class VectorTracker:
         ch.set_external(True, True)
         ch.cfg[K.C_LOST_MS] = NEVER_LOST_MS
         ch.cfg[K.C_CN0_EST] = 1.0                       # M2M4: phase-lock independent
+        ch.cfg[K.C_CN0_WIN_MS] = float(self.v.cn0_window_ms)
         ch.cfg[K.C_MAX_INT_MS] = self.T_ms
         if ch.st[K.S_INT_MS] > self.T_ms:
             ch.st[K.S_INT_MS] = 1
@@ -167,6 +171,20 @@ class VectorTracker:
         ch = Channel(prn, doppler, code_phase, int(s), self.cfg.tracking, self.fs, self.if_hz,
                      channel_id=len(self.channels))
         ch.st[K.S_MODE] = K.MODE_TRACK
+        # continue the satellite's code-period count of its navigation memory (transmit-time reference,
+        # bit alignment), else start a new one there
+        cn = self.nav.channels.get(prn)
+        continuous = False
+        if cn is not None and cn.has_time and cn.bit_offset >= 0:
+            s1 = float(ch.st[K.S_NEXT_SAMPLE])
+            rho1, _, _, _ = self._predict_prn(prn, (s1 - self.s_ref) / self.fs)
+            tx1 = self.t_ref + (s1 - self.s_ref) / self.fs - rho1 / C_LIGHT
+            ch.st[K.S_CODE_PERIOD] = round((tx1 - cn.tx_offset - ch.st[K.S_CODE_PHASE] / CA_CHIP_RATE) * 1e3)
+            ch.st[K.S_BIT_OFFSET] = cn.bit_offset
+            ch.hist[cn.bit_offset % 20] = 12
+            continuous = True
+        if cn is not None:
+            self.nav.resume(prn, continuous)
         self.channels[prn] = ch
         self._promote(prn, ch)
         self.log(f"vector: opened predicted channel G{prn:02d} (Doppler {doppler:.0f} Hz)")
@@ -301,6 +319,7 @@ class VectorTracker:
         prm[L.P_FLOOR_F] = self.filt.floor_carr
         prm[L.P_MIN_FILL] = min(self.filt.window, 100)
         prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
+        prm[L.P_COAST_MASK] = 1.0 if self.v.coast_mask else 0.0
         if m:
             nep, self.grid_next = L.run_chunk(
                 block, start, prm, self.grid_next, max_ep, self.ST, self.CF, self.CODE, self.HIST, REC,
@@ -318,6 +337,12 @@ class VectorTracker:
                 nep += 1
         if nep:
             self.tau_state = float(LOG[nep - 1, L.L_TAU])
+            # an outage longer than the filter can bridge: coasting and the position sigma past the limit
+            ip = self.lay[0]
+            sig_pos = float(np.sqrt(max(LPD[nep - 1, ip:ip + 3].sum(), 0.0)))
+            lim = float(self.v.reinit_sigma_m)
+            if lim > 0 and LOG[nep - 1, L.L_NLOCK] < 4 and sig_pos > lim:
+                self.reinit_needed = True
         self.last_diag = self._diagnostics(LOG[:nep], LPD[:nep], LR[:nep], self.stats["epochs"])
         self.stats["epochs"] += nep
         self.stats["fired"] += int(LOG[:nep, L.L_FIRED].sum())
@@ -387,13 +412,15 @@ class VectorTracker:
         return out
 
     def _fix_row(self, tau, r, v, b, d, nsat, tow):
+        """Mode 1 (vector) with at least 4 channels carrying signal, else 2 (coast); n_sats = those channels."""
         week = self.week
         if tow >= 604800.0:
             tow, week = tow - 604800.0, week + 1
         lat, lon, h = ecef2lla(r)
         dops = self._dops(tau, r)
         t_s = (self.s_ref + tau * self.fs) / self.fs
-        return (week, tow, t_s, r, v, b, d, nsat, *dops, 1, float(lat), float(lon), float(h))
+        mode = MODE_VECTOR if nsat >= 4 else MODE_COAST
+        return (week, tow, t_s, r, v, b, d, nsat, *dops, mode, float(lat), float(lon), float(h))
 
     def _dops(self, tau, r):
         """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4)."""

@@ -1,0 +1,309 @@
+"""Channel lifecycle: one owner for the tracking channels of a run.
+
+Per satellite (:class:`SatTrack`)::
+
+    searching --(cold acquisition)--> pull-in --> tracking --(signal lost)--> re-acquiring
+        ^                                ^                                       |
+        |                                +----(narrow search around prediction)--+
+        +----(prediction impossible: outage longer than max_age_s, set below the mask)
+
+* Loss of signal: the kernel's lock detectors (low-passed |I| / |Q| and C/N0) declare a channel lost after
+  ``tracking.lost_ms`` of bad epochs (default 200 ms, i.e. ~250-400 ms after the signal vanished).
+* While tracking, the manager keeps the satellite's last *good* state (epochs in lock, C/N0 above the lock
+  threshold): sample, relative transmit time (code period count + code phase), Doppler and Doppler rate.
+* Re-acquiring: every chunk the satellite is searched in the first samples of the next chunk, in a narrow
+  window (receiver.tracking.reacq) around the Doppler and code phase predicted at that sample.  The
+  Doppler is extrapolated from the last good state; with an ephemeris and a fix, the change of the
+  satellite's line-of-sight velocity seen from the last fix is added (the receiver's own velocity is
+  assumed constant).  The window starts at ``reacquisition.doppler_hz`` / ``code_chips`` and widens with
+  the outage length t by the dynamics bound (accel t / lambda, accel t^2 / 2, capped by the speed bound);
+  beyond ``max_age_s`` (or a window wider than the acquisition grid) the satellite goes back to the cold
+  round-robin search.  A satellite predicted below the navigation elevation mask is not searched.
+* Hot start: the new channel continues the old channel's code-period count (the predicted transmit time
+  fixes the integer milliseconds: its error is far below 0.5 ms for any outage below minutes), so the
+  bit alignment and the navigation engine's transmit-time reference stay valid (ChannelNav.resume); the
+  bit-sync histogram is seeded with the known bit offset and the pull-in is ``reacquisition.pull_in_ms``;
+  its DLL runs 1st order for the first chunk (no rate wind-up on the initial code error), then as configured
+  with the old channel's rate integrator.
+
+The pipeline calls ``start`` once, then per chunk ``note(prn, recs)`` for every channel's records and
+``after_chunk(start, next_start)``.  ``channels`` (prn -> Channel) is the dict the vector tracker shares.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..gnss.signals import C_LIGHT
+from . import kernel as K
+from .reacq import narrow_search
+from .scalar import Channel
+
+REACQ_PER_ATTEMPT = 4           # cold searches per attempt
+GOOD_KEEP_S = 1.5               # good-state history used for the Doppler rate
+HOT_DLL_FIRST_ORDER_S = 0.4     # a hot-started channel's DLL is 1st order this long (then per the config)
+GOOD_MARGIN_S = 0.1             # lock detectors lag: the prediction starts this long before the last good epoch
+
+
+@dataclass
+class SatTrack:
+    prn: int
+    channel_id: int
+    state: str = "searching"            # searching | tracking | reacquiring
+    good: deque = field(default_factory=deque)   # (sample, txrel s, doppler Hz) of recent good epochs
+    lost_at: float | None = None        # sample of the last good state (outage start)
+    ref: tuple | None = None            # (sample, txrel, doppler, rate, bit_offset) the prediction starts from
+    bit_offset: int = -1
+    dll_rate: float = 0.0               # the DLL rate integrator of the last good state (code/carrier mismatch)
+    restore_at: float | None = None     # sample from which a hot channel's DLL is 2nd order again
+    reacquisitions: int = 0
+    searches: int = 0
+
+
+class ChannelManager:
+    def __init__(self, cfg, reader, nav, fs, if_hz, signal, acquire, writer=None, log=None):
+        self.cfg = cfg
+        self.rc = cfg.tracking.reacquisition
+        self.reader = reader
+        self.nav = nav
+        self.fs = float(fs)
+        self.if_hz = float(if_hz)
+        self.signal = signal
+        self.acquire = acquire          # acquire(cfg, reader, start, prns) -> [AcqResult] (cold search)
+        self.writer = writer
+        self.log = log or (lambda msg: None)
+        self.channels: dict[int, Channel] = {}
+        self.sats: dict[int, SatTrack] = {}
+        self.events: list = []          # (time_s, prn, event, detail)
+        self._rr = 0
+        self._next_cold = None
+        self._ids = 0
+        self.max_ch = cfg.tracking.max_channels
+        self.lambda_m = C_LIGHT / signal.carrier_hz
+        self.chip_m = C_LIGHT / signal.chip_rate
+
+    # ------------------------------------------------------------------ helpers
+    def _sat(self, prn) -> SatTrack:
+        if prn not in self.sats:
+            self.sats[prn] = SatTrack(prn, self._ids)
+            self._ids += 1
+        return self.sats[prn]
+
+    def _event(self, s, prn, what, detail=""):
+        self.events.append((s / self.fs, prn, what, detail))
+        self.log(f"channels: {s / self.fs - self.reader.first / self.fs:7.2f} s G{prn:02d} {what} {detail}")
+
+    def _open(self, prn, doppler, code_phase, sample):
+        sat = self._sat(prn)
+        ch = Channel(prn, doppler, code_phase, sample, self.cfg.tracking, self.fs, self.if_hz,
+                     channel_id=sat.channel_id, signal=self.signal)
+        self.channels[prn] = ch
+        sat.state = "tracking"
+        sat.good.clear()
+        return ch
+
+    # ------------------------------------------------------------------ start / cold search
+    def start(self, acq_start: int, notes=None):
+        """The initial cold acquisition (widened when fewer than 4 satellites are found); lines for the user
+        go to notes."""
+        notes = [] if notes is None else notes
+        results = self.acquire(self.cfg, self.reader, acq_start, self.cfg.acquisition.prns, widen=True,
+                               notes=notes)
+        if self.writer is not None:
+            self.writer.write_acquisition(results, {"fs": self.fs, "pfa": self.cfg.acquisition.pfa,
+                                                    "notes": "\n".join(notes)})
+        detected = sorted([r for r in results if r.detected], key=lambda r: -r.metric)
+        for r in detected[:self.max_ch]:
+            self._open(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index)
+        self._next_cold = acq_start + int(self.cfg.tracking.reacquire_s * self.fs)
+        return results
+
+    def _cold(self, start, next_start):
+        if start < self._next_cold or len(self.channels) >= self.max_ch:
+            return
+        self._next_cold = start + int(self.cfg.tracking.reacquire_s * self.fs)
+        missing = [p for p in self.cfg.acquisition.prns if p not in self.channels
+                   and self._sat(p).state != "reacquiring"]
+        missing = [p for p in missing if not self._below_mask(p, next_start)]
+        if not missing:
+            return
+        pick = [missing[(self._rr + k) % len(missing)] for k in range(min(REACQ_PER_ATTEMPT, len(missing)))]
+        self._rr += REACQ_PER_ATTEMPT
+        res = self.acquire(self.cfg, self.reader, next_start, pick)
+        if self.writer is not None:
+            self.writer.write_acquisition(res, {"fs": self.fs})
+        for r in res:
+            if r.detected and len(self.channels) < self.max_ch:
+                sat = self._sat(r.prn)
+                known = self.nav is not None and r.prn in self.nav.channels
+                self._open(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index)
+                if known:
+                    self.nav.resume(r.prn, continuous=False)
+                self._event(r.sample_index, r.prn, "cold acquisition", f"Doppler {r.doppler_hz:.0f} Hz")
+                sat.reacquisitions += 1
+
+    # ------------------------------------------------------------------ per chunk
+    def note(self, prn: int, recs: np.ndarray):
+        """Keep the satellite's recent good states (epochs in lock with C/N0 above the lock threshold)."""
+        if not len(recs):
+            return
+        sat = self._sat(prn)
+        ok = (recs["pll_lock"] > 0) & (recs["cn0_dbhz"] >= self.cfg.tracking.lock_cn0_min_dbhz) & \
+            (recs["state"] != K.MODE_PULL_IN)
+        if not ok.any():
+            return
+        r = recs[ok][::10]
+        chip = self.signal.chip_rate
+        for row in r:
+            sat.good.append((float(row["sample_index"]),
+                             int(row["code_period"]) * 1e-3 + float(row["code_phase_chips"]) / chip,
+                             float(row["doppler_hz"])))
+        keep = GOOD_KEEP_S * self.fs
+        while sat.good and sat.good[-1][0] - sat.good[0][0] > keep:
+            sat.good.popleft()
+        ch = self.channels.get(prn)
+        if ch is not None and ch.bit_offset >= 0:
+            sat.bit_offset = ch.bit_offset
+        if ch is not None and sat.restore_at is None and ch.st[K.S_LOCK] > 0:
+            sat.dll_rate = float(ch.st[K.S_DLL_RATE])
+
+    def after_chunk(self, start: int, next_start: int):
+        """Lost channels -> re-acquiring; narrow searches at next_start; the periodic cold search."""
+        for prn, ch in list(self.channels.items()):
+            if ch.lost:
+                del self.channels[prn]
+                self._lost(prn)
+                continue
+            sat = self._sat(prn)
+            if sat.restore_at is not None and ch.next_sample >= sat.restore_at:
+                # the hot channel's code error has converged (1st-order DLL): back to the configured order,
+                # its rate integrator starting from the old channel's value
+                ch.cfg[K.C_DLL_ORDER] = self.cfg.tracking.dll_order
+                ch.st[K.S_DLL_RATE] = sat.dll_rate
+                sat.restore_at = None
+        if next_start + 0.05 * self.fs >= self.reader.end:
+            return
+        for prn, sat in list(self.sats.items()):
+            if sat.state == "reacquiring" and prn not in self.channels and len(self.channels) < self.max_ch:
+                self._hot(sat, next_start)
+        self._cold(start, next_start)
+
+    def _lost(self, prn):
+        sat = self._sat(prn)
+        sat.restore_at = None
+        if self.nav is not None:
+            self.nav.suspend(prn)
+        g = list(sat.good)
+        if not g:
+            sat.state, sat.ref = "searching", None
+            self._event(self.reader.first, prn, "lost", "(no good state: cold search)")
+            return
+        last = g[-1][0]
+        # the lock detectors lag: start the prediction a little before the last good epoch
+        cut = [x for x in g if x[0] <= last - GOOD_MARGIN_S * self.fs] or g[:1]
+        s0, tx0, d0 = cut[-1]
+        rate = 0.0
+        if len(g) >= 5 and g[-1][0] - g[0][0] > 0.3 * self.fs:
+            t = np.array([x[0] for x in g]) / self.fs
+            rate = float(np.polyfit(t - t[0], [x[2] for x in g], 1)[0])
+        sat.ref = (s0, tx0, d0, rate, sat.bit_offset)
+        sat.lost_at = s0
+        sat.state = "reacquiring"
+        sat.searches = 0
+        self._event(s0, prn, "lost", f"Doppler {d0:.0f} Hz, rate {rate:.2f} Hz/s")
+
+    def _below_mask(self, prn, s) -> bool:
+        if self.nav is None:
+            return False
+        los = self.nav.satellite_los(prn, s)
+        return los is not None and los[1] < self.cfg.navigation.elevation_mask_deg
+
+    def predict(self, sat: SatTrack, s: float):
+        """(Doppler Hz, relative transmit time s) predicted at sample s from the last good state."""
+        s0, tx0, d0, rate, _ = sat.ref
+        dt = (s - s0) / self.fs
+        n = max(2, int(np.ceil(dt / 0.5)) + 1)
+        ts = np.linspace(0.0, dt, n)
+        # Doppler rate of the tracked state for the first seconds; with an ephemeris and a fix, the
+        # change of the satellite's line-of-sight velocity (receiver velocity and clock drift held)
+        eph = None
+        if self.nav is not None:
+            a = self.nav.satellite_los(sat.prn, s0)
+            if a is not None:
+                eph = [self.nav.satellite_los(sat.prn, s0 + t * self.fs) for t in ts]
+                if any(e is None for e in eph):
+                    eph = None
+        if eph is not None:
+            dop = d0 - (np.array([e[0] for e in eph]) - eph[0][0]) / self.lambda_m
+        else:
+            dop = d0 + rate * np.minimum(ts, 2.0)
+        # transmit time advances at 1 + Doppler / carrier frequency (trapezoidal integral)
+        integ = float(np.sum(0.5 * (dop[1:] + dop[:-1]) * np.diff(ts))) if n > 1 else 0.0
+        tx = tx0 + dt + integ / self.signal.carrier_hz
+        return float(dop[-1]), tx
+
+    def _hot(self, sat: SatTrack, s_next: int):
+        rc = self.rc
+        prn = sat.prn
+        s = float(s_next)
+        age = (s - sat.lost_at) / self.fs
+        if age > rc.max_age_s:
+            sat.state = "searching"
+            self._event(s, prn, "prediction too old", "(cold search)")
+            return
+        if self._below_mask(prn, s):
+            return
+        dop, tx = self.predict(sat, s)
+        dv = min(rc.accel_mps2 * age, 2.0 * rc.speed_mps)
+        dr = min(0.5 * rc.accel_mps2 * age * age, 2.0 * rc.speed_mps * age)
+        dop_half = rc.doppler_hz + dv / self.lambda_m
+        code_half = rc.code_chips + dr / self.chip_m
+        if dop_half > self.cfg.acquisition.doppler_max_hz:
+            sat.state = "searching"
+            self._event(s, prn, "window beyond the acquisition grid", "(cold search)")
+            return
+        code_len = self.signal.code_len
+        chip = self.signal.chip_rate
+        cp_pred = (tx * 1e3 % 1.0) * code_len                   # code phase at sample s (chips)
+        n = int(rc.coherent_ms * rc.noncoherent * 1e-3 * self.fs)
+        block = self.reader.read(int(s), n)
+        sat.searches += 1
+        res = narrow_search(block, int(s), self.fs, self.if_hz, prn, dop, dop_half, cp_pred,
+                            code_half, rc.coherent_ms, rc.noncoherent, rc.pfa, self.signal)
+        if res is None:
+            return
+        # code phase: the prediction while its uncertainty is below the search's resolution
+        cp = res.code_phase_chips
+        if dr / self.chip_m < 0.05 and code_half < code_len / 4:
+            diff = (cp - cp_pred + code_len / 2) % code_len - code_len / 2
+            if abs(diff) < 0.5:
+                cp = cp_pred
+        ch = self._open(prn, res.doppler_hz, cp, int(s))
+        # continue the old channel's code-period count: the predicted transmit time fixes the integer ms
+        st = ch.st
+        s_first = float(st[K.S_NEXT_SAMPLE])
+        tx_first = tx + (s_first - s) / self.fs * (1.0 + res.doppler_hz / self.signal.carrier_hz)
+        period = int(round((tx_first - st[K.S_CODE_PHASE] / chip) * 1e3))
+        st[K.S_CODE_PERIOD] = period
+        bit_off = sat.ref[4]
+        bit_ms = self.signal.bit_ms(prn)
+        if bit_off >= 0 and self.signal.secondary(prn) is None:
+            st[K.S_BIT_OFFSET] = bit_off
+            ch.hist[bit_off % bit_ms] = 12        # bit sync known: the histogram confirms it at once
+        ch.cfg[K.C_PULL_IN_MS] = rc.pull_in_ms
+        # a 2nd-order DLL would wind its rate integrator up on the search's initial code error (metres, at
+        # the pull-in bandwidth) and ring for seconds: 1st order until the error has converged
+        ch.cfg[K.C_DLL_ORDER] = 1
+        sat.restore_at = s + HOT_DLL_FIRST_ORDER_S * self.fs
+        sat.reacquisitions += 1
+        if self.nav is not None:
+            self.nav.resume(prn, continuous=bit_off >= 0, settle_s=rc.settle_s)
+        self._event(s, prn, "re-acquired",
+                    f"after {age:.2f} s, Doppler {res.doppler_hz:.1f} Hz (predicted {dop:.1f} +/- {dop_half:.0f}), "
+                    f"code {res.code_phase_chips:.2f} chips (predicted {cp_pred:.2f} +/- {code_half:.2f})")
+
+    # ------------------------------------------------------------------ summary
+    def summary(self) -> dict:
+        return {p: {"state": s.state, "reacquisitions": s.reacquisitions} for p, s in sorted(self.sats.items())}
