@@ -21,6 +21,9 @@ from .acquisition import reject_cross_correlations, search, verify
 from . import interrupt
 from .errors import UserError, warn
 from .source.io import SampleReader
+from .source.metadata import apply_metadata
+from .config import RECEIVER_SCHEMA
+from .runfile.provenance import provenance
 from .runfile.writer import RunWriter
 from .runfile.record import EPOCH_DTYPE
 from .gnss.registry import get_signal
@@ -93,7 +96,10 @@ def open_input(cfg) -> SampleReader:
     i = cfg.input
     if not i.path:
         raise UserError("no input file: set input.path in the config or pass --input")
-    reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap)
+    apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items() if hasattr(v, "default")},
+                   get_signal(cfg.signal).carrier_hz)           # SigMF .sigmf-meta beside the file
+    reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
+                          header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
     c = i.conditioning
     if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
         from .source.conditioning import ConditionedReader
@@ -186,7 +192,8 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     writer = RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
-        "command": " ".join(sys.argv)}, reads=_reads(cfg, out_path, reader, reads))
+        "command": " ".join(sys.argv), **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        compression=cfg.output.compression)
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
