@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier batch-full batch-outages clean
+.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier figures-check batch-full batch-outages clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,11 @@ figures-vector: venv
 
 figures-carrier: venv
 	$(PY) scripts/figures_carrier.py --out figures/carrier
+
+# a cheap seeded subset of the three figure scripts against configs/figures_reference.json (a few minutes;
+# not part of `make test`); FIGCHECK_ARGS='--set tracking.carrier.ekf.bn_hz=12' shows it failing
+figures-check: venv
+	$(PY) scripts/figures_check.py $(FIGCHECK_ARGS)
 
 batch-full: venv
 	$(VENV)/bin/gnssrx batch configs/batch/full.yaml

@@ -91,14 +91,16 @@ def _load(config, input_path, sets, output=None):
 @click.option("--input", "input_path", type=str, help="IF file (overrides input.path)")
 @click.option("--output", "-o", type=str, help="HDF5 output (overrides output.path)")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a config key")
-@click.option("--quiet", "-q", is_flag=True, help="no progress bar or summary")
+@click.option("--quiet", "-q", is_flag=True, help="no progress bar (the summary is still printed)")
 def run(config, input_path, output, sets, quiet):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
     from .pipeline import run as run_pipeline
     cfg = _load(config, input_path, sets, output)
-    summary = run_pipeline(cfg, quiet=quiet, log=logging.getLogger("receiver.pipeline").info, reads=[config])
-    if not quiet:
-        click.echo(summary.text())
+    log = logging.getLogger("receiver.pipeline").info
+    summary = run_pipeline(cfg, quiet=quiet, log=log, reads=[config])
+    from .export import export_all      # standard outputs (output.rinex, nmea, ...) from the closed run file
+    export_all(summary.output, cfg.output, log=None if quiet else log)
+    click.echo(summary.text())                   # --quiet silences the progress bar only
 
 
 @main.command()

@@ -253,14 +253,30 @@ def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, st
 # --------------------------------------------------------------------------------------------------
 # The receiver's schema
 # --------------------------------------------------------------------------------------------------
-INPUT_FORMATS = ("int8_iq", "int16_iq", "complex64", "int8_real", "int16_real")
+# the formats of receiver/source/io.py (FORMATS), then the GNSS-SDR / SigMF aliases (ALIASES);
+# tests/test_registries.py checks both
+INPUT_FORMATS = ("int8_iq", "int16_iq", "uint8_iq", "complex64", "float32_real", "int8_real", "int16_real",
+                 "int4_iq", "packed1_real", "packed1_iq", "packed2_real", "packed2_iq", "packed4_real", "packed4_iq")
+INPUT_FORMAT_ALIASES = ("gr_complex", "cshort", "ishort", "cbyte", "ibyte", "byte", "short", "float",
+                        "cf32_le", "ci16_le", "ci8", "cu8", "rf32_le", "ri16_le", "ri8")
+REAL_FORMAT_ALIASES = ("byte", "short", "float", "rf32_le", "ri16_le", "ri8")
 CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
 
 RECEIVER_SCHEMA = {
     "input": {
         "path": P(None, "str", "IF sample file (relative paths are taken from the current directory; "
                               "`--input` overrides)", nullable=True),
-        "format": P("int8_iq", "str", "sample format", choices=INPUT_FORMATS),
+        "format": P("int8_iq", "str", "sample format (README \"Input formats\"; GNSS-SDR item_type and SigMF "
+                                      "datatype names are accepted as aliases)",
+                    choices=INPUT_FORMATS + INPUT_FORMAT_ALIASES),
+        "header_bytes": P(0, "int", "bytes skipped at the start of the file before the first sample", lo=0),
+        "bit_order": P("msb_first", "str", "packed formats: the first field of a byte is in its most "
+                                           "(msb_first) or least (lsb_first) significant bits",
+                       choices=("msb_first", "lsb_first")),
+        "encoding": P("sign_magnitude", "str", "packed1/2/4 formats: field encoding (sign_magnitude: "
+                                               "top bit = sign, value +/-(2m+1); twos_complement: value 2s+1; "
+                                               "offset_binary: value 2u-(2^bits-1))",
+                      choices=("sign_magnitude", "twos_complement", "offset_binary")),
         "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
         "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
@@ -346,6 +362,9 @@ RECEIVER_SCHEMA = {
         "lost_ms": P(200, "int", "time below the lock thresholds before a channel declares the signal lost "
                                 "(its satellite is then re-acquired around the prediction, README: outages)",
                      lo=10),
+        "lost_grace_ms": P(1000, "int", "a channel is declared lost only after this long below the lock "
+                                        "thresholds while it is younger than this (since its pull-in began): a "
+                                        "weak signal needs time to reach phase lock", lo=0),
         "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
                                        "or no longer predictable", lo=0.1),
         "reacquisition": {
@@ -405,6 +424,8 @@ RECEIVER_SCHEMA = {
                 "cn0_tau_s": P(0.5, "float", "ekf/pli_ekf: NWPR C/N0 smoothing time constant", lo=0.0),
                 "pli_tau_s": P(0.1, "float", "pli_ekf: low-pass time constant of I^2, Q^2 in the PLI "
                                              "(0: the epoch's own I, Q)", lo=0.0),
+                "pli_min": P(0.0, "float", "pli_ekf: the PLI weight is clipped to [pli_min, 1] (0: ours, a "
+                                           "weight; -1: the paper's unclipped PLI = cos 2 phi)", lo=-1.0, hi=1.0),
             },
         },
     },
@@ -554,6 +575,9 @@ RECEIVER_SCHEMA = {
         "nmea": P(False, "bool", "write NMEA 0183 GGA/RMC/GSA/GSV sentences at the fix rate (<stem>.nmea)"),
         "kml": P(False, "bool", "write a KML track of the fixes (<stem>.kml)"),
         "gpx": P(False, "bool", "write a GPX track of the fixes (<stem>.gpx)"),
+        "compression": P("lzf", "str", "compression of the growing run-file datasets (channels, navigation, "
+                                        "observables, vector): lzf (fast), gzip (level 4, smaller, slower) or "
+                                        "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
         "vector_log_hz": P(100.0, "float", "rate of the vector-loop diagnostics in /vector (chi-square tags, "
                                            "state sigmas, each channel's R); 0 = not written", lo=0.0),
     },
@@ -592,7 +616,7 @@ def validate_receiver(cfg: Section) -> Section:
     a non-empty PRN list (duplicates are removed with a warning)."""
     i = cfg.input
     half = i.sample_rate_hz / 2
-    if i.format.endswith("_real"):
+    if i.format.endswith("_real") or i.format in REAL_FORMAT_ALIASES:
         if not 0.0 < i.if_hz < half:
             raise UserError(f"config key 'input.if_hz' must be in (0, sample_rate_hz/2 = {half:g}) for the "
                             f"real format {i.format}, got {i.if_hz:g}")

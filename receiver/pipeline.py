@@ -9,6 +9,7 @@ the navigation engine keeps each satellite's memory (ephemeris, transmit-time re
 """
 from __future__ import annotations
 
+import logging
 import os
 import sys
 import time
@@ -20,6 +21,9 @@ from .acquisition import reject_cross_correlations, search, verify
 from . import interrupt
 from .errors import UserError, warn
 from .source.io import SampleReader
+from .source.metadata import apply_metadata
+from .config import RECEIVER_SCHEMA
+from .runfile.provenance import provenance
 from .runfile.writer import RunWriter
 from .runfile.record import EPOCH_DTYPE
 from .gnss.registry import get_signal
@@ -92,7 +96,10 @@ def open_input(cfg) -> SampleReader:
     i = cfg.input
     if not i.path:
         raise UserError("no input file: set input.path in the config or pass --input")
-    reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap)
+    apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items() if hasattr(v, "default")},
+                   get_signal(cfg.signal).carrier_hz)           # SigMF .sigmf-meta beside the file
+    reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
+                          header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
     c = i.conditioning
     if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
         from .source.conditioning import ConditionedReader
@@ -162,9 +169,14 @@ def _vector_handover(cfg, channels, nav, fs, quiet=False):
 
 
 @interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk
-def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
+def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     """Run the receiver on cfg.input.path; write cfg.output.path (HDF5).
-    ``reads``: further files the command reads (the config file): the output must not be one of them."""
+    ``reads``: further files the command reads (the config file): the output must not be one of them.
+    ``log``: a callable for progress messages (default: this module's logger).  The standard outputs
+    (RINEX/NMEA/KML/GPX/report, ``output.*``) are written by the caller from the closed run file
+    (:func:`receiver.export.export_all`): the CLI and the batch runner do."""
+    if log is None:
+        log = logging.getLogger(__name__).info
     make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
@@ -180,7 +192,8 @@ def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
     writer = RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
-        "command": " ".join(sys.argv)}, reads=_reads(cfg, out_path, reader, reads))
+        "command": " ".join(sys.argv), **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        compression=cfg.output.compression)
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
@@ -190,9 +203,6 @@ def run(cfg, quiet: bool = False, log=print, reads=()) -> RunSummary:
         return summary
     finally:
         writer.close(ok)
-        if ok:  # standard outputs (receiver/export): RINEX/NMEA/KML/GPX/report from the closed run file
-            from .export import export_all
-            export_all(out_path, cfg.output, log=None if quiet else log)
 
 
 def check_meaning(cfg, reader):
@@ -209,7 +219,7 @@ def check_meaning(cfg, reader):
 def _reads(cfg, out_path, reader, extra) -> list:
     """The files the run reads (the output must be none of them); the standard outputs written beside
     the run file (output.rinex, nmea, ...) must not overwrite one of them either."""
-    from .export import KINDS, _enabled, output_paths
+    from .runfile.outputs import KINDS, _enabled, output_paths
     from .safeio import _samefile
     reads = [reader.path, cfg.navigation.ephemeris, *extra]
     paths = output_paths(out_path)

@@ -43,11 +43,7 @@ FORBIDDEN: list[tuple[str, str, str]] = [
 ]
 
 #: explicit, commented exceptions to the rules above: (importer, imported)
-ALLOWED_EXCEPTIONS: set[tuple[str, str]] = {
-    # pipeline.run writes the configured exports (output.exports) from its `finally`; the continuity work
-    # owns pipeline.py -- to go when the CLI/batch call export_all after run()
-    ("receiver.pipeline", "receiver.export"),
-}
+ALLOWED_EXCEPTIONS: set[tuple[str, str]] = set()
 
 
 def module_name(path: Path) -> str:
@@ -127,14 +123,7 @@ def test_imports_go_down_the_layers():
 
 #: modules allowed to call print(): the command-line front ends, and (listed with the reason) others
 PRINT_ALLOWED_SUFFIX = ".cli"
-PRINT_EXCEPTIONS = {
-    # vector handover messages go to stderr through print; the module is owned by the continuity work
-    # (to become logging.getLogger(__name__))
-    "receiver.tracking.vector",
-    # pipeline.run(log=print): the default log callable; owned by the continuity work (the CLI passes a
-    # logger's info method, the batch runner a no-op)
-    "receiver.pipeline",
-}
+PRINT_EXCEPTIONS: set[str] = set()
 
 
 def test_library_code_does_not_print():

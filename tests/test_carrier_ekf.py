@@ -43,6 +43,31 @@ def test_pli_ekf_reduces_to_ekf_when_pli_is_one():
     assert not np.allclose(_run("ekf", seq2), _run("pli_ekf", seq2))
 
 
+def test_pli_weight_range_paper_vs_ours():
+    """pli_min = 1 pins the weight at 1 (PLI-EKF == EKF exactly); the paper's form (per-epoch PLI, pli_min =
+    -1) lets the weight go negative when |Q| > |I| while ours (pli_min = 0) stops at 0."""
+    rng = np.random.default_rng(3)
+    n = 200
+    ip = 100.0 + rng.normal(size=n) * 10
+    qp = rng.normal(size=n) * 10
+    qp[100:110] = 200.0                                  # a deep phase excursion: I^2 - Q^2 < 0
+    seq = [(ip[k], qp[k], complex(ip[k] / 2, qp[k] / 2), complex(ip[k] / 2, qp[k] / 2)) for k in range(n)]
+    assert np.allclose(_run("ekf", seq), _run("pli_ekf", seq, **{"ekf.pli_min": 1.0}), rtol=0, atol=1e-12)
+    plis = {}
+    for name, over in (("ours", {"ekf.pli_tau_s": 0.0}), ("paper", {"ekf.pli_tau_s": 0.0, "ekf.pli_min": -1.0})):
+        cfg = load_receiver_config(overrides=[f"tracking.carrier.{k}={v}" for k, v in over.items()])
+        loop = make_carrier_loop("pli_ekf", cfg.tracking)
+        loop.start(12.0, 5e-3)
+        plis[name] = []
+        for ip_, qp_, p1, p2 in seq:
+            loop.step(ip_, qp_, 5e-3, p1, p2)
+            plis[name].append(loop.pli)
+    assert min(plis["ours"]) == 0.0
+    assert min(plis["paper"]) < -0.5
+    assert not np.allclose(_run("pli_ekf", seq, **{"ekf.pli_tau_s": 0.0}),
+                           _run("pli_ekf", seq, **{"ekf.pli_tau_s": 0.0, "ekf.pli_min": -1.0}))
+
+
 @pytest.mark.parametrize("variant", ["ekf", "pli_ekf"])
 def test_ekf_converges_on_a_frequency_offset(variant):
     from receiver.sim.corrsim import CorrScenario, phase_error_std_deg, run

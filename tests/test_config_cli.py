@@ -119,6 +119,7 @@ def test_cli_run_and_acquire(small_recording):
     out = d / "ok.h5"
     res = _gnssrx("run", str(cfg), "-o", str(out), "--quiet", "--set", "navigation.enabled=false", cwd=d)
     assert res.returncode == 0, res.stderr
+    assert "tracked         1 satellites: G04" in res.stdout       # --quiet keeps the summary
     import h5py
     with h5py.File(out) as f:
         assert "tracking" in f.attrs["config"] and f.attrs["gnssrx_version"]

@@ -12,8 +12,14 @@ def _choices(dotted):
 
 
 def test_input_formats_are_the_readers():
-    from receiver.source.io import FORMATS
-    assert set(_choices("input.format")) == set(FORMATS)
+    from receiver.config import INPUT_FORMAT_ALIASES, INPUT_FORMATS
+    from receiver.source.io import ALIASES, BIT_ORDERS, ENCODINGS, FORMATS
+    assert set(INPUT_FORMATS) == set(FORMATS) and set(INPUT_FORMAT_ALIASES) == set(ALIASES)
+    assert set(_choices("input.format")) == set(FORMATS) | set(ALIASES)
+    assert set(_choices("input.bit_order")) == set(BIT_ORDERS)
+    assert set(_choices("input.encoding")) == set(ENCODINGS)
+    from receiver.config import REAL_FORMAT_ALIASES
+    assert set(REAL_FORMAT_ALIASES) == {a for a, f in ALIASES.items() if not FORMATS[f].complex}
 
 
 def test_signals_are_the_signal_registry():

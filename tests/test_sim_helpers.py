@@ -5,14 +5,17 @@ phase only, so the tests check the kernel against the truth independently.
 """
 import numpy as np
 
-from receiver.source.io import FORMATS
+from receiver.source.io import FORMATS, SampleReader
 from receiver.gnss.signals import ca_code
 
 
-def read_if(path, fmt):
-    dt, ncomp = FORMATS[fmt]
-    raw = np.fromfile(path, dtype=dt).astype(np.float64)
-    return raw[0::2] + 1j * raw[1::2] if ncomp == 2 else raw + 0j
+def read_if(path, fmt, **kw):
+    f = FORMATS[fmt]
+    if f.kind in ("int", "float"):
+        raw = np.fromfile(path, dtype=f.dtype).astype(np.float64)
+        return raw[0::2] + 1j * raw[1::2] if f.ncomp == 2 else raw + 0j
+    r = SampleReader(path, fmt, 1.0, **kw)                    # packed / offset formats: the reader
+    return r.read(0, r.n_samples).astype(np.complex128)
 
 
 def code_chips_total(g):

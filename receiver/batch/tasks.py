@@ -72,7 +72,9 @@ def execute_run(task: dict) -> dict:
         from ..pipeline import run
         cfg = build(RECEIVER_SCHEMA, task["config"])
         with capture(log):                            # log records of the stages go to the run's record
-            run(cfg, quiet=True, log=lambda *a, **k: None)
+            summary = run(cfg, quiet=True, log=lambda *a, **k: None)
+            from ..export import export_all      # the standard outputs the config asks for
+            export_all(summary.output, cfg.output, log=None)
         m = compute_metrics(task["h5"], task["truth"], task["reference_llh"], task["carrier_settle_s"])
         m["job_wall_s"] = time.perf_counter() - t0
         m["job_cpu_s"] = time.process_time() - c0

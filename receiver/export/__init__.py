@@ -11,31 +11,8 @@ The same files can be written later with ``gnssrx export RUN.h5 --rinex --nmea -
 """
 from __future__ import annotations
 
-import os
-
 from ..errors import UserError
-
-KINDS = ("rinex", "nmea", "kml", "gpx", "report")
-
-
-def output_paths(run_h5) -> dict:
-    """File names of every output kind for a run file (``rinex`` maps to the obs file, ``nav`` too)."""
-    stem = os.path.splitext(os.fspath(run_h5))[0]
-    return {"obs": stem + ".obs", "nav": stem + ".nav", "nmea": stem + ".nmea", "kml": stem + ".kml",
-            "gpx": stem + ".gpx", "report": stem + "_report.png"}
-
-
-def _enabled(cfg_output, kind: str) -> bool:
-    if cfg_output is None:
-        return False
-    if isinstance(cfg_output, dict):
-        return bool(cfg_output.get(kind, False))
-    if isinstance(cfg_output, (set, list, tuple, frozenset)):
-        return kind in cfg_output
-    try:
-        return bool(cfg_output[kind]) if kind in cfg_output else bool(getattr(cfg_output, kind, False))
-    except TypeError:
-        return bool(getattr(cfg_output, kind, False))
+from ..runfile.outputs import KINDS, _enabled, output_paths  # noqa: F401  (names beside the run file)
 
 
 def export_all(run_h5, cfg_output, log=None, truth=None) -> dict:

@@ -18,11 +18,15 @@ from ..safeio import AtomicH5
 from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_NAMES
 
 
-def _append(group: h5py.Group, name: str, data: np.ndarray):
+COMPRESSION = {"none": {}, "lzf": {"compression": "lzf", "shuffle": True},
+               "gzip": {"compression": "gzip", "compression_opts": 4, "shuffle": True}}
+
+
+def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none"):
     if name not in group:
         maxshape = (None,) + data.shape[1:]
         chunk = (4096,) + data.shape[1:]
-        group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk)
+        group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **COMPRESSION[compression])
     else:
         ds = group[name]
         n = ds.shape[0]
@@ -33,10 +37,12 @@ def _append(group: h5py.Group, name: str, data: np.ndarray):
 class RunWriter:
     FLUSH_ROWS = 20000
 
-    def __init__(self, path, config_yaml: str, attrs: dict | None = None, reads=()):
+    def __init__(self, path, config_yaml: str, attrs: dict | None = None, reads=(), compression: str = "none"):
         """Checks the output path first (safeio.check_output: directory, name length, not one of `reads`,
-        not locked by another run), then opens ``<path>.partial``."""
+        not locked by another run), then opens ``<path>.partial``.  ``compression`` (none, lzf, gzip; both
+        with the shuffle filter) applies to the growing datasets (channels, navigation, observables)."""
         self._buffers: dict[int, list] = {}
+        self.compression = compression
         self._out = AtomicH5(path, "output", reads=reads)
         self.path, self.tmp, self.f = self._out.path, self._out.tmp, self._out.f
         try:
@@ -96,7 +102,7 @@ class RunWriter:
             g.attrs["prn"] = prn
             g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
         for name in EPOCH_DTYPE.names:
-            _append(g, name, np.ascontiguousarray(records[name]))
+            _append(g, name, np.ascontiguousarray(records[name]), self.compression)
         self._out.check()
 
     # ------------------------------------------------------------------ navigation
@@ -106,7 +112,7 @@ class RunWriter:
             return
         g = self.f.require_group(group)
         for name in rows.dtype.names:
-            _append(g, name, np.ascontiguousarray(rows[name]))
+            _append(g, name, np.ascontiguousarray(rows[name]), self.compression)
         self._out.check()
 
     def append_fixes(self, fixes: np.ndarray):

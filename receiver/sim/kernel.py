@@ -146,7 +146,10 @@ def quantize_fast(x: np.ndarray, fmt: str) -> np.ndarray:
     """Fast path of :func:`receiver.source.io.quantize` (scale 1) for complex64 blocks: the same raw array
     (round half to even, saturation; real formats take the real part)."""
     from ..source.io import FORMATS
-    dt, ncomp = FORMATS[fmt]
+    f = FORMATS[fmt]
+    dt, ncomp = f.dtype, f.ncomp
+    if f.kind not in ("int", "float"):
+        raise ValueError(f"quantize_fast: {fmt} is written through source.io.Encoder")
     x = np.ascontiguousarray(x, dtype=np.complex64)
     if dt == np.float32:
         return x.view(np.float32).copy() if ncomp == 2 else x.real.copy()

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..config import P, Section, build, defaults_doc, read_yaml
 from ..errors import UserError
-from ..source.io import FORMATS, is_complex
+from ..source.io import BIT_ORDERS, ENCODINGS, FORMATS, NOISE_SIGMA, is_complex
 from .clock import CLOCK_PRESETS
 from .trajectory import TRAJECTORY_KINDS
 
@@ -141,10 +141,15 @@ SCENARIO_SCHEMA = {
     "frontend": {
         "sample_rate_hz": P(2.6e6, "float", "nominal sample rate", lo=1e5, hi=1e9),
         "if_hz": P(0.0, "float", "intermediate frequency (complex formats: may be 0; real formats: > 0)"),
-        "format": P("int8_iq", "str", "sample format", choices=tuple(FORMATS)),
+        "format": P("int8_iq", "str", "sample format (README \"Input formats\")", choices=tuple(FORMATS)),
+        "bit_order": P("msb_first", "str", "packed formats: bit order (as input.bit_order)",
+                       choices=BIT_ORDERS),
+        "encoding": P("sign_magnitude", "str", "packed formats: field encoding (as input.encoding)",
+                      choices=ENCODINGS),
         "noise": P(True, "bool", "add thermal noise (false: signals only, amplitudes unchanged)"),
         "noise_sigma": P(None, "float", "noise standard deviation per real component in output units "
-                                        "(empty: 8 for int8, 1000 for int16, 1 for complex64); sets the "
+                                        "(empty: 8 for 8-bit, 1000 for int16, 1 for float, 2 for int4, "
+                                        "2.0 / 6.0 for packed 2 / 4 bit); sets the "
                                         "signal amplitudes through C/N0", nullable=True, lo=1e-6),
     },
     "impairments": {
@@ -171,8 +176,7 @@ SCENARIO_SCHEMA = {
     },
 }
 
-DEFAULT_NOISE_SIGMA = {"int8_iq": 8.0, "int8_real": 8.0, "int16_iq": 1000.0, "int16_real": 1000.0,
-                       "complex64": 1.0}
+DEFAULT_NOISE_SIGMA = NOISE_SIGMA
 
 
 def resolve_path(path: str | None, what: str = "file") -> str | None:

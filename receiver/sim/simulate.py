@@ -44,7 +44,8 @@ from ..errors import UserError
 from ..estimation.interpolation import hermite
 from ..safeio import TMP_SUFFIX, GuardedFile, OutputLock, check_output, write_error_message
 from ..gnss.geodesy import ecef2lla
-from ..source.io import is_complex
+from ..source.io import Encoder, is_complex
+from ..source.metadata import write_sigmf
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import IonoUtc, earth_rotation, sat_state
 from ..gnss.lnav import encode_subframes
@@ -69,10 +70,14 @@ _WEEK_FRAMES = int(WEEK_S) // 30
 
 # ------------------------------------------------------------------------------------------ helpers
 def output_paths(out_path) -> dict:
-    """IF file, truth file (<stem>.truth.h5) and receiver input fragment (<stem>.yaml)."""
+    """IF file, truth file (<stem>.truth.h5), receiver input fragment (<stem>.yaml) and SigMF metadata
+    (<stem>.sigmf-meta; <stem> drops a .bin or .sigmf-data extension)."""
     out_path = os.fspath(out_path)
-    stem = os.path.splitext(out_path)[0] if out_path.endswith(".bin") else out_path
-    return {"if": out_path, "truth": stem + ".truth.h5", "yaml": stem + ".yaml"}
+    stem = out_path
+    for ext in (".bin", ".sigmf-data"):
+        if out_path.endswith(ext):
+            stem = out_path[:-len(ext)]
+    return {"if": out_path, "truth": stem + ".truth.h5", "yaml": stem + ".yaml", "sigmf": stem + ".sigmf-meta"}
 
 
 def enu_components(vec, lat_deg, lon_deg):
@@ -383,12 +388,13 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     sc = load_scenario(scenario, overrides)
     paths = output_paths(out_path)
     reads = _files_read(scenario, sc)
-    if len(set(map(os.path.abspath, paths.values()))) < 3:
+    if len(set(map(os.path.abspath, paths.values()))) < 4:
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
     for kind, p in paths.items():
         check_output(p, reads, what={"if": "output", "truth": "truth file",
-                                     "yaml": "receiver-input fragment"}[kind], make_dirs=False)
+                                     "yaml": "receiver-input fragment", "sigmf": "SigMF metadata"}[kind],
+                     make_dirs=False)
     sim = _Simulator(sc)                 # input errors surface here, before any file is touched
     lock = OutputLock(paths["if"]).acquire()
     tmp = {k: v + TMP_SUFFIX for k, v in paths.items()}
@@ -398,7 +404,7 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
         except OSError as exc:
             raise UserError(write_error_message("output", paths["if"], exc)) from None
         interrupt.check()
-        for k in ("truth", "yaml", "if"):          # the IF file last: its presence means complete
+        for k in ("truth", "yaml", "sigmf", "if"):  # the IF file last: its presence means complete
             os.replace(tmp[k], paths[k])
     except BaseException:
         _remove(tmp.values())
@@ -406,6 +412,10 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     finally:
         lock.release()
     return paths
+
+
+# formats written by the numba quantiser in kernel.py; the others go through source.io.Encoder
+_FAST_FORMATS = ("int8_iq", "int16_iq", "complex64", "float32_real", "int8_real", "int16_real")
 
 
 class _Simulator:
@@ -540,6 +550,8 @@ class _Simulator:
         self.writer = None
         self.fh = open(tmp["if"], "wb")
         self.writer = _TruthWriter(tmp["truth"], self.attrs(), self.prns, sat_attrs)
+        fe = self.sc.frontend
+        self.encoder = None if self.fmt in _FAST_FORMATS else Encoder(self.fmt, 1.0, fe.bit_order, fe.encoding)
         bar = None
         try:
             self.blockage.write(self.writer.f)
@@ -555,15 +567,21 @@ class _Simulator:
                 if bar is not None:
                     bar.update(round(n * GRID_S, 3))
                 g0 += n
+            if self.encoder is not None:
+                self.fh.write(self.encoder.flush())
         finally:
             self.fh.close()
             if self.writer is not None:
                 self.writer.close()
             if bar is not None:
                 bar.close()
-        frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt,
+        packed = {"bit_order": fe.bit_order, "encoding": fe.encoding} if "packed" in self.fmt else {}
+        frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt, **packed,
                           "sample_rate_hz": self.fs, "if_hz": self.if_hz, "start_gps_week": self.week,
                           "start_gps_tow_s": self.t_ref}}
+        write_sigmf(tmp["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
+                    description="gnssrx simulator output; truth: " + os.path.basename(paths["truth"]),
+                    bit_order=fe.bit_order, encoding=fe.encoding, version=__version__, meta=tmp["sigmf"])
         with open(tmp["yaml"], "w") as f:
             f.write(f"# gnssrx simulator output (gnssrx {__version__}): receiver input section for "
                     f"{os.path.basename(paths['if'])}\n# truth: {os.path.basename(paths['truth'])}\n")
@@ -687,7 +705,10 @@ class _Simulator:
                 else:
                     view[0::2] += np.float32(self.sigma) * self.rng.standard_normal(n_samp, dtype=np.float32)
             out = self.impair.apply(out, first)          # front-end impairments (sim/impairments.py)
-            quantize_fast(out, self.fmt).tofile(self.fh)
+            if self.encoder is None:
+                quantize_fast(out, self.fmt).tofile(self.fh)
+            else:
+                self.fh.write(self.encoder.encode(out))
 
         if rows.size:
             gr = nodes[rows]

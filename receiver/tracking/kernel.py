@@ -73,7 +73,8 @@ C_BIT_MS = 20          # code periods per data bit (20 for GPS LNAV)
 C_DLL_ORDER = 21
 C_NH_BASE = 22         # > 0: index in code_ext of the overlay-modulated code section (B1I D1 NH code)
 C_NO_DATA = 23         # 1: the signal carries no data symbols (skip bit sync: integrate from pull-in end)
-N_CONFIG = 24
+C_LOST_GRACE_MS = 24   # a channel younger than this is declared lost only after this long below the thresholds
+N_CONFIG = 25
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -240,7 +241,9 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
             st[S_BAD_MS] = 0.0
         else:
             st[S_BAD_MS] += periods
-            if st[S_BAD_MS] >= cfg[C_LOST_MS]:
+            # a young channel (weak signal still pulling into phase lock) gets the longer grace time
+            if st[S_BAD_MS] >= cfg[C_LOST_MS] and (st[S_TOTAL_MS] >= cfg[C_LOST_GRACE_MS]
+                                                   or st[S_BAD_MS] >= cfg[C_LOST_GRACE_MS]):
                 st[S_MODE] = MODE_LOST
         o[O_CN0] = st[S_CN0]
         o[O_PLI] = pli

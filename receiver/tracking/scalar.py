@@ -73,6 +73,7 @@ class Channel:
         c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
         c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
         c[K.C_LOST_MS] = trk_cfg.lost_ms
+        c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
         c[K.C_BIT_MS] = bit_ms
         c[K.C_NH_BASE] = nh_base
         c[K.C_NO_DATA] = 1.0 if dataless else 0.0
@@ -153,9 +154,10 @@ class Channel:
             cap = int(len(block) / self.fs * 1000) + 2
             if self._out.shape[0] < cap:
                 self._out = np.zeros((cap, K.N_OUT))
+            K.repair_state(self.st)              # non-finite C/N0 estimate: reset, not a dead channel
             n = K.track_block(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
                               self._out, cap)
-            K.repair_state(self.st)              # non-finite C/N0 estimate: reset, not a dead channel
+            K.repair_state(self.st)              # (before and after the compiled call)
             return to_records(self._out[:n])
         limit = max_epochs if max_epochs is not None else 10 ** 9
         rows = []

@@ -19,12 +19,20 @@ After the update the state is predicted to the next midpoint; the NCO takes w0/2
 its midpoint phase on theta^.
 
 PLI-EKF: the observation is replaced by
-    x_PLI(k) = PLI(k) x(k) + (1 - PLI(k)) x0(k),  PLI = (I^2 - Q^2)/(I^2 + Q^2) (clipped to [0, 1]; I^2 and
-    Q^2 low-passed over tracking.carrier.ekf.pli_tau_s, 0 = the epoch's own values),
+    x_PLI(k) = PLI(k) x(k) + (1 - PLI(k)) x0(k),  PLI = (I^2 - Q^2)/(I^2 + Q^2) (clipped to [pli_min, 1];
+    I^2 and Q^2 low-passed over tracking.carrier.ekf.pli_tau_s, 0 = the epoch's own values),
     x0(k) = x_PLI(k-1) + H(k-1) Delta s(k-1),     Delta s(k-1) = s^(k|k-1) - s^(k-1|k-1)
 with Delta s taken relative to the NCO (its phase component minus the NCO midpoint-phase advance), so x0 is
 the previous weighted observation carried to the current epoch by the linearised model.  With PLI = 1 it is
 the EKF.
+
+Against the paper (BDS B1I scintillation, PLI-EKF; eqs. 15-17): the weighting x_PLI = PLI x + (1 - PLI) x0,
+the correction x0 = x_PLI(k-1) + H(k-1) Delta s(k-1) and the EKF recursion are the paper's.  Ours: the PLI is
+computed from low-passed I^2, Q^2 (pli_tau_s = 0.1 s; the paper uses the epoch's IP_k, QP_k, i.e. 0) and
+clipped at pli_min = 0 (the paper's PLI ranges over [-1, 1], and a negative weight extrapolates past x0);
+pli_tau_s = 0, pli_min = -1 is the paper's form.  Also ours (the paper leaves them to its reference [18] or
+does not state them): Q from a bandwidth at a design C/N0, A and R from NWPR power estimates, the innovation
+x - h(s^) (the paper writes x - H s^), and the decision-directed data wipe-off.
 """
 from __future__ import annotations
 
@@ -126,7 +134,7 @@ class EKF(PythonLoop):
     use_pli = False
 
     def __init__(self, cfg, bn_hz=None, cn0_dbhz=None, h0=None, h_2=None, amp_tau_s=None, cn0_tau_s=None,
-                 pli_tau_s=None):
+                 pli_tau_s=None, pli_min=None):
         super().__init__(cfg)
         e = self.car.ekf if self.car is not None else None
         self.bn = float(bn_hz if bn_hz is not None else e.bn_hz)
@@ -136,6 +144,7 @@ class EKF(PythonLoop):
         self.amp_tau = float(amp_tau_s if amp_tau_s is not None else e.amp_tau_s)
         self.cn0_tau = float(cn0_tau_s if cn0_tau_s is not None else e.cn0_tau_s)
         self.pli_tau = float(pli_tau_s if pli_tau_s is not None else e.pli_tau_s)
+        self.pli_min = float(pli_min if pli_min is not None else (e.pli_min if e is not None else 0.0))
         self.q = q_for_bandwidth(4, self.bn, 1.0 / (2.0 * self.cn0_design))
         self._mats = {}
 
@@ -197,7 +206,7 @@ class EKF(PythonLoop):
             self.pli_q2 += w * (qp * qp - self.pli_q2)
             tot = self.pli_i2 + self.pli_q2
             pli = (self.pli_i2 - self.pli_q2) / tot if tot > 0 else 0.0
-            pli = min(max(pli, 0.0), 1.0)
+            pli = min(max(pli, self.pli_min), 1.0)
             self.pli = pli
             if self.prev_x is not None:
                 # x0 = x_PLI(k-1) + H(k-1) ds, ds relative to the NCO; H has only its first column

@@ -23,7 +23,7 @@ the vector filter commands them.
 """
 from __future__ import annotations
 
-import sys
+import logging
 
 import numpy as np
 
@@ -59,8 +59,7 @@ def make_filter(name: str, vcfg) -> VectorFilter:
     return filt
 
 
-def _log(msg):
-    print(msg, file=sys.stderr)
+_log = logging.getLogger(__name__).info      # vector handover / re-initialisation messages
 
 
 def code_carrier_drift(history, channels) -> float:
