@@ -54,19 +54,17 @@ def _read(ds, step: int = 1):
     return ds[:] if step == 1 else ds[::step]
 
 
-class RunFile:
-    """One run file open for reading (a context manager; :meth:`close` releases the file).
+class H5Input:
+    """An HDF5 input open for reading (a context manager), its layout checked on opening: a dataset of the
+    wrong type or shape is one line naming it (``check``: a function of :mod:`receiver.runfile.check`).
+    The base of :class:`RunFile` and :class:`receiver.runfile.truth.TruthFile`."""
 
-    Column access returns plain numpy arrays; a column the file does not have is left out of the returned
-    dict (older files, hand-made files); the typed tables (:meth:`fixes`, :meth:`observables`) fill it with
-    NaN / 0 instead."""
-
-    def __init__(self, path, what: str = "run file"):
+    def __init__(self, path, what: str, check=None):
         self.path = os.fspath(path)
         self.f = open_h5(self.path, what)
-        if what == "run file":
+        if check is not None:
             try:
-                check_run_file(self.f, self.path)     # dataset types/shapes: one line naming the dataset
+                check(self.f, self.path)
             except BaseException:
                 self.close()
                 raise
@@ -82,10 +80,20 @@ class RunFile:
             self.f.close()
             self.f = None
 
-    # ---------------------------------------------------------------------------------- file level
     @property
     def attrs(self) -> dict:
         return {k: _plain(v) for k, v in self.f.attrs.items()}
+
+
+class RunFile(H5Input):
+    """One run file open for reading (a context manager; :meth:`close` releases the file).
+
+    Column access returns plain numpy arrays; a column the file does not have is left out of the returned
+    dict (older files, hand-made files); the typed tables (:meth:`fixes`, :meth:`observables`) fill it with
+    NaN / 0 instead."""
+
+    def __init__(self, path, what: str = "run file"):
+        super().__init__(path, what, check_run_file if what == "run file" else None)
 
     def config(self) -> dict:
         """The run's configuration (the ``config`` attribute, parsed); {} when absent or unreadable."""

@@ -17,35 +17,14 @@ from ..errors import UserError
 from ..estimation.interpolation import hermite, interp_columns
 from ..gnss.time import week_seconds_since
 from .check import check_truth_file
-from .reader import _plain, open_h5
+from .reader import H5Input, _plain
 
 
-class TruthFile:
+class TruthFile(H5Input):
     """A simulator truth file open for reading (a context manager)."""
 
     def __init__(self, path):
-        self.path = os.fspath(path)
-        self.f = open_h5(self.path, "truth file")
-        try:
-            check_truth_file(self.f, self.path)       # dataset types/shapes: one line naming the dataset
-        except BaseException:
-            self.close()
-            raise
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def close(self):
-        if self.f is not None:
-            self.f.close()
-            self.f = None
-
-    @property
-    def attrs(self) -> dict:
-        return {k: _plain(v) for k, v in self.f.attrs.items()}
+        super().__init__(path, "truth file", check_truth_file)
 
     @property
     def week(self) -> int:
