@@ -35,20 +35,27 @@ def cli(args, cwd, preexec_fn=None):
                           capture_output=True, text=True, preexec_fn=preexec_fn, timeout=900)
 
 
-def main():
+def make_recording(prefix: str) -> Path:
+    """A fresh directory with a 3-s simulated recording rec.bin, its RINEX nav rec.nav and rec.yaml (the
+    receiver config reading both): the input of the bad-input cases and of scripts/signal_trials.py."""
     sys.path.insert(0, str(ROOT))
     from receiver.batch.tasks import write_nav_for_scenario
     from receiver.sim.scenario import load_scenario
     from receiver.sim.simulate import simulate
-    base = Path(tempfile.mkdtemp(prefix="bad_inputs_"))
+    base = Path(tempfile.mkdtemp(prefix=prefix))
     ov = [("time.duration_s", 3.0), ("frontend.sample_rate_hz", FS)]
     paths = simulate(SCENARIO, base / "rec.bin", ov, progress=False)
     write_nav_for_scenario(load_scenario(SCENARIO, ov).to_dict(), str(base / "rec.nav"))
     cfg = yaml.safe_load(Path(paths["yaml"]).read_text())
     cfg["input"]["path"] = str(base / "rec.bin")
     cfg["navigation"] = {"ephemeris": str(base / "rec.nav")}
+    (base / "rec.yaml").write_text(yaml.safe_dump(cfg))
+    return base
+
+
+def main():
+    base = make_recording("bad_inputs_")
     rec_yaml = base / "rec.yaml"
-    rec_yaml.write_text(yaml.safe_dump(cfg))
     digest = sha(base / "rec.bin")
     # inputs of the cases
     zeros, const = base / "zeros.bin", base / "const.bin"

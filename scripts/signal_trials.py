@@ -12,27 +12,15 @@ and not counted as clean.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import os
 import random
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"
-FS = 2.0e6
-
-
-def sha(path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for blk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(blk)
-    return h.hexdigest()
+from bad_input_matrix import FS, ROOT, SCENARIO, make_recording, sha  # (same folder)
 
 
 def trial(args, cwd: Path, watch: Path, sig, delay_s: float, timeout: float = 600.0) -> dict:
@@ -61,19 +49,7 @@ def main():
     ap.add_argument("--max-delay", type=float, default=1.5)
     a = ap.parse_args()
     rng = random.Random(a.seed)
-    sys.path.insert(0, str(ROOT))
-    from receiver.batch.tasks import write_nav_for_scenario
-    from receiver.sim.scenario import load_scenario
-    from receiver.sim.simulate import simulate
-    import yaml
-    base = Path(tempfile.mkdtemp(prefix="signal_trials_"))
-    ov = [("time.duration_s", 3.0), ("frontend.sample_rate_hz", FS)]
-    paths = simulate(SCENARIO, base / "rec.bin", ov, progress=False)
-    write_nav_for_scenario(load_scenario(SCENARIO, ov).to_dict(), str(base / "rec.nav"))
-    cfg = yaml.safe_load(Path(paths["yaml"]).read_text())
-    cfg["input"]["path"] = str(base / "rec.bin")
-    cfg["navigation"] = {"ephemeris": str(base / "rec.nav")}
-    (base / "rec.yaml").write_text(yaml.safe_dump(cfg))
+    base = make_recording("signal_trials_")      # the bad-input matrix's 3-s recording + nav + config
     digest = sha(base / "rec.bin")
     totals = {}
     for cmd in ("run", "simulate"):
