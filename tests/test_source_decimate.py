@@ -45,6 +45,10 @@ def test_plan_auto_and_explicit():
     assert plan(4, 16.368e6, 1.023e6) == (1, 4) and plan(1, 16.368e6, 1.023e6) == (1, 1)
     with pytest.raises(UserError, match="cannot hold"):
         plan(8, 16.368e6, 1.023e6)
+    with pytest.raises(UserError, match="whole number of samples per millisecond"):
+        plan(5, 16.368e6, 1.023e6)                                 # 3.2736 MS/s
+    with pytest.raises(UserError, match="must be auto or an integer"):
+        plan(True, 16.368e6, 1.023e6)
     # the code-phase grid: 16.368/4 = 4.092 MS/s has only 4 alignments per chip, 4 MS/s 4000
     assert phase_grid(16.368e6 / 4, 1.023e6) == 4 and phase_grid(4e6, 1.023e6) == 4000
 

@@ -92,6 +92,10 @@ def plan(setting, fs_in: float, chip_rate: float):
     if n > 1 and fs_in / n < 2.1 * edge:
         raise UserError(f"config key 'input.decimate' = {n}: {fs_in / n / 1e6:g} MS/s cannot hold the signal's "
                         f"+/-{edge / 1e6:g} MHz (largest factor {max(1, int(fs_in // (2.1 * edge)))})")
+    per_ms = fs_in / n * 1e-3
+    if n > 1 and abs(per_ms - round(per_ms)) > 1e-6:
+        raise UserError(f"config key 'input.decimate' = {n}: {fs_in / n / 1e6:g} MS/s is not a whole number of "
+                        f"samples per millisecond, which acquisition needs (use auto)")
     return 1, n
 
 
