@@ -27,11 +27,13 @@ class ArrayReader:
         return self.x[start:min(start + n, self.end)].copy()
 
 
-def _tones(n, tones):
+def _tones(n, tones, real=True):
+    """Real samples a cos(...) or complex ones (a / 2) exp(j ...): the same component at IF + f."""
     t = np.arange(n) / FS
-    x = np.zeros(n)
+    x = np.zeros(n, complex)
     for f, a, ph in tones:
-        x += a * np.cos(2 * np.pi * (IF + f) * t + ph)
+        arg = 2 * np.pi * (IF + f) * t + ph
+        x += a * np.cos(arg) if real else 0.5 * a * np.exp(1j * arg)
     return x.astype(np.complex64)
 
 
@@ -53,13 +55,13 @@ def test_plan_auto_and_explicit():
     assert phase_grid(16.368e6 / 4, 1.023e6) == 4 and phase_grid(4e6, 1.023e6) == 4000
 
 
-@pytest.mark.parametrize("lm", [(250, 1023), (1, 4)])
-def test_tones_arrive_with_exact_time_tags(lm):
-    """Tones at IF + f come out at f with the phase they have at t = k / fs_out: a time tag off by one
-    input sample would turn the 0.9 MHz tone's phase by 0.35 rad."""
+@pytest.mark.parametrize("lm,real", [((250, 1023), True), ((1, 4), True), ((250, 1023), False)])
+def test_tones_arrive_with_exact_time_tags(lm, real):
+    """Tones at IF + f (real samples, or complex ones) come out at f with the phase they have at
+    t = k / fs_out: a time tag off by one input sample would turn the 0.9 MHz tone's phase by 0.35 rad."""
     n = 400_000
     tones = [(0.9e6, 1.0, 0.3), (-0.7e6, 0.5, -1.1), (3.0e3, 0.25, 2.0), (5.0e6, 1.0, 0.0)]   # last: out of band
-    d = DecimatingReader(ArrayReader(_tones(n, tones), FS), *lm, IF, 1.023e6)
+    d = DecimatingReader(ArrayReader(_tones(n, tones, real), FS, real), *lm, IF, 1.023e6)
     y = d.read(d.first, d.n_samples)
     k = np.arange(len(y))[200:-200]
     t = k / d.fs
