@@ -116,21 +116,19 @@ def _run(d, paths, name, decimate):
 
 
 def test_highrate_file_through_the_stage(highrate):
-    """16.368 MS/s 2-bit real IF -> 4 MS/s complex: the simulated satellites, their C/N0 (45 dB-Hz minus
-    the 2-bit loss ~0.55 dB), Doppler equal to full-rate processing, time_s = sample_index / 4 MS/s."""
+    """16.368 MS/s 2-bit real IF -> 4 MS/s complex: the simulated satellites and no other, their C/N0
+    (45 dB-Hz minus the 2-bit loss ~0.55 dB and the stage's ~0.5 dB, README), the simulated Doppler, and
+    time_s = sample_index / 4 MS/s.  (Processing the same file at full rate -- `input.decimate: 1` --
+    gives 0.5 dB more C/N0; not repeated here: acquisition at 16 MS/s alone takes a minute.)"""
     import h5py
     d, paths = highrate
     dec = _run(d, paths, "dec", "auto")
-    full = _run(d, paths, "full", 1)
-    assert set(dec) == set(full) == {1, 6, 9}
+    assert set(dec) == {1, 6, 9}
     with h5py.File(paths["truth"]) as t:
-        sats = {int(k[1:]): np.median(t["satellites"][k]["doppler_hz"][:]) for k in t["satellites"]} \
-            if "satellites" in t else {}
-    for prn in dec:
-        cd, fd, t, si = dec[prn]
-        cf, ff, _, _ = full[prn]
-        assert 43.0 < cd < 45.5 and abs(cd - cf) < 0.7, (prn, cd, cf)     # measured ~0.5 dB (README)
-        assert abs(fd - ff) < 1.0
-        if prn in sats:
-            assert abs(fd - sats[prn]) < 5.0
+        sats = {int(k[1:]): (t["satellites"][k]["time_s"][:], t["satellites"][k]["doppler_hz"][:])
+                for k in t["satellites"]}
+    for prn, (cn0, dop, t, si) in dec.items():
+        assert 43.3 < cn0 < 45.0, (prn, cn0)
+        tt, dd = sats[prn]
+        assert abs(dop - np.median(dd[tt > 0.6])) < 3.0, (prn, dop)
         assert np.allclose(t, si / 4e6, atol=1e-12)
