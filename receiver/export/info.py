@@ -14,7 +14,8 @@ def run_info(path) -> dict:
     info: dict = {"file": os.path.abspath(run.path), "size_bytes": os.path.getsize(run.path)}
     a = run.attrs
     for k in ("schema", "gnssrx_version", "created_utc", "input_path", "sample_rate_hz", "if_hz",
-              "first_sample", "n_samples", "wall_time_s", "realtime_factor", "command"):
+              "first_sample", "n_samples", "wall_time_s", "realtime_factor", "command", "resample",
+              "input_sample_rate_hz", "input_if_hz"):
         if k in a:
             v = a[k]
             info[k] = v.item() if isinstance(v, np.generic) else v
@@ -100,7 +101,9 @@ def format_info(info: dict, show_config: bool = True) -> str:
         add(f"input           {info['input_path']}")
     if "duration_s" in info:
         add(f"signal          {info['duration_s']:.2f} s at {info['sample_rate_hz'] / 1e6:g} MS/s, "
-            f"IF {info.get('if_hz', 0):g} Hz")
+            f"IF {info.get('if_hz', 0):g} Hz"
+            + (f" (resampled x{info['resample']} from {info['input_sample_rate_hz'] / 1e6:g} MS/s, IF "
+               f"{info.get('input_if_hz', 0):g} Hz)" if info.get("resample", "1/1") != "1/1" else ""))
     if "wall_time_s" in info:
         add(f"processing      {info['wall_time_s']:.1f} s (real-time factor {info.get('realtime_factor', 0):.1f}x)")
     add(f"navigation mode {'assisted (RINEX ephemerides)' if info['assisted'] else 'autonomous'}")
