@@ -254,7 +254,7 @@ class SampleReader:
             if c == 2 and self.iq_swap:
                 out = (out.imag + 1j * out.real).astype(np.complex64)
             elif c == 1 and self.iq_swap:
-                out.real[1::2] *= -1.0
+                out.real[(1 - start % 2)::2] *= -1.0      # odd file indices: consistent across reads
             return out
         raw = self._raw[start * c:stop * c]
         if c == 2:
@@ -268,8 +268,8 @@ class SampleReader:
         else:
             out.real = raw
             out.imag = 0.0
-            if self.iq_swap:        # spectral inversion of a real IF signal
-                out.real[1::2] *= -1.0
+            if self.iq_swap:        # spectral inversion of a real IF signal: (-1)^n, n the file index
+                out.real[(1 - start % 2)::2] *= -1.0
         if self._raw.dtype.kind == "f":
             self._sanitize(out, start, stop)
         return out
