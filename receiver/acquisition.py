@@ -23,6 +23,7 @@ from scipy.stats import gamma
 
 from .gnss.signals import GPS_L1CA, sample_code
 from .runfile.record import ACQ_REASONS
+from .threads import threads
 
 
 @dataclass
@@ -70,7 +71,7 @@ class _Spectra:
         self.spectra = {}
         for r in self.fracs:
             mix = np.exp(-2j * np.pi * (r / T) * t).astype(np.complex64)
-            self.spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=-1)       # (K, n)
+            self.spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=threads())       # (K, n)
         j = np.arange(n1)
         # bin index of decimated line j for Doppler d: (m * j + shift_d) mod n
         self.idx = (m * j[None, :] + shift[:, None]) % n                               # (n_dopp, n1)
@@ -83,7 +84,7 @@ class _Spectra:
             sel = np.flatnonzero(self.frac == r)
             for k in range(self.k):
                 prod = self.spectra[r][k][self.idx[sel]] * cf[None, :]
-                corr = sfft.ifft(prod, axis=1, workers=-1)
+                corr = sfft.ifft(prod, axis=1, workers=threads())
                 power[sel] += corr.real ** 2 + corr.imag ** 2
         return power
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .acquisition import reject_cross_correlations, search, verify
-from . import interrupt
+from . import interrupt, threads
 from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
@@ -272,7 +272,10 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
             writer.append_fixes(vfixes)
             writer.append_vector_log(vector.last_diag)
         else:
-            block_recs = {prn: ch.process(block, start) for prn, ch in channels.items()}
+            # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
+            items = list(channels.items())
+            recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
+            block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
         for prn, ch in list(channels.items()):
             recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
             writer.append_channel(prn, recs)

@@ -29,7 +29,7 @@ _SIN = np.sin(2 * np.pi * (np.arange(_N_TABLE) + 0.5) / _N_TABLE).astype(np.floa
 _FP = 4294967296.0     # 2**32: fixed-point scale of the NCO accumulators (per cycle / per chip)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def correlate(samples, off, n, code_ext, code_phase, code_step, half_el, carr_phase, carr_step):
     """Fast path. Returns (E, P, L, P_first_half, P_second_half) as complex128.
 
