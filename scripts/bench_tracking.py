@@ -7,7 +7,7 @@ the channels' epoch loop (correlators, discriminators, loop filters) is timed, f
 then on all cores (channels in parallel, as ``gnssrx run`` does); "per CPU second" is the one-core figure.
 
     python scripts/bench_tracking.py [--seconds 20] [--channels 8] [--carrier pll|cpll_atan|ekf|pli_ekf|kf|adaptive_kf]
-           [--threads 1,2]
+           [--threads 1,2] [--python-loop]
 """
 import argparse
 import os
@@ -42,10 +42,12 @@ def synthetic(seconds, sats):
     return x
 
 
-def measure(x, sats, cfg, n_threads):
+def measure(x, sats, cfg, n_threads, python_loop=False):
     """Track x with fresh channels on n_threads threads; (signal s, wall s, CPU s, channel-epochs, locked)."""
     set_threads(n_threads)
     chans = [Channel(p, d, c, 0, cfg.tracking, FS, 0.0) for p, d, c in sats]
+    for ch in chans:
+        ch.use_compiled_loop = ch.use_compiled_loop and not python_loop
     warm = int(0.1 * FS)
     for ch in chans:                      # JIT warm-up (cached after the first run)
         ch.process(x[:warm], 0)
@@ -74,6 +76,8 @@ def main():
     ap.add_argument("--threads", default=f"1,{cores()}",
                     help="comma-separated thread counts, measured one after the other (default: 1 and all "
                          "cores)")
+    ap.add_argument("--python-loop", action="store_true",
+                    help="also measure the carrier loop stepped from Python (the reference implementation)")
     args = ap.parse_args()
     sats = REF[:args.channels]
     if SHARED.exists():
@@ -93,6 +97,10 @@ def main():
               f"{locked} still locked")
         print(f"  tracking real-time factor: {sig / wall:.1f}x wall clock, {sig / cpu:.1f}x per CPU second "
               f"({cpu / n_epochs * 1e6:.1f} us CPU per channel-epoch)")
+    if args.python_loop and args.carrier != "pll":
+        sig, wall, cpu, n_epochs, locked = measure(x, sats, cfg, 1, python_loop=True)
+        print(f"Python-stepped loop, threads 1: wall {wall:.2f} s, CPU {cpu:.2f} s: {sig / wall:.1f}x wall clock, "
+              f"{sig / cpu:.1f}x per CPU second ({cpu / n_epochs * 1e6:.1f} us CPU per channel-epoch)")
 
 
 if __name__ == "__main__":
