@@ -107,11 +107,13 @@ def open_input(cfg) -> SampleReader:
     return reader
 
 
-def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None) -> list:
+def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
+            doppler_window=None) -> list:
     """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
     (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
     found, search the others again over +/- acquisition.lo_search_hz.  Lines for the user are appended to
-    ``notes`` (a list)."""
+    ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched instead of the configured
+    +/- acquisition.doppler_max_hz (the channel manager's cold searches once a fix gives the clock drift)."""
     a = cfg.acquisition
     fs, if_hz, sig = reader.fs, cfg.input.if_hz, get_signal(cfg.signal)
     notes = [] if notes is None else notes
@@ -126,9 +128,12 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
 
     def _search(prns_, dmax):
+        c_ = centre if dmax == a.doppler_max_hz else 0.0
+        if doppler_window is not None and dmax == a.doppler_max_hz:
+            c_, dmax = doppler_window
         res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
                       a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
-                      doppler_center_hz=centre if dmax == a.doppler_max_hz else 0.0)
+                      doppler_center_hz=c_)
         for r in res_:
             if r.detected and a.verify and len(block) >= 2 * dwell:
                 ok = verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r, a.coherent_ms,
