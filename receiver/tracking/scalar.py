@@ -3,9 +3,10 @@
 A :class:`Channel` is created from an acquisition result and consumes blocks of samples:
 ``records = channel.process(block, block_start)`` returns the channel-epoch records
 (:data:`receiver.record.EPOCH_DTYPE`) of all epochs that fit in the block.  With the built-in PLL and no
-external commands the whole block runs in one compiled call.  A Python carrier loop or a vector loop
-steps the channel epoch by epoch with ``process(..., max_epochs=1)`` and sets the NCOs between epochs
-with :meth:`Channel.command`.
+external commands the whole block runs in one compiled call, and so it does with another carrier loop
+that has a compiled twin (receiver/tracking/loops/compiled.py: all registered variants).  A vector loop
+(or a carrier loop without a compiled twin) steps the channel epoch by epoch with
+``process(..., max_epochs=1)`` and sets the NCOs between epochs with :meth:`Channel.command`.
 """
 from __future__ import annotations
 
@@ -55,8 +56,8 @@ class Channel:
         self.loop = make_carrier_loop(car.variant, trk_cfg)
         # the loop's compiled twin (loops/compiled.py) runs inside the compiled epoch loop; the Python
         # object steps epoch by epoch when use_compiled_loop is False (the reference, for tests)
-        self.use_compiled_loop = not self.loop.builtin
-        self._lp, self._ls = (None, None) if self.loop.builtin else LC.pack(self.loop)
+        self.use_compiled_loop = not self.loop.builtin and self.loop.name in LC.KINDS
+        self._lp, self._ls = LC.pack(self.loop) if self.use_compiled_loop else (None, None)
         self._py_loop_started = False
         c = np.zeros(K.N_CONFIG)
         c[K.C_FS] = fs
