@@ -23,7 +23,7 @@ from .estimation.stats import gamma_isf, gamma_median
 
 from .gnss.signals import GPS_L1CA, sample_code
 from .runfile.record import ACQ_REASONS
-from .threads import threads
+from .threads import map_ordered, threads
 
 
 @dataclass
@@ -77,14 +77,15 @@ class _Spectra:
         self.idx = (m * j[None, :] + shift[:, None]) % n                               # (n_dopp, n1)
         self.n1, self.k, self.n_dopp = n1, k, len(dopplers)
 
-    def power(self, cf):
+    def power(self, cf, workers=None):
         """Non-coherently summed correlation power (n_dopp, n1) for the conjugate code spectrum cf."""
+        workers = threads() if workers is None else workers
         power = np.zeros((self.n_dopp, self.n1), np.float32)
         for r in self.fracs:
             sel = np.flatnonzero(self.frac == r)
             for k in range(self.k):
                 prod = self.spectra[r][k][self.idx[sel]] * cf[None, :]
-                corr = sfft.ifft(prod, axis=1, workers=threads())
+                corr = sfft.ifft(prod, axis=1, workers=workers)
                 power[sel] += corr.real ** 2 + corr.imag ** 2
         return power
 
@@ -151,9 +152,12 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     n_cells = len(dopplers) * n1
     thr = _threshold(pfa, n_cells, noncoherent)
     spc = fs / sig.chip_rate
-    out = []
-    for prn in prns:
-        power = sp.power(_code_fft(sig, prn, fs, n1))
+    # the PRNs are independent: on several threads each searches its own PRNs with a 1-thread FFT (the
+    # same numbers as one thread searching them all)
+    parallel = threads() > 1 and len(prns) > 1
+
+    def one(prn):
+        power = sp.power(_code_fft(sig, prn, fs, n1), workers=1 if parallel else None)
         pn = power / _row_floor(power, noncoherent)[:, None]
         row_max = pn.max(axis=1)
         order = np.argsort(-row_max)
@@ -183,8 +187,9 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
             res.doppler_hz = refine_doppler(samples, fs, if_hz, prn, res.code_phase_chips, dop, step,
                                             block_ms=1 if short else 10, n_blocks=40 if short else 20,
                                             signal=sig)
-        out.append(res)
-    return out
+        return res
+
+    return map_ordered(one, list(prns)) if parallel else [one(p) for p in prns]
 
 
 def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: AcqResult,
