@@ -63,3 +63,13 @@ def test_run_files_are_bit_identical_whatever_the_thread_count(tmp_path, variant
     diffs = []
     compare_h5(out[1], out[2], diffs)
     assert diffs == [], diffs[:5]
+
+
+def test_cli_threads_option_rejects_a_negative_count(tmp_path):
+    from click.testing import CliRunner
+
+    from receiver.cli import main
+    r = CliRunner().invoke(main, ["run", str(ROOT / "configs" / "gpssim_static_tokyo.yaml"), "--threads", "-1",
+                                  "-o", str(tmp_path / "x.h5")])
+    assert r.exit_code == 2 and "--threads" in r.output
+    assert not (tmp_path / "x.h5").exists()

@@ -161,10 +161,10 @@ class ChannelManager:
             return
         r = recs[ok][::10]
         chip = self.signal.chip_rate
-        for row in r:
-            sat.good.append((float(row["sample_index"]),
-                             int(row["code_period"]) * 1e-3 + float(row["code_phase_chips"]) / chip,
-                             float(row["doppler_hz"])))
+        # (sample, relative transmit time, Doppler) per kept epoch, computed column-wise
+        txrel = r["code_period"].astype(np.int64) * 1e-3 + r["code_phase_chips"].astype(np.float64) / chip
+        sat.good.extend(zip(r["sample_index"].astype(np.float64).tolist(), txrel.tolist(),
+                            r["doppler_hz"].astype(np.float64).tolist()))
         keep = GOOD_KEEP_S * self.fs
         while sat.good and sat.good[-1][0] - sat.good[0][0] > keep:
             sat.good.popleft()
