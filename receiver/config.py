@@ -397,11 +397,11 @@ RECEIVER_SCHEMA = {
             "noncoherent": P(10, "int", "non-coherent sums of the narrow search", lo=1, hi=100),
             "pfa": P(1e-4, "float", "false-alarm probability over the narrow search window", lo=1e-12,
                      hi=0.5),
-            "pull_in_ms": P(100, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
-            "dll_bw_pull_in_hz": P(4.0, "float", "DLL noise bandwidth during a re-acquired channel's pull-in "
+            "pull_in_ms": P(40, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
+            "dll_bw_pull_in_hz": P(15.0, "float", "DLL noise bandwidth during a re-acquired channel's pull-in "
                                                  "(1st order: the code error left by the narrow search decays "
                                                  "with time constant 1 / (4 B))", lo=0.01),
-            "settle_s": P(0.3, "float", "a re-acquired channel's measurements are used this long after its "
+            "settle_s": P(0.1, "float", "a re-acquired channel's measurements are used this long after its "
                                         "pull-in", lo=0.0),
             "search_step_s": P(0.125, "float", "narrow searches run at this step through each chunk just tracked "
                                                "(a returning satellite is found within a step, not a chunk); "
