@@ -264,6 +264,10 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     if cfg.navigation.enabled and cfg.signal == "gps_l1ca":      # no B1I navigation decoding
         nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
                                cfg.input.start_gps_tow_s)
+        pres = cfg.tracking.presence
+        if pres.window_ms > 0:
+            from .navigation.engine import PRESENCE_MARGIN_DB
+            nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
     manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
     manager.start(acq_start, notes)
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
