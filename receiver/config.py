@@ -369,6 +369,20 @@ RECEIVER_SCHEMA = {
         "lost_grace_ms": P(1000, "int", "a channel is declared lost only after this long below the lock "
                                         "thresholds while it is younger than this (since its pull-in began): a "
                                         "weak signal needs time to reach phase lock", lo=0),
+        "presence": {
+            "window_ms": P(20, "int", "signal-presence test: the prompt power over windows of this length is "
+                                      "compared with its level while the signal was present; a vanished "
+                                      "signal is seen within 1-2 windows (the lock detectors and the C/N0 "
+                                      "window lag it by 0.15-0.4 s); 0 = off", lo=0),
+            "drop_db": P(10.0, "float", "the signal is absent when the window power falls this far below its "
+                                        "level while present", lo=1.0),
+            "min_cn0_dbhz": P(30.0, "float", "only a channel with at least this C/N0 can be declared absent by "
+                                             "the test (weaker signals: the lock detectors alone; a fade of a "
+                                             "weak signal must not read as a loss)", lo=0.0),
+            "lost_ms": P(40, "int", "absent this long: the channel declares the signal lost (then re-acquired "
+                                    "around the prediction); meanwhile it has no lock and C/N0 0, so no "
+                                    "measurement of it enters a fix (scalar or vector)", lo=1),
+        },
         "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
                                        "or no longer predictable", lo=0.1),
         "reacquisition": {
@@ -387,8 +401,11 @@ RECEIVER_SCHEMA = {
             "noncoherent": P(10, "int", "non-coherent sums of the narrow search", lo=1, hi=100),
             "pfa": P(1e-4, "float", "false-alarm probability over the narrow search window", lo=1e-12,
                      hi=0.5),
-            "pull_in_ms": P(100, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
-            "settle_s": P(0.3, "float", "a re-acquired channel's measurements are used this long after its "
+            "pull_in_ms": P(40, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
+            "dll_bw_pull_in_hz": P(15.0, "float", "DLL noise bandwidth during a re-acquired channel's pull-in "
+                                                 "(1st order: the code error left by the narrow search decays "
+                                                 "with time constant 1 / (4 B))", lo=0.01),
+            "settle_s": P(0.1, "float", "a re-acquired channel's measurements are used this long after its "
                                         "pull-in", lo=0.0),
             "search_step_s": P(0.125, "float", "narrow searches run at this step through each chunk just tracked "
                                                "(a returning satellite is found within a step, not a chunk); "

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .acquisition import reject_cross_correlations, search, verify
-from . import interrupt
+from . import interrupt, threads
 from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
@@ -113,11 +113,13 @@ def open_input(cfg) -> SampleReader:
     return reader
 
 
-def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None) -> list:
+def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
+            doppler_window=None) -> list:
     """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
     (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
     found, search the others again over +/- acquisition.lo_search_hz.  Lines for the user are appended to
-    ``notes`` (a list)."""
+    ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched instead of the configured
+    +/- acquisition.doppler_max_hz (the channel manager's cold searches once a fix gives the clock drift)."""
     a = cfg.acquisition
     fs, if_hz, sig = reader.fs, reader.if_hz, get_signal(cfg.signal)
     notes = [] if notes is None else notes
@@ -132,9 +134,12 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
 
     def _search(prns_, dmax):
+        c_ = centre if dmax == a.doppler_max_hz else 0.0
+        if doppler_window is not None and dmax == a.doppler_max_hz:
+            c_, dmax = doppler_window
         res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
                       a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
-                      doppler_center_hz=centre if dmax == a.doppler_max_hz else 0.0)
+                      doppler_center_hz=c_)
         for r in res_:
             if r.detected and a.verify and len(block) >= 2 * dwell:
                 ok = verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r, a.coherent_ms,
@@ -259,6 +264,10 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     if cfg.navigation.enabled and cfg.signal == "gps_l1ca":      # no B1I navigation decoding
         nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
                                cfg.input.start_gps_tow_s)
+        pres = cfg.tracking.presence
+        if pres.window_ms > 0:
+            from .navigation.engine import PRESENCE_MARGIN_DB
+            nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
     manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
     manager.start(acq_start, notes)
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
@@ -280,7 +289,10 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
             writer.append_fixes(vfixes)
             writer.append_vector_log(vector.last_diag)
         else:
-            block_recs = {prn: ch.process(block, start) for prn, ch in channels.items()}
+            # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
+            items = list(channels.items())
+            recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
+            block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
         for prn, ch in list(channels.items()):
             recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
             writer.append_channel(prn, recs)
