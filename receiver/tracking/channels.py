@@ -359,6 +359,8 @@ class ChannelManager:
             st[K.S_BIT_OFFSET] = bit_off
             ch.hist[bit_off % bit_ms] = 12        # bit sync known: the histogram confirms it at once
         ch.cfg[K.C_PULL_IN_MS] = rc.pull_in_ms
+        # the code error left by the search (a fraction of a chip) converges within the short pull-in
+        ch.cfg[K.C_DLL_BW_PULL] = rc.dll_bw_pull_in_hz
         # a 2nd-order DLL would wind its rate integrator up on the search's initial code error (metres, at
         # the pull-in bandwidth) and ring for seconds: 1st order until the error has converged
         ch.cfg[K.C_DLL_ORDER] = 1

@@ -80,6 +80,7 @@ class Channel:
         c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
         c[K.C_LOST_MS] = trk_cfg.lost_ms
         c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
+        set_presence(c, trk_cfg)
         c[K.C_BIT_MS] = bit_ms
         c[K.C_NH_BASE] = nh_base
         c[K.C_NO_DATA] = 1.0 if dataless else 0.0
@@ -236,6 +237,15 @@ class Channel:
             # keep the DLL carrier-aided with the new carrier frequency
             cr, fc = self.signal.chip_rate, self.signal.carrier_hz
             self.st[K.S_CODE_RATE] += cr * (dop - old) / fc
+
+
+def set_presence(c: np.ndarray, trk_cfg):
+    """The signal-presence test's configuration (tracking.presence) in a channel's config array."""
+    p = trk_cfg.presence
+    c[K.C_PRES_MS] = p.window_ms
+    c[K.C_PRES_FRAC] = 10.0 ** (-p.drop_db / 10.0)
+    c[K.C_PRES_CN0] = p.min_cn0_dbhz
+    c[K.C_PRES_LOST_MS] = p.lost_ms
 
 
 def early_late_spacing(trk_cfg, fs: float, chip_rate: float) -> float:
