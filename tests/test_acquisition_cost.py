@@ -56,7 +56,7 @@ def test_cold_search_window_after_a_fix_covers_the_tracked_satellites(tokyo_run)
         chans = {k: (f["channels"][k]["time_s"][:], f["channels"][k]["doppler_hz"][:]) for k in f["channels"]}
     fake_nav = SimpleNamespace(last_fix=None)
     m = ChannelManager(cfg, None, fake_nav, FS, 0.0, GPS_L1CA, acquire=None)
-    assert m._cold_doppler_window() is None                     # no fix yet: the configured grid
+    assert m._cold_doppler_window() is None                     # no fix, no channel: the configured grid
     checked = 0
     for t, drift, v in zip(fixes["time_s"][::20], fixes["clock_drift_mps"][::20], fixes["velocity_ecef"][::20]):
         fake_nav.last_fix = (0, SimpleNamespace(clock_drift_mps=drift, velocity_ecef=v))
@@ -68,3 +68,42 @@ def test_cold_search_window_after_a_fix_covers_the_tracked_satellites(tokyo_run)
                 assert abs(dop[i] - centre) < half - 300.0, (t, dop[i], centre, half)
                 checked += 1
     assert checked > 50
+
+
+def test_cold_search_window_before_a_fix_covers_every_satellite(tokyo_run):
+    """Before a fix the window comes from the Dopplers of the channels in lock: on the reference run, each
+    satellite's Doppler lies inside the window computed from the other nine (leave one out), and the
+    window is narrower than the configured grid."""
+    import h5py
+    from types import SimpleNamespace
+
+    from receiver.config import load_receiver_config
+    from receiver.tracking import kernel as K
+    from receiver.tracking.channels import ChannelManager
+    cfg = load_receiver_config(None, [])
+    with h5py.File(tokyo_run) as f:
+        chans = {k: (f["channels"][k]["time_s"][:], f["channels"][k]["doppler_hz"][:]) for k in f["channels"]}
+    m = ChannelManager(cfg, None, SimpleNamespace(last_fix=None), FS, 0.0, GPS_L1CA, acquire=None)
+
+    def fake(dop, lock=1.0):
+        st = np.zeros(K.N_STATE)
+        st[K.S_LOCK] = lock
+        return SimpleNamespace(st=st, cn0_dbhz=40.0, doppler_hz=dop, lost=False)
+
+    m.channels = {0: fake(1234.0, lock=0.0)}                     # not in lock: not used
+    assert m._cold_doppler_window() is None
+    checked = 0
+    for t in np.arange(2.0, 40.0, 4.0):
+        dops = {}
+        for k, (ts, dop) in chans.items():
+            i = np.searchsorted(ts, t)
+            if 0 < i < len(ts):
+                dops[k] = dop[i]
+        assert len(dops) >= 8
+        for j in dops:
+            m.channels = {k: fake(d) for k, d in dops.items() if k != j}
+            centre, half = m._cold_doppler_window()
+            assert half < cfg.acquisition.doppler_max_hz
+            assert abs(dops[j] - centre) < half - 300.0, (t, j, dops[j], centre, half)
+            checked += 1
+    assert checked > 80

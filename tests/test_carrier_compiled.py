@@ -52,3 +52,27 @@ def test_compiled_loop_equals_the_python_stepped_loop(samples, variant):
             np.testing.assert_allclose(a[name], b[name], rtol=0, atol=1e-9 * max(1.0, np.abs(b[name]).max()))
         for name in ("prompt_i", "prompt_q", "cn0_dbhz", "pli"):
             np.testing.assert_allclose(a[name], b[name], rtol=1e-5, atol=1e-3)
+
+
+def test_stale_numba_cache_of_a_caller_is_dropped(tmp_path, monkeypatch):
+    """numba keys a cached function on its own file only: a cache older than a module it calls is removed
+    (receiver/tracking/_jitcache.py), a fresher one is kept."""
+    import os
+
+    from receiver.tracking import _jitcache as J
+    (tmp_path / "__pycache__").mkdir()
+    for name in ("callee.py", "caller.py"):
+        (tmp_path / name).write_text("# source\n")
+    idx = tmp_path / "__pycache__" / "caller.f-10.py311.nbi"
+    data = tmp_path / "__pycache__" / "caller.f-10.py311.1.nbc"
+    other = tmp_path / "__pycache__" / "callee.g-3.py311.nbi"
+    for f in (idx, data, other):
+        f.write_bytes(b"x")
+    monkeypatch.setattr(J, "_HERE", str(tmp_path))
+    monkeypatch.setattr(J, "DEPENDS", {"caller.py": ["callee.py"]})
+    t = os.stat(tmp_path / "callee.py").st_mtime_ns
+    os.utime(idx, ns=(t + 10 ** 9, t + 10 ** 9))           # cache newer than the callee: kept
+    assert J.refresh() == [] and idx.exists()
+    os.utime(idx, ns=(t - 10 ** 9, t - 10 ** 9))           # the callee changed after: dropped
+    assert sorted(J.refresh()) == sorted([str(idx), str(data)])
+    assert not idx.exists() and not data.exists() and other.exists()

@@ -255,18 +255,30 @@ class ChannelManager:
         self._event(s0, prn, "lost", f"Doppler {d0:.0f} Hz, rate {rate:.2f} Hz/s")
 
     def _cold_doppler_window(self):
-        """(centre, half width) Hz of a cold search once there is a fix: any satellite's Doppler lies within
-        (MAX_LOS_RATE_MPS + receiver speed) / lambda of the receiver clock's Doppler -drift / lambda, plus
-        COLD_MARGIN_HZ; None (the configured grid) before the first fix or when that is not narrower."""
+        """(centre, half width) Hz of a cold search, or None (the configured grid) when not narrower.
+
+        Any satellite's Doppler is -(range rate + receiver velocity . line of sight) / lambda + c, c the
+        receiver clock's Doppler (-drift / lambda), |range rate| <= MAX_LOS_RATE_MPS; with R = (that +
+        receiver speed) / lambda:  after a fix (drift and speed known) the window is c +/- R; before it,
+        c itself is bounded by the channels in lock (c within R of each of their Dopplers), so any Doppler
+        lies in [max(d_i) - 2R, min(d_i) + 2R].  Plus COLD_MARGIN_HZ either side."""
+        grid = self.cfg.acquisition.doppler_max_hz
         fix = self.nav.last_fix[1] if self.nav is not None and self.nav.last_fix is not None else None
-        if fix is None or not np.isfinite(fix.clock_drift_mps):
+        if fix is not None and np.isfinite(fix.clock_drift_mps):
+            v = np.asarray(fix.velocity_ecef, float)
+            speed = float(np.linalg.norm(v)) if np.all(np.isfinite(v)) else self.rc.speed_mps
+            half = (MAX_LOS_RATE_MPS + speed) / self.lambda_m + COLD_MARGIN_HZ
+            return (-fix.clock_drift_mps / self.lambda_m, half) if half < grid else None
+        lock_min = self.cfg.tracking.lock_cn0_min_dbhz
+        dops = [ch.doppler_hz for ch in self.channels.values()
+                if ch.st[K.S_LOCK] > 0 and ch.cn0_dbhz >= lock_min and not ch.lost]
+        if not dops:
             return None
-        v = np.asarray(fix.velocity_ecef, float)
-        speed = float(np.linalg.norm(v)) if np.all(np.isfinite(v)) else self.rc.speed_mps
-        half = (MAX_LOS_RATE_MPS + speed) / self.lambda_m + COLD_MARGIN_HZ
-        if half >= self.cfg.acquisition.doppler_max_hz:
-            return None
-        return -fix.clock_drift_mps / self.lambda_m, half
+        r2 = 2.0 * (MAX_LOS_RATE_MPS + self.rc.speed_mps) / self.lambda_m
+        lo = max(dops) - r2 - COLD_MARGIN_HZ
+        hi = min(dops) + r2 + COLD_MARGIN_HZ
+        half = 0.5 * (hi - lo)
+        return (0.5 * (hi + lo), half) if half < grid else None
 
     def _below_mask(self, prn, s) -> bool:
         if self.nav is None:
