@@ -109,7 +109,7 @@ def read_rinex_nav(path):
     else:
         if ftype != "N":
             raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a navigation file")
-        if system not in ("G", "M", " ", ""):
+        if system not in ("G", "J", "M", " ", ""):
             raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not GPS")
 
     alpha = beta = None
@@ -177,9 +177,9 @@ def read_rinex_nav(path):
                 vals = _fixed(head, 22, 19, 3)
                 orbit_start = 3
             else:
-                if head[0].upper() != "G":
+                if head[0].upper() not in ("G", "J"):      # QZSS J01.. records: PRN 193.., GPS layout
                     continue
-                prn = int(head[1:3])
+                prn = int(head[1:3]) + (192 if head[0].upper() == "J" else 0)
                 epoch = (int(head[4:8]), int(head[9:11]), int(head[12:14]), int(head[15:17]),
                          int(head[18:20]), float(head[21:23]))
                 vals = _fixed(head, 23, 19, 3)
@@ -213,18 +213,42 @@ def _hdr(content: str, label: str) -> str:
     return content.ljust(60)[:60] + label.ljust(20) + "\n"
 
 
-def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gnssrx"):
-    """Write a RINEX 3.04 GPS navigation file.
+def _bds_record(e) -> list:
+    """RINEX 3.04 BeiDou navigation record (epoch = toc in BDT; toe, week and transmission time in BDT).
+    The Klobuchar set goes into the GPSA/GPSB header lines: gnssrx applies the broadcast BeiDou alpha/beta
+    with the GPS Klobuchar model (the simulator does the same), and readers such as RTKLIB take those lines
+    for their Klobuchar correction."""
+    from .bds_ephemeris import BDT_WEEK_OFFSET
+    t = calendar_from_gps_time(e.week + BDT_WEEK_OFFSET, e.toc)      # BDT calendar (same epoch layout)
+    sec = t.second + t.microsecond * 1e-6
+    out = [f"C{e.prn:02d} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} {t.minute:02d} "
+           f"{int(round(sec)):02d}" + _d19(e.af0) + _d19(e.af1) + _d19(e.af2) + "\n"]
+    tx = e.tx_time if np.isfinite(e.tx_time) else e.toe
+    rows = [(e.iode, e.crs, e.delta_n, e.m0), (e.cuc, e.e, e.cus, e.sqrt_a), (e.toe, e.cic, e.omega0, e.cis),
+            (e.i0, e.crc, e.omega, e.omega_dot), (e.idot, 0.0, e.week, 0.0),
+            (ura_m_from_index(e.ura_index), e.health, e.tgd, e.tgd2), (tx, e.iodc)]
+    for row in rows:
+        out.append("    " + "".join(_d19(float(v)) for v in row) + "\n")
+    return out
+
+
+def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gnssrx", system: str = "G"):
+    """Write a RINEX 3.04 navigation file of L1 C/A satellites (GPS; QZSS PRNs 193.. as J01.., same
+    record layout).
 
     ephs: dict prn -> list of Ephemeris, or a flat iterable of Ephemeris.
     """
+    from .satid import sat_label, sat_system
     if isinstance(ephs, dict):
         flat = [e for lst in ephs.values() for e in lst]
     else:
         flat = list(ephs)
     flat.sort(key=lambda e: (e.week, e.toc, e.prn))
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d %H%M%S UTC")
-    out = [_hdr(f"{3.04:9.2f}" + " " * 11 + "N: GNSS NAV DATA    G: GPS", "RINEX VERSION / TYPE"),
+    letters = {"C" if getattr(e, "system", "G") == "C" else sat_system(e.prn, system) for e in flat}
+    kind = {frozenset("G"): "G: GPS", frozenset("J"): "J: QZSS", frozenset("C"): "C: BeiDou"}.get(
+        frozenset(letters), "M: MIXED")
+    out = [_hdr(f"{3.04:9.2f}" + " " * 11 + f"N: GNSS NAV DATA    {kind}", "RINEX VERSION / TYPE"),
            _hdr(f"{program:<20}{'':<20}{now:<20}", "PGM / RUN BY / DATE")]
     if iono is not None:
         out.append(_hdr("GPSA " + "".join(_d12(v) for v in iono.alpha), "IONOSPHERIC CORR"))
@@ -237,11 +261,14 @@ def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gns
         out.append(_hdr(leap, "LEAP SECONDS"))
     out.append(_hdr("", "END OF HEADER"))
     for e in flat:
+        if getattr(e, "system", "G") == "C":
+            out.extend(_bds_record(e))
+            continue
         dtoc = e.toc - e.toe
         toc_week = e.week + (1 if dtoc < -WEEK_S / 2 else -1 if dtoc > WEEK_S / 2 else 0)
         t = calendar_from_gps_time(toc_week, e.toc)
         sec = t.second + t.microsecond * 1e-6
-        out.append(f"G{e.prn:02d} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} "
+        out.append(f"{sat_label(e.prn, system)} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} "
                    f"{t.minute:02d} {int(round(sec)):02d}" + _d19(e.af0) + _d19(e.af1) + _d19(e.af2) + "\n")
         tx = e.tx_time if np.isfinite(e.tx_time) else 0.9999e9
         rows = [

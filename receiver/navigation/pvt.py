@@ -34,6 +34,7 @@ class Observation:
     doppler_hz: float = float("nan")
     cn0_dbhz: float = float("nan")
     carrier_phase_cycles: float = float("nan")
+    wavelength_m: float = LAMBDA_L1     # carrier wavelength of the signal (Doppler -> range rate)
 
 
 @dataclass
@@ -148,7 +149,7 @@ class NavSolver:
         pos, vel, clk, drift = sat_state(ephs, tx)
         rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
         return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
-                     [o.cn0_dbhz for o in obs], [o.doppler_hz for o in obs],
+                     [o.cn0_dbhz for o in obs], [o.doppler_hz * o.wavelength_m / LAMBDA_L1 for o in obs],
                      ura_m=[URA_M[min(max(int(e.ura_index), 0), 15)] for e in ephs])
 
     def _weights(self, el, cn0, iono=None, ura_m=None):
@@ -284,7 +285,7 @@ class NavSolver:
             return None
 
         # velocity and clock drift from Doppler
-        rate_raw = -s.doppler[idx] * LAMBDA_L1
+        rate_raw = -s.doppler[idx] * LAMBDA_L1          # s.doppler: L1-equivalent Hz (see _prepare)
         rate_c = rate_raw + C_LIGHT * s.drift[idx]
         vel_sat = earth_rotation(s.vel[idx], sol["tau"])
         los = sol["los"]

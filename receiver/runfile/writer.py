@@ -15,6 +15,7 @@ import numpy as np
 from .. import __version__
 from .. import interrupt
 from ..safeio import AtomicH5
+from ..gnss.satid import sat_label
 from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_NAMES
 
 
@@ -42,6 +43,7 @@ class RunWriter:
         not locked by another run), then opens ``<path>.partial``.  ``compression`` (none, lzf, gzip; both
         with the shuffle filter) applies to the growing datasets (channels, navigation, observables)."""
         self._buffers: dict[int, list] = {}
+        self.system = str((attrs or {}).get("system", "G"))     # RINEX letter of the signal: group names
         self.compression = compression
         self._out = AtomicH5(path, "output", reads=reads)
         self.path, self.tmp, self.f = self._out.path, self._out.tmp, self._out.f
@@ -97,7 +99,7 @@ class RunWriter:
         if not buf:
             return
         records = np.concatenate(buf)
-        g = self.f["channels"].require_group(f"G{prn:02d}")
+        g = self.f["channels"].require_group(sat_label(prn, self.system))
         if "prn" not in g.attrs:
             g.attrs["prn"] = prn
             g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
