@@ -2,7 +2,8 @@
 
 * Talker: GP for a GPS-only fix, GB for BeiDou only, GN when the fix mixes systems (GPS + QZSS on L1
   C/A); GSV sentences carry the satellites' own system's talker (GP for GPS and QZSS, whose PRNs
-  193..202 are their NMEA IDs; GB for BeiDou).
+  193..202 are their NMEA IDs; GB for BeiDou, IDs = PRN); a mixed fix has one GSA per system with the
+  NMEA 4.10 system ID (1 GPS, 4 BeiDou) appended.
 
 * Times are UTC (GPS time of the fix minus the leap seconds broadcast in the LNAV message, or the built-in
   table), to 0.01 s.
@@ -25,6 +26,13 @@ from ..runfile.reader import RunData
 
 KNOTS_PER_MPS = 3600.0 / 1852.0
 _TALKER = {"G": "GP", "C": "GB", "J": "GQ", "E": "GA"}
+_NMEA_SYS = {"G": "G", "J": "G", "C": "C", "E": "E"}     # QZSS satellites are reported with GPS (IDs 193..)
+_NMEA_SYS_ID = {"G": 1, "E": 3, "C": 4}                  # NMEA 4.10 GNSS system ID of GSA
+
+
+def _nmea_id(prn: int) -> int:
+    """NMEA satellite ID: the PRN (QZSS 193..202; BeiDou 1..63, also when keyed 400 + PRN)."""
+    return prn - 400 if prn > 400 else prn
 
 
 def checksum(body: str) -> str:
@@ -124,12 +132,25 @@ def nmea_lines(run: RunData) -> list:
         rows = rows[np.argsort(obs["prn"][rows])] if len(rows) else rows
         used = [int(obs["prn"][r]) for r in rows if obs["used_in_fix"][r]]
         letters = {sat_system(p, run.system) for p in used} or {run.system}
-        talker = "GN" if len(letters) > 1 else _TALKER.get(letters.pop(), "GN")
+        talker = "GN" if len(letters) > 1 else _TALKER.get(next(iter(letters)), "GN")
         lines.append(gga(t, lat, lon, h, f["n_sats"], float(f["hdop"]), talker))
         lines.append(rmc(t, lat, lon, speed, course, talker))
-        lines.append(gsa(used, float(f["pdop"]), float(f["hdop"]), float(f["vdop"]), talker))
-        lines.extend(gsv([(int(obs["prn"][r]), float(obs["elevation_deg"][r]), float(obs["azimuth_deg"][r]),
-                           float(obs["cn0_dbhz"][r])) for r in rows], "GB" if run.system == "C" else "GP"))
+        # GSA: one per system when several (NMEA 4.10, system ID appended); GSV: per system, own talker
+        groups = {}
+        for p in used:
+            groups.setdefault(_NMEA_SYS.get(sat_system(p, run.system), "G"), []).append(_nmea_id(p))
+        for letter, ids in sorted(groups.items()) if len(groups) > 1 else [(None, [_nmea_id(p) for p in used])]:
+            line = gsa(ids, float(f["pdop"]), float(f["hdop"]), float(f["vdop"]), talker)
+            if letter is not None:
+                line = sentence(line[1:line.index("*")] + f",{_NMEA_SYS_ID[letter]}")
+            lines.append(line)
+        by_sys = {}
+        for r in rows:
+            p = int(obs["prn"][r])
+            by_sys.setdefault(_NMEA_SYS.get(sat_system(p, run.system), "G"), []).append(
+                (_nmea_id(p), float(obs["elevation_deg"][r]), float(obs["azimuth_deg"][r]), float(obs["cn0_dbhz"][r])))
+        for letter in sorted(by_sys):
+            lines.extend(gsv(by_sys[letter], _TALKER[letter]))
     return lines
 
 

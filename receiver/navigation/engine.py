@@ -675,7 +675,8 @@ class NavigationEngine:
         week = self._week()
         ephs = self._ephemerides(rx_tow)
         observations = [Observation(prn=prn, tx_tow=m[0], doppler_hz=m[1], cn0_dbhz=ch.cn0,
-                                    carrier_phase_cycles=m[2], wavelength_m=ch.wavelength)
+                                    carrier_phase_cycles=m[2], wavelength_m=ch.wavelength,
+                                    system=ch.signal.system)
                         for prn, (m, ch) in sorted(meas.items()) if prn in ephs]
         fix = None
         if len(observations) >= 4 and week is not None:
