@@ -432,7 +432,7 @@ RECEIVER_SCHEMA = {
         },
     },
     "navigation": {
-        "enabled": P(True, "bool", "decode LNAV and compute fixes"),
+        "enabled": P(True, "bool", "decode the navigation message (LNAV; BeiDou D1/D2) and compute fixes"),
         "rate_hz": P(10.0, "float", "observable / fix rate", lo=0.1, hi=1000.0),
         "ephemeris": P(None, "str", "RINEX 2/3 GPS navigation file for assisted mode", nullable=True),
         "troposphere": P("saastamoinen", "str", "troposphere model", choices=("saastamoinen", "none")),
@@ -632,6 +632,8 @@ def validate_receiver(cfg: Section) -> Section:
     prns = cfg.acquisition.prns
     if not prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
+    if cfg.vector.enabled and cfg.signal != "gps_l1ca":
+        raise UserError(f"config key 'vector.enabled': the vector loops track gps_l1ca only, not {cfg.signal}")
     known = SIGNAL_PRNS.get(cfg.signal)
     bad = [p for p in prns if known is not None and p not in known]
     if bad:

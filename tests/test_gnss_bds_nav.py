@@ -155,3 +155,29 @@ def test_meo_state_is_consistent(nominal):
         np.testing.assert_allclose(pm[k], ps, atol=1e-6)
         assert cm[k] == pytest.approx(cs, abs=1e-15)
     np.testing.assert_allclose(bds_sat_state([ephs[11]], [t])[0][0], p0, atol=1e-6)
+
+
+def test_rinex3_beidou_records_round_trip(nominal, tmp_path):
+    """Our BeiDou RINEX 3 records read back as the same ephemerides (RTKLIB reads the same files:
+    scripts/bds_acceptance.py), and a mixed file keeps GPS and BeiDou apart."""
+    from receiver.gnss.rinex import read_rinex_nav, write_rinex_nav
+    from receiver.sim.bds_constellation import bds_rinex_ephemerides
+    from receiver.sim.constellation import nominal_ephemerides
+    ephs, iono = nominal
+    gps, _ = nominal_ephemerides(REPO / "data/gps_nominal_constellation.yaml", WEEK, TOW)
+    out = tmp_path / "mixed.rnx"
+    write_rinex_nav(out, list(ephs.values()) + [gps[3]], iono)
+    assert "M: MIXED" in out.read_text().splitlines()[0]
+    back, iono2 = read_rinex_nav(out, systems=("C",))
+    assert sorted(back) == sorted(ephs)
+    for prn, e in ephs.items():
+        b = back[prn][0]
+        assert isinstance(b, BdsEphemeris)
+        for f in fields(BdsEphemeris):
+            if f.compare and f.name != "system":
+                assert getattr(b, f.name) == pytest.approx(getattr(e, f.name), rel=1e-11, abs=1e-20), f.name
+    assert iono2.alpha == pytest.approx(iono.alpha, rel=1e-3)
+    g, _ = read_rinex_nav(out)                          # default: GPS/QZSS records only
+    assert sorted(g) == [3] and not isinstance(g[3][0], BdsEphemeris)
+    sim, _ = bds_rinex_ephemerides(out, WEEK, TOW + 20.0)   # the simulator's bds_rinex source
+    assert sim == {p: e for p, e in ephs.items() if p <= 37}

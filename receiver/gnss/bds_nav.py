@@ -249,15 +249,15 @@ def eph_values(eph: BdsEphemeris, iono: IonoUtc | None) -> dict:
 
 
 def quantize_bds(eph: BdsEphemeris) -> BdsEphemeris:
-    """The ephemeris as decoded from the message (every field on its LSB grid, angles wrapped to
-    [-pi, pi))."""
+    """The ephemeris as decoded from the message (every field on its LSB grid, the 32-bit angles wrapped
+    into [-1, 1) semicircle as the message holds them)."""
     from dataclasses import replace
     vals = {}
     for attr, lsb in EPH_LSB.values():
-        x = float(getattr(eph, attr))
-        if attr in ("m0", "omega0", "omega", "i0"):
-            x = (x + math.pi) % (2 * math.pi) - math.pi
-        vals[attr] = float(np.round(x / lsb) * lsb)
+        raw = int(np.round(float(getattr(eph, attr)) / lsb))
+        if attr in ("m0", "omega0", "omega", "i0"):            # 32-bit semicircles: [-1, 1) semicircle
+            raw = (raw + (1 << 31)) % (1 << 32) - (1 << 31)
+        vals[attr] = float(raw * lsb)
     return replace(eph, **vals)
 
 

@@ -83,11 +83,25 @@ def _eph_from_values(prn, epoch, v, path):
     )
 
 
-def read_rinex_nav(path):
-    """Read a RINEX 2.x or 3.x GPS navigation file.
+def _bds_from_values(prn, epoch, v):
+    """BeiDou record (RINEX 3: epoch = toc in BDT; toe, week, transmission time in BDT)."""
+    from .bds_ephemeris import BdsEphemeris
+    y, mo, d, h, mi, s = epoch
+    _, toc = gps_time_from_calendar(y, mo, d, h, mi, s)      # BDT calendar -> BDT seconds of week
+    return BdsEphemeris(
+        prn=prn, week=int(round(v[21])), toe=v[11], toc=toc, af0=v[0], af1=v[1], af2=v[2], tgd=v[25],
+        iode=int(round(v[3])), iodc=int(round(v[28])), sqrt_a=v[10], e=v[8], i0=v[15], omega0=v[13],
+        omega=v[17], m0=v[6], delta_n=v[5], idot=v[19], omega_dot=v[18], cuc=v[7], cus=v[9], crc=v[16],
+        crs=v[4], cic=v[12], cis=v[14], health=int(round(v[24])), ura_index=ura_index_from_m(v[23]),
+        tgd2=v[26], tx_time=v[27] if abs(v[27]) < 0.9e9 else float("nan"))
+
+
+def read_rinex_nav(path, systems=("G", "J")):
+    """Read a RINEX 2.x or 3.x navigation file: GPS and QZSS records (QZSS Jnn as PRN 192 + nn), or with
+    ``systems=("C",)`` the BeiDou records of a RINEX 3 file (:class:`BdsEphemeris`, BDT).
 
     Returns (dict prn -> list of Ephemeris sorted by (week, toe), IonoUtc or None).
-    Raises UserError when the file is missing or not a RINEX GPS navigation file.
+    Raises UserError when the file is missing or has no usable record of those systems.
     """
     path = Path(path)
     try:
@@ -103,14 +117,17 @@ def read_rinex_nav(path):
         raise UserError(f"{path}: unreadable RINEX version in first line") from None
     ftype = lines[0][20:21].upper()
     system = lines[0][40:41].upper()
+    if version < 3 and "G" not in systems:
+        raise UserError(f"{path}: RINEX {version:g} navigation files hold GPS only (BeiDou needs RINEX 3)")
     if version < 3:
         if ftype != "N":
             raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a GPS navigation file")
     else:
         if ftype != "N":
             raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a navigation file")
-        if system not in ("G", "J", "M", " ", ""):
-            raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not GPS")
+        if system not in tuple(systems) + ("M", " ", ""):
+            raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not "
+                            f"{'BeiDou' if 'C' in systems else 'GPS'}")
 
     alpha = beta = None
     a0 = a1 = tot = wnt = None
@@ -131,9 +148,9 @@ def read_rinex_nav(path):
                 tot, wnt = int(_num(line[41:50])), int(_num(line[50:59]))
             elif label == "IONOSPHERIC CORR":
                 key = line[:4].strip().upper()
-                if key == "GPSA":
+                if key == "GPSA" or (key == "BDSA" and "C" in systems and alpha is None):
                     alpha = tuple(_fixed(line, 5, 12, 4))
-                elif key == "GPSB":
+                elif key == "GPSB" or (key == "BDSB" and "C" in systems and beta is None):
                     beta = tuple(_fixed(line, 5, 12, 4))
             elif label == "TIME SYSTEM CORR":
                 if line[:4].strip().upper() == "GPUT":
@@ -177,7 +194,7 @@ def read_rinex_nav(path):
                 vals = _fixed(head, 22, 19, 3)
                 orbit_start = 3
             else:
-                if head[0].upper() not in ("G", "J"):      # QZSS J01.. records: PRN 193.., GPS layout
+                if head[0].upper() not in systems:     # QZSS J01.. records: PRN 193.., GPS layout
                     continue
                 prn = int(head[1:3]) + (192 if head[0].upper() == "J" else 0)
                 epoch = (int(head[4:8]), int(head[9:11]), int(head[12:14]), int(head[15:17]),
@@ -188,11 +205,16 @@ def read_rinex_nav(path):
                 raise ValueError(f"record has {len(rec)} lines, expected 8")
             for ln in rec[1:8]:
                 vals += _fixed(ln.ljust(orbit_start + 76), orbit_start, 19, 4)
-            eph = _eph_from_values(prn, epoch, vals, path)
+            if version >= 3 and head[0].upper() == "C":
+                eph = _bds_from_values(prn, epoch, vals)
+            else:
+                eph = _eph_from_values(prn, epoch, vals, path)
         except (ValueError, IndexError) as exc:
             raise UserError(f"{path}: bad GPS navigation record '{head.strip()[:23]}': {exc}") from None
         out.setdefault(prn, []).append(eph)
     if not out:
+        if "C" in systems:
+            raise UserError(f"{path}: no usable BeiDou navigation records (RINEX 3 'Cnn' records needed)")
         raise UserError(f"{path}: no usable GPS navigation records (header only, no GPS records, or records "
                         f"not in the RINEX {version:g} layout the header declares)")
     for prn in out:

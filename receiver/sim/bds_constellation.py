@@ -55,5 +55,23 @@ def bds_nominal_ephemerides(path, gps_week: int, gps_tow: float) -> tuple[dict, 
     return out, iono
 
 
-def source_name(path) -> str:
-    return f"bds_nominal:{os.path.basename(path)}"
+def source_name(path, kind="bds_nominal") -> str:
+    return f"{kind}:{os.path.basename(path)}"
+
+
+def bds_rinex_ephemerides(path, gps_week: int, gps_tow: float) -> tuple[dict, IonoUtc | None]:
+    """Per BeiDou PRN the healthy RINEX 3 record whose toe is nearest to (gps_week, gps_tow) in BDT, within
+    4 h, quantised to its D1/D2 LSBs.  The ionosphere: the file's GPSA/GPSB (else BDSA/BDSB) lines."""
+    from ..gnss.ephemeris import select
+    from ..gnss.rinex import read_rinex_nav
+    ephs, iono = read_rinex_nav(path, systems=("C",))
+    wk, sow = bdt_from_gps(gps_week, gps_tow)
+    out = {}
+    for prn, lst in sorted(ephs.items()):
+        e = select(lst, sow, week=wk)
+        if e is not None and 1 <= prn <= 37:
+            out[prn] = quantize_bds(e)
+    if not out:
+        raise UserError(f"RINEX file {path} has no healthy BeiDou ephemeris (PRN 1-37) within 4 h of BDT week "
+                        f"{wk} SOW {sow:.0f}")
+    return out, iono

@@ -36,13 +36,15 @@ SCENARIO_SCHEMA = {
     "constellation": {
         "source": P("embedded", "str", "ephemeris source: the embedded nominal 31-satellite constellation "
                                        "(re-epoched to the start time), a RINEX navigation file, or "
-                                       "bds_nominal: the nominal BeiDou GEO/IGSO/MEO constellation (bds_file) "
+                                       "bds_nominal: the nominal BeiDou GEO/IGSO/MEO constellation (bds_file), "
+                                       "or bds_rinex: the BeiDou records of the RINEX 3 file `rinex`, both "
                                        "broadcast in D1/D2 messages (signal: bds_b1i)",
-                    choices=("embedded", "rinex", "bds_nominal")),
+                    choices=("embedded", "rinex", "bds_nominal", "bds_rinex")),
         "bds_file": P("data/bds_nominal_constellation.yaml", "str", "nominal BeiDou orbits (source: "
                                                                      "bds_nominal)"),
-        "rinex": P(None, "str", "RINEX 2/3 GPS navigation file (source: rinex); per PRN the healthy set "
-                                "whose toe is nearest to the middle of the run", nullable=True),
+        "rinex": P(None, "str", "RINEX 2/3 GPS navigation file (source: rinex; RINEX 3 BeiDou records: "
+                                "source bds_rinex); per PRN the healthy set whose toe is nearest to the "
+                                "middle of the run", nullable=True),
         "nominal_file": P(NOMINAL_CONSTELLATION, "str", "the embedded constellation file (source: embedded)"),
         "prns": P(None, "list_int", "simulate only these PRNs (empty: all; QZSS: 193-202; BeiDou 1-63)",
                   nullable=True,

@@ -454,12 +454,19 @@ class _Simulator:
             raise UserError(f"trajectory CSV covers {traj.t_first:.3f}..{traj.t_last:.3f} s but the run "
                             f"needs 0..{duration:.3f} s after the first sample")
         con, atm = sc.constellation, sc.atmosphere
-        if con.source == "bds_nominal" and sc.signal != "bds_b1i":
-            raise UserError("constellation.source 'bds_nominal' needs signal: bds_b1i")
-        if con.source == "bds_nominal":         # BeiDou orbits + D1/D2 messages (sim/bds_constellation.py)
-            from .bds_constellation import bds_nominal_ephemerides, source_name
-            path = resolve_path(con.bds_file, "constellation file")
-            b_ephs, b_iono = bds_nominal_ephemerides(path, week, t_ref)
+        bds_src = con.source in ("bds_nominal", "bds_rinex")
+        if bds_src and sc.signal != "bds_b1i":
+            raise UserError(f"constellation.source '{con.source}' needs signal: bds_b1i")
+        if bds_src:                             # BeiDou orbits + D1/D2 messages (sim/bds_constellation.py)
+            from .bds_constellation import bds_nominal_ephemerides, bds_rinex_ephemerides, source_name
+            if con.source == "bds_nominal":
+                path = resolve_path(con.bds_file, "constellation file")
+                b_ephs, b_iono = bds_nominal_ephemerides(path, week, t_ref)
+            else:
+                if not con.rinex:
+                    raise UserError("constellation.source is 'bds_rinex' but constellation.rinex is empty")
+                path = resolve_path(con.rinex, "RINEX file")
+                b_ephs, b_iono = bds_rinex_ephemerides(path, week, t_ref + duration / 2.0)
             cons = None
         else:
             cons = load_constellation(con.source, resolve_path(con.rinex, "RINEX file") if con.rinex else None,
@@ -468,7 +475,8 @@ class _Simulator:
                                       resolve_path(con.qzss_file, "constellation file") if con.qzss else None)
         if cons is None:
             from types import SimpleNamespace
-            cons = SimpleNamespace(source=source_name(path), iono_utc=quantize_iono(b_iono), ephemerides=b_ephs)
+            cons = SimpleNamespace(source=source_name(path, con.source), ephemerides=b_ephs,
+                                   iono_utc=quantize_iono(b_iono) if b_iono is not None else None)
         self.source = cons.source
         iono_b = cons.iono_utc
         if atm.klobuchar_alpha is not None or atm.klobuchar_beta is not None:
@@ -505,7 +513,7 @@ class _Simulator:
         self.cn0 = _Cn0(sc.cn0)
         self.impair = Impairments(sc.impairments, self.fs, self.if_hz, self.sigma, self.cplx)
         self.blockage = Blockage(sc.blockage, self.prns, duration, tm.seed, el_scan, self.mask)
-        if con.source == "bds_nominal":
+        if bds_src:
             from ..gnss.bds_nav import BdsNavBits
             from ..gnss.signals_bds import is_geo
             self.nav = {p: BdsNavBits(self.ephs[p], iono_b, week, is_geo(p), sc.navigation.data)
@@ -687,7 +695,7 @@ class _Simulator:
             if n_samp > 0 and np.any(amp > 0):
                 ms0 = int(math.floor(chips_total[0] / CODE_N))
                 chips_blk = chips_total - ms0 * CODE_N
-                if self.signal.name == "bds_b1i" and con_src != "bds_nominal":
+                if self.signal.name == "bds_b1i" and con_src not in ("bds_nominal", "bds_rinex"):
                     dsign = data_signs(p, self.m_ref + ms0, int(chips_blk[-1] // CODE_N) + 2,
                                        self.sc.time.seed, self.sc.navigation.data)
                 else:
