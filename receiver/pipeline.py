@@ -325,7 +325,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
         # every satellite decoded during the run (navigation memory, not only the channels still tracking)
         writer.write_ephemerides(nav.decoded_ephemerides())
-        writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else "lnav")
+        writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else
+                              ("d1/d2" if get_signal(cfg.signal).system == "C" else "lnav"))
     if fix_ecef:
         from .gnss.geodesy import ecef2enu, ecef2lla
         e = np.concatenate(fix_ecef)
