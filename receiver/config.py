@@ -315,10 +315,12 @@ RECEIVER_SCHEMA = {
             "blank_sigma": P(5.0, "float", "pulse blanking threshold in RMS units", lo=1.0),
         },
     },
-    "signal": P("gps_l1ca", "str", "signal to acquire and track (bds_b1i: BeiDou B1I, no navigation "
-                                   "decoding)", choices=("gps_l1ca", "bds_b1i")),
+    "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
+                                   "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages)",
+                choices=("gps_l1ca", "bds_b1i")),
     "acquisition": {
-        "prns": P(list(range(1, 33)), "list_int", "PRNs searched", lo=1, hi=32),
+        "prns": P(list(range(1, 33)), "list_int", "PRNs searched (gps_l1ca: GPS 1-32 and QZSS 193-202 = "
+                                                  "J01-J10; bds_b1i: 1-37)", lo=1, hi=202),
         "coherent_ms": P(4, "int", "coherent integration per non-coherent step (ms)", lo=1, hi=10),
         "noncoherent": P(10, "int", "number of non-coherent sums", lo=1, hi=100),
         "doppler_max_hz": P(10000.0, "float", "Doppler search half-range", lo=0.0),
@@ -451,7 +453,7 @@ RECEIVER_SCHEMA = {
         },
     },
     "navigation": {
-        "enabled": P(True, "bool", "decode LNAV and compute fixes"),
+        "enabled": P(True, "bool", "decode the navigation message (LNAV; BeiDou D1/D2) and compute fixes"),
         "rate_hz": P(10.0, "float", "observable / fix rate", lo=0.1, hi=1000.0),
         "ephemeris": P(None, "str", "RINEX 2/3 GPS navigation file for assisted mode", nullable=True),
         "troposphere": P("saastamoinen", "str", "troposphere model", choices=("saastamoinen", "none")),
@@ -667,6 +669,10 @@ def load_receiver_config(path=None, overrides=None) -> Section:
     return cfg
 
 
+#: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/test_registries.py)
+SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 38))}
+
+
 def validate_receiver(cfg: Section) -> Section:
     """Checks of meaning that span several keys (one-line UserErrors): the IF inside the sampled band,
     a non-empty PRN list (duplicates are removed with a warning)."""
@@ -685,6 +691,13 @@ def validate_receiver(cfg: Section) -> Section:
     prns = cfg.acquisition.prns
     if not prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
+    if cfg.vector.enabled and cfg.signal != "gps_l1ca":
+        raise UserError(f"config key 'vector.enabled': the vector loops track gps_l1ca only, not {cfg.signal}")
+    known = SIGNAL_PRNS.get(cfg.signal)
+    bad = [p for p in prns if known is not None and p not in known]
+    if bad:
+        raise UserError(f"config key 'acquisition.prns': signal {cfg.signal} has no PRN {bad[0]} "
+                        f"({'1-32 (GPS) and 193-202 (QZSS)' if cfg.signal == 'gps_l1ca' else '1-37'})")
     unique = list(dict.fromkeys(prns))
     if len(unique) < len(prns):
         from .errors import warn

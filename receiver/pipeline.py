@@ -28,6 +28,7 @@ from .runfile.provenance import provenance
 from .runfile.writer import RunWriter
 from .runfile.record import EPOCH_DTYPE
 from .gnss.registry import get_signal
+from .gnss.satid import sat_label
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
 
@@ -49,6 +50,7 @@ class RunSummary:
     parity_failures: int = 0
     reacquisitions: int = 0
     nonfinite_samples: int = 0         # NaN/Inf input samples replaced by zeros
+    system: str = "G"                  # RINEX letter of the signal (labels: G05, J01, C12)
     notes: list = field(default_factory=list)   # input conditioning / acquisition lines
 
     @property
@@ -60,7 +62,7 @@ class RunSummary:
                  f"signal          {self.duration_s:.1f} s processed in {self.wall_s:.1f} s "
                  f"(real-time factor {self.realtime_factor:.1f}x)",
                  f"tracked         {len(self.tracked)} satellites: "
-                 + " ".join(f"G{p:02d}({self.mean_cn0[p]:.1f})" for p in self.tracked)]
+                 + " ".join(f"{sat_label(p, self.system)}({self.mean_cn0[p]:.1f})" for p in self.tracked)]
         if self.mean_cn0:
             lines.append(f"mean C/N0       {np.mean(list(self.mean_cn0.values())):.1f} dB-Hz")
         if self.reacquisitions:
@@ -205,7 +207,8 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         "first_sample": reader.first, "n_samples": reader.n_samples,
         "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
         "input_if_hz": cfg.input.if_hz,
-        "command": " ".join(sys.argv), **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
+        **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
         compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz)
     ok = False
     try:
@@ -261,9 +264,9 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     notes = []
     week_hint = cfg.input.start_gps_week
     nav = None
-    if cfg.navigation.enabled and cfg.signal == "gps_l1ca":      # no B1I navigation decoding
+    if cfg.navigation.enabled:                  # L1 C/A: LNAV; B1I: D1/D2 (gnss/bds_nav.py)
         nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
-                               cfg.input.start_gps_tow_s)
+                               cfg.input.start_gps_tow_s, signal=get_signal(cfg.signal))
         pres = cfg.tracking.presence
         if pres.window_ms > 0:
             from .navigation.engine import PRESENCE_MARGIN_DB
@@ -328,7 +331,7 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_wall
-    s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall)
+    s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall, system=get_signal(cfg.signal).system)
     s.mean_cn0 = {p: v[0] / v[1] for p, v in sorted(cn0_sum.items()) if v[1]}
     s.tracked = sorted(s.mean_cn0)
     s.n_fixes = n_fixes
@@ -344,7 +347,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
         # every satellite decoded during the run (navigation memory, not only the channels still tracking)
         writer.write_ephemerides(nav.decoded_ephemerides())
-        writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else "lnav")
+        writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else
+                              ("d1/d2" if get_signal(cfg.signal).system == "C" else "lnav"))
     if fix_ecef:
         from .gnss.geodesy import ecef2enu, ecef2lla
         e = np.concatenate(fix_ecef)

@@ -29,11 +29,11 @@ def test_b1i_acquire_and_track(b1i_file, variant):
     assert summary.tracked == [5, 11]
     with h5py.File(d / (variant + ".h5"), "r") as f, h5py.File(str(out)[:-4] + ".truth.h5", "r") as t:
         for prn, t_int in ((5, 2), (11, 5)):
-            g = f["channels"][f"G{prn:02d}"]
+            g = f["channels"][f"C{prn:02d}"]
             st = g["state"][:]
             assert (st == 2).sum() > 100                      # data/NH synchronised
             assert g["integration_ms"][-1] == t_int           # D2: 2 ms symbols; D1: NH wiped, 5 ms
             assert g["cn0_dbhz"][-1] > 41.0                   # 45 dB-Hz simulated
             assert np.mean(g["pli"][-100:]) > 0.9
-            truth_dop = t["satellites"][f"G{prn:02d}"]["doppler_hz"][-1]
+            truth_dop = t["satellites"][f"C{prn:02d}"]["doppler_hz"][-1]
             assert abs(g["doppler_hz"][-1] - truth_dop) < 5.0

@@ -33,7 +33,7 @@ def test_exponent_floats_without_a_dot(tmp_path):
     ({"input": {"format": "int4"}}, "'input.format' must be one of"),
     ({"tracking": {"pll_order": 4}}, "'tracking.pll_order' must be one of"),
     ({"input": {"sample_rate_hz": -5}}, "'input.sample_rate_hz' must be >="),
-    ({"acquisition": {"prns": [1, 40]}}, "'acquisition.prns' must be <= 32"),
+    ({"acquisition": {"prns": [1, 240]}}, "'acquisition.prns' must be <= 202"),
     ({"tracking": {"carrier": {"variant": "magic"}}}, "'tracking.carrier.variant' must be one of"),
     ({"tracking": 5}, "config section 'tracking' must be a mapping"),
 ])

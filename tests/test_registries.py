@@ -29,6 +29,14 @@ def test_signals_are_the_signal_registry():
         assert get_signal(name).name == name
 
 
+def test_config_prn_sets_are_the_signals_prns():
+    from receiver.config import SIGNAL_PRNS
+    from receiver.gnss.registry import SIGNAL_NAMES, get_signal
+    assert set(SIGNAL_PRNS) == set(SIGNAL_NAMES)
+    for name in SIGNAL_NAMES:
+        assert tuple(SIGNAL_PRNS[name]) == tuple(get_signal(name).prns)
+
+
 def test_carrier_loops_are_the_carrier_registry():
     from receiver.tracking.carrier import REGISTRY
     assert set(_choices("tracking.carrier.variant")) == set(REGISTRY)

@@ -5,6 +5,8 @@ import os
 
 import numpy as np
 
+from ..gnss.satid import sat_label
+
 
 def run_info(path) -> dict:
     """A JSON-friendly description of the run file."""
@@ -23,6 +25,7 @@ def run_info(path) -> dict:
     if "n_samples" in a and np.isfinite(fs) and fs > 0:
         info["duration_s"] = float(a["n_samples"]) / fs
     info["assisted"] = run.assisted
+    info["system"] = run.system
     with RunFile(run.path) as rf:
         groups = {}
         for name, shape, dtype in rf.datasets():
@@ -87,6 +90,10 @@ def run_info(path) -> dict:
     info["observables"] = {"rows": int(len(ob)), "epochs": int(len(np.unique(ob["time_s"]))) if len(ob) else 0,
                            "prns": sorted({int(p) for p in ob["prn"]})}
     info["ephemerides"] = sorted({int(e.prn) for e in run.ephemerides})
+    from ..gnss.satid import SYSTEM_NAMES, sat_system
+    prns = set(info["observables"]["prns"]) | {int(p) for p in info.get("acquisition", {}).get("detected_prns", [])}
+    letters = sorted({sat_system(p, run.system) for p in prns} or {run.system}, key="GCEJ".index)
+    info["systems"] = [SYSTEM_NAMES[c] for c in letters]
     info["config"] = run.attrs.get("config", "")
     return info
 
@@ -107,13 +114,16 @@ def format_info(info: dict, show_config: bool = True) -> str:
     if "wall_time_s" in info:
         add(f"processing      {info['wall_time_s']:.1f} s (real-time factor {info.get('realtime_factor', 0):.1f}x)")
     add(f"navigation mode {'assisted (RINEX ephemerides)' if info['assisted'] else 'autonomous'}")
+    if "systems" in info:
+        add(f"systems         {', '.join(info['systems'])}")
+    sys_ = info.get("system", "G")
     if "command" in info:
         add(f"command         {info['command']}")
     add("groups          " + ", ".join(f"/{k} ({v} datasets)" for k, v in sorted(info["groups"].items())))
     if "acquisition" in info:
         a = info["acquisition"]
         add(f"acquisition     {a['searches']} searches; detected "
-            + (" ".join(f"G{p:02d}" for p in a["detected_prns"]) or "none"))
+            + (" ".join(sat_label(p, sys_) for p in a["detected_prns"]) or "none"))
     ch = info["channels"]
     add(f"channels        {len(ch)}")
     for name, d in sorted(ch.items()):
@@ -140,8 +150,8 @@ def format_info(info: dict, show_config: bool = True) -> str:
             add(f"  mean speed    {nav['speed_mean_mps']:.3f} m/s")
     ob = info["observables"]
     add(f"observables     {ob['rows']} rows, {ob['epochs']} epochs, satellites "
-        + (" ".join(f"G{p:02d}" for p in ob["prns"]) or "none"))
-    add("ephemerides     (decoded) " + (" ".join(f"G{p:02d}" for p in info["ephemerides"]) or "none"))
+        + (" ".join(sat_label(p, sys_) for p in ob["prns"]) or "none"))
+    add("ephemerides     (decoded) " + (" ".join(sat_label(p, sys_) for p in info["ephemerides"]) or "none"))
     if "iono_utc" in info:
         io = info["iono_utc"]
         add(f"iono/UTC        {io.get('source', '?')}: Klobuchar alpha "

@@ -1,4 +1,9 @@
-"""NMEA 0183 sentences (GGA, RMC, GSA, GSV, talker GP) for every fix of a run.
+"""NMEA 0183 sentences (GGA, RMC, GSA, GSV) for every fix of a run.
+
+* Talker: GP for a GPS-only fix, GB for BeiDou only, GN when the fix mixes systems (GPS + QZSS on L1
+  C/A); GSV sentences carry the satellites' own system's talker (GP for GPS and QZSS, whose PRNs
+  193..202 are their NMEA IDs; GB for BeiDou, IDs = PRN); a mixed fix has one GSA per system with the
+  NMEA 4.10 system ID (1 GPS, 4 BeiDou) appended.
 
 * Times are UTC (GPS time of the fix minus the leap seconds broadcast in the LNAV message, or the built-in
   table), to 0.01 s.
@@ -16,9 +21,18 @@ import math
 import numpy as np
 
 from ..gnss.geodesy import enu_matrix
+from ..gnss.satid import sat_system
 from ..runfile.reader import RunData
 
 KNOTS_PER_MPS = 3600.0 / 1852.0
+_TALKER = {"G": "GP", "C": "GB", "J": "GQ", "E": "GA"}
+_NMEA_SYS = {"G": "G", "J": "G", "C": "C", "E": "E"}     # QZSS satellites are reported with GPS (IDs 193..)
+_NMEA_SYS_ID = {"G": 1, "E": 3, "C": 4}                  # NMEA 4.10 GNSS system ID of GSA
+
+
+def _nmea_id(prn: int) -> int:
+    """NMEA satellite ID: the PRN (QZSS 193..202; BeiDou 1..63, also when keyed 400 + PRN)."""
+    return prn - 400 if prn > 400 else prn
 
 
 def checksum(body: str) -> str:
@@ -55,35 +69,35 @@ def _utc(run: RunData, week: int, tow: float):
     return run.utc(week, cs / 100.0)
 
 
-def gga(t, lat, lon, h, n_sats, hdop) -> str:
+def gga(t, lat, lon, h, n_sats, hdop, talker="GP") -> str:
     la, ns = _latlon(lat, True)
     lo, ew = _latlon(lon, False)
-    return sentence(f"GPGGA,{_hms(t)},{la},{ns},{lo},{ew},1,{min(int(n_sats), 99):02d},{_num(hdop, '.2f')},"
+    return sentence(f"{talker}GGA,{_hms(t)},{la},{ns},{lo},{ew},1,{min(int(n_sats), 99):02d},{_num(hdop, '.2f')},"
                     f"{_num(h, '.3f')},M,0.0,M,,")
 
 
-def rmc(t, lat, lon, speed_mps, course_deg) -> str:
+def rmc(t, lat, lon, speed_mps, course_deg, talker="GP") -> str:
     la, ns = _latlon(lat, True)
     lo, ew = _latlon(lon, False)
     spd = _num(speed_mps * KNOTS_PER_MPS if speed_mps is not None else None, ".3f")
     crs = _num(course_deg, ".2f")
-    return sentence(f"GPRMC,{_hms(t)},A,{la},{ns},{lo},{ew},{spd},{crs},{t.day:02d}{t.month:02d}{t.year % 100:02d},"
+    return sentence(f"{talker}RMC,{_hms(t)},A,{la},{ns},{lo},{ew},{spd},{crs},{t.day:02d}{t.month:02d}{t.year % 100:02d},"
                     f",,A")
 
 
-def gsa(prns_used, pdop, hdop, vdop) -> str:
+def gsa(prns_used, pdop, hdop, vdop, talker="GP") -> str:
     prns = [f"{int(p):02d}" for p in sorted(prns_used)[:12]]
     prns += [""] * (12 - len(prns))
-    return sentence(f"GPGSA,A,3,{','.join(prns)},{_num(pdop, '.2f')},{_num(hdop, '.2f')},{_num(vdop, '.2f')}")
+    return sentence(f"{talker}GSA,A,3,{','.join(prns)},{_num(pdop, '.2f')},{_num(hdop, '.2f')},{_num(vdop, '.2f')}")
 
 
-def gsv(sats) -> list:
+def gsv(sats, talker="GP") -> list:
     """sats: list of (prn, elevation_deg, azimuth_deg, cn0_dbhz); one sentence per 4 satellites."""
     n = len(sats)
     total = max(1, math.ceil(n / 4))
     out = []
     for k in range(total):
-        parts = [f"GPGSV,{total},{k + 1},{n:02d}"]
+        parts = [f"{talker}GSV,{total},{k + 1},{n:02d}"]
         for prn, el, az, cn0 in sats[4 * k:4 * k + 4]:
             el_s = f"{int(round(el)):02d}" if np.isfinite(el) else ""
             az_s = f"{int(round(az)) % 360:03d}" if np.isfinite(az) else ""
@@ -117,11 +131,26 @@ def nmea_lines(run: RunData) -> list:
         rows = o_order[lo:hi]
         rows = rows[np.argsort(obs["prn"][rows])] if len(rows) else rows
         used = [int(obs["prn"][r]) for r in rows if obs["used_in_fix"][r]]
-        lines.append(gga(t, lat, lon, h, f["n_sats"], float(f["hdop"])))
-        lines.append(rmc(t, lat, lon, speed, course))
-        lines.append(gsa(used, float(f["pdop"]), float(f["hdop"]), float(f["vdop"])))
-        lines.extend(gsv([(int(obs["prn"][r]), float(obs["elevation_deg"][r]), float(obs["azimuth_deg"][r]),
-                           float(obs["cn0_dbhz"][r])) for r in rows]))
+        letters = {sat_system(p, run.system) for p in used} or {run.system}
+        talker = "GN" if len(letters) > 1 else _TALKER.get(next(iter(letters)), "GN")
+        lines.append(gga(t, lat, lon, h, f["n_sats"], float(f["hdop"]), talker))
+        lines.append(rmc(t, lat, lon, speed, course, talker))
+        # GSA: one per system when several (NMEA 4.10, system ID appended); GSV: per system, own talker
+        groups = {}
+        for p in used:
+            groups.setdefault(_NMEA_SYS.get(sat_system(p, run.system), "G"), []).append(_nmea_id(p))
+        for letter, ids in sorted(groups.items()) if len(groups) > 1 else [(None, [_nmea_id(p) for p in used])]:
+            line = gsa(ids, float(f["pdop"]), float(f["hdop"]), float(f["vdop"]), talker)
+            if letter is not None:
+                line = sentence(line[1:line.index("*")] + f",{_NMEA_SYS_ID[letter]}")
+            lines.append(line)
+        by_sys = {}
+        for r in rows:
+            p = int(obs["prn"][r])
+            by_sys.setdefault(_NMEA_SYS.get(sat_system(p, run.system), "G"), []).append(
+                (_nmea_id(p), float(obs["elevation_deg"][r]), float(obs["azimuth_deg"][r]), float(obs["cn0_dbhz"][r])))
+        for letter in sorted(by_sys):
+            lines.extend(gsv(by_sys[letter], _TALKER[letter]))
     return lines
 
 
@@ -129,4 +158,4 @@ def write_nmea(path, run: RunData) -> dict:
     lines = nmea_lines(run)
     with open(path, "w", newline="") as fh:
         fh.write("".join(ln + "\r\n" for ln in lines))
-    return {"sentences": len(lines), "fixes": sum(1 for ln in lines if ln.startswith("$GPGGA"))}
+    return {"sentences": len(lines), "fixes": sum(1 for ln in lines if ln[3:7] == "GGA,")}

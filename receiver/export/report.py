@@ -15,6 +15,8 @@ import os
 
 import numpy as np
 
+from ..gnss.satid import sat_label
+
 from ..gnss.geodesy import ecef2lla, enu_matrix
 from ..runfile.record import STATE_BIT_SYNC, STATE_LOST, STATE_PULL_IN, STATE_TRACK
 from ..runfile.reader import RunData, RunFile, load_run
@@ -220,9 +222,9 @@ def make_figure(run: RunData, truth=None, channels=None):
         ch = channels.get(p)
         if ch is None:
             continue
-        ax_cn0.plot(*_broken(ch["time_s"], ch["cn0"], ch["gap"]), lw=0.9, color=colors[p], label=f"G{p:02d}")
+        ax_cn0.plot(*_broken(ch["time_s"], ch["cn0"], ch["gap"]), lw=0.9, color=colors[p], label=sat_label(p, run.system))
         ax_dop.plot(*_broken(ch["time_s"], ch["doppler"] / 1e3, ch["gap"]), lw=1.2, color=colors[p],
-                    label=f"G{p:02d}")
+                    label=sat_label(p, run.system))
     _cn0_ylim(ax_cn0, channels)
     ax_cn0.set_ylabel("C/N0 (dB-Hz)")
     ax_cn0.set_title("C/N0 per channel")
@@ -252,7 +254,7 @@ def make_figure(run: RunData, truth=None, channels=None):
         ax_sky.plot(az, el, "-", color=colors.get(p, "k"), lw=2.5)
         ax_sky.plot(az[-1], el[-1], "o", ms=9, color=colors.get(p, "k"),
                     mfc=colors.get(p, "k") if used[-1] else "white", mew=1.8)
-        ax_sky.annotate(f"G{p:02d}", (az[-1], el[-1]), textcoords="offset points", xytext=(6, 5), fontsize=9)
+        ax_sky.annotate(sat_label(p, run.system), (az[-1], el[-1]), textcoords="offset points", xytext=(6, 5), fontsize=9)
     ax_sky.plot([], [], "o", color="gray", label="used")
     ax_sky.plot([], [], "o", color="gray", mfc="white", label="not used")
     ax_sky.legend(loc="lower left", bbox_to_anchor=(-0.12, -0.12), fontsize=8, framealpha=0.85)
@@ -261,7 +263,7 @@ def make_figure(run: RunData, truth=None, channels=None):
     ylabels = []
     for row, p in enumerate(prns):
         ch = channels.get(p)
-        ylabels.append(f"G{p:02d}")
+        ylabels.append(sat_label(p, run.system))
         if ch is None:
             continue
         t0 = ch["time_s"]
@@ -411,7 +413,7 @@ def make_figure(run: RunData, truth=None, channels=None):
             if 1 <= prn <= 32:
                 r = vlog["r_carrier_m2s2"][:, prn - 1]
                 if np.isfinite(r).any():
-                    ax_vr.plot(tv, r, lw=0.9, color=colors[prn], label=f"G{prn:02d}")
+                    ax_vr.plot(tv, r, lw=0.9, color=colors[prn], label=sat_label(prn, run.system))
         ax_vr.set_yscale("log")
         ax_vr.set_ylabel("(m/s)$^2$")
         ax_vr.set_xlabel("time since the first sample of the file (s)")
@@ -467,7 +469,7 @@ def _summary_text(run: RunData, s: dict, channels) -> str:
     cn = {p: float(np.nanmean(c["cn0"][c["state"] == STATE_BIT_SYNC]))
           for p, c in channels.items() if np.any(c["state"] == STATE_BIT_SYNC)}
     if cn:
-        items = [f"G{p:02d} {v:.1f}" for p, v in sorted(cn.items())]
+        items = [f"{sat_label(p, run.system)} {v:.1f}" for p, v in sorted(cn.items())]
         lines.append("C/N0 (dB-Hz, bit sync):")
         for i in range(0, len(items), 3):
             lines.append("  " + "  ".join(items[i:i + 3]))

@@ -1,7 +1,9 @@
-"""RINEX 3.04 GPS observation file from a run's ``/observables`` table (plus the navigation file).
+"""RINEX 3.04 observation file from a run's ``/observables`` table (plus the navigation file).
 
 Observation types: C1C (pseudorange, m), L1C (carrier phase, cycles), D1C (Doppler, Hz), S1C (C/N0,
-dB-Hz).  Conventions:
+dB-Hz) for GPS and QZSS (L1 C/A; QZSS PRN 193.. is J01..); C2I, L2I, D2I, S2I for BeiDou B1I (RINEX 3
+band 2).  A file with more than one system is a mixed ('M') file with one SYS / # / OBS TYPES line per
+system.  Conventions:
 
 * Epochs are the receiver clock readings of the measurements: GPS time of the fix plus its clock bias / c
   (the pseudoranges are the raw ones, c (receiver time - transmit time)), so another program estimates
@@ -23,10 +25,14 @@ import os
 import numpy as np
 
 from .. import __version__
+from ..gnss.satid import sat_label, sat_system
 from ..gnss.time import split_gps_time
 from ..runfile.reader import RunData
 
 OBS_TYPES = ("C1C", "L1C", "D1C", "S1C")
+#: observation codes per system letter (same four quantities, same order as OBS_TYPES)
+SYS_OBS_TYPES = {"G": OBS_TYPES, "J": OBS_TYPES, "C": ("C2I", "L2I", "D2I", "S2I"),
+                 "E": ("C1C", "L1C", "D1C", "S1C")}
 LLI_LOSS = 1
 LLI_HALF_CYCLE = 2
 
@@ -86,6 +92,7 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
     if not groups:
         raise ValueError("the run has no observables")
     rx_tow = run.rx_tow()
+    system = run.system
     lli = lli_flags(obs)
     lines_body = []
     epochs = []
@@ -99,7 +106,7 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
         for r in rows:
             ssi = ssi_from_cn0(float(obs["cn0_dbhz"][r]))
             phase = -float(obs["carrier_phase_cycles"][r])
-            lines_body.append((f"G{int(obs['prn'][r]):02d}"
+            lines_body.append((sat_label(int(obs['prn'][r]), system)
                                + _field(float(obs["pseudorange_m"][r]), 0, ssi)
                                + _field(phase, int(lli[r]), ssi)
                                + _field(float(obs["doppler_hz"][r]))
@@ -117,12 +124,16 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
     marker = marker or run.name
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d %H%M%S UTC")
     mode = "assisted (RINEX ephemerides)" if run.assisted else "autonomous (decoded ephemerides)"
+    prns = sorted({int(p) for p in obs["prn"]})
+    letters = sorted({sat_system(p, system) for p in prns}, key="GCEJ".index)
+    file_sys = letters[0] if len(letters) == 1 else "M"
+    signal_name = {"G": "GPS L1 C/A", "J": "QZSS L1 C/A", "C": "BeiDou B1I", "E": "Galileo E1"}
     h = [
-        _hdr(f"{3.04:9.2f}{'':11}{'O':<20}{'G':<20}", "RINEX VERSION / TYPE"),
+        _hdr(f"{3.04:9.2f}{'':11}{'O':<20}{file_sys:<20}", "RINEX VERSION / TYPE"),
         _hdr(f"{'gnssrx ' + __version__:<20}{'':<20}{now:<20}", "PGM / RUN BY / DATE"),
-        _hdr("gnssrx software receiver, GPS L1 C/A", "COMMENT"),
+        _hdr("gnssrx software receiver, " + ", ".join(signal_name[c] for c in letters), "COMMENT"),
         _hdr(f"run file {os.path.basename(run.path)}, {mode}", "COMMENT"),
-        _hdr("L1C = -(accumulated carrier NCO phase); epochs = receiver", "COMMENT"),
+        _hdr("phase = -(accumulated carrier NCO phase); epochs = receiver", "COMMENT"),
         _hdr("clock (GPS time of fix + clock bias / c)", "COMMENT"),
         _hdr(marker[:60], "MARKER NAME"),
         _hdr("NON_GEODETIC", "MARKER TYPE"),
@@ -131,26 +142,27 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
         _hdr(f"{'0':<20}{'unknown':<20}", "ANT # / TYPE"),
         _hdr("".join(f"{v:14.4f}" for v in approx), "APPROX POSITION XYZ"),
         _hdr("".join(f"{0.0:14.4f}" for _ in range(3)), "ANTENNA: DELTA H/E/N"),
-        _hdr(f"G  {len(OBS_TYPES):3d}" + "".join(f" {t}" for t in OBS_TYPES), "SYS / # / OBS TYPES"),
-        _hdr("DBHZ", "SIGNAL STRENGTH UNIT"),
     ]
+    h += [_hdr(f"{c}  {len(SYS_OBS_TYPES[c]):3d}" + "".join(f" {t}" for t in SYS_OBS_TYPES[c]),
+               "SYS / # / OBS TYPES") for c in letters]
+    h.append(_hdr("DBHZ", "SIGNAL STRENGTH UNIT"))
     if interval is not None and interval > 0:
         h.append(_hdr(f"{interval:10.3f}", "INTERVAL"))
     h.append(_hdr(f"{first_t.year:6d}{first_t.month:6d}{first_t.day:6d}{first_t.hour:6d}{first_t.minute:6d}"
                   f"{first_t.second + first_f:13.7f}{'':5}GPS", "TIME OF FIRST OBS"))
     h.append(_hdr(f"{last_t.year:6d}{last_t.month:6d}{last_t.day:6d}{last_t.hour:6d}{last_t.minute:6d}"
                   f"{last_t.second + last_f:13.7f}{'':5}GPS", "TIME OF LAST OBS"))
-    h.append(_hdr(f"G L1C {0.0:8.5f}", "SYS / PHASE SHIFT"))
+    for c in letters:
+        h.append(_hdr(f"{c} {SYS_OBS_TYPES[c][1]} {0.0:8.5f}", "SYS / PHASE SHIFT"))
     leap = run.leap_seconds()
     if leap:
         h.append(_hdr(f"{leap:6d}", "LEAP SECONDS"))
-    prns = sorted({int(p) for p in obs["prn"]})
     h.append(_hdr(f"{len(prns):6d}", "# OF SATELLITES"))
     for p in prns:
         sel = obs["prn"] == p
         counts = [int(np.count_nonzero(np.isfinite(obs[c][sel]))) for c in
                   ("pseudorange_m", "carrier_phase_cycles", "doppler_hz", "cn0_dbhz")]
-        h.append(_hdr(f"   G{p:02d}" + "".join(f"{c:6d}" for c in counts), "PRN / # OF OBS"))
+        h.append(_hdr(f"   {sat_label(p, system)}" + "".join(f"{c:6d}" for c in counts), "PRN / # OF OBS"))
     h.append(_hdr("", "END OF HEADER"))
     with open(path, "w", newline="\n") as fh:
         fh.write("\n".join(h + lines_body) + "\n")
@@ -167,7 +179,7 @@ def write_nav(path, run: RunData) -> dict:
     ephs = nav_ephemerides(run)
     if not ephs:
         raise ValueError("the run has no ephemerides")
-    write_rinex_nav(path, ephs, run.iono())
+    write_rinex_nav(path, ephs, run.iono(), system=run.system)
     return {"ephemerides": len(ephs), "satellites": sorted({e.prn for e in ephs}),
             "iono": run.iono() is not None}
 

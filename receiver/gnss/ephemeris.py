@@ -163,6 +163,9 @@ def sat_state(eph, t_tx):
     clk_bias = af0 + af1 dt + af2 dt^2 + F e sqrt(A) sin(E) - TGD (L1 C/A user), so the true
     transmit time is t_tx - clk_bias.  No Earth-rotation correction is applied here.
     """
+    bds = _bds_split(eph)
+    if bds is not None:                   # BeiDou ephemerides: their class's state (bds_ephemeris.py)
+        return _mixed_state(eph, t_tx, bds)
     p = _params(eph)
     t_sv = np.asarray(t_tx, dtype=float)
     t = t_sv
@@ -179,6 +182,33 @@ def sat_state(eph, t_tx):
     clk_bias = bias_poly + rel - p["tgd"]
     clk_drift = drift_poly + rel_dot
     return pos, vel, clk_bias, clk_drift
+
+
+def _bds_split(eph):
+    """None when every ephemeris is a GPS/QZSS one, else the boolean mask of those of another system (True
+    for a single one).  Such ephemeris classes (receiver.gnss.bds_ephemeris.BdsEphemeris) bring their own
+    ``state(ephs, t_tx)`` with sat_state's signature."""
+    if isinstance(eph, Ephemeris):
+        return True if hasattr(type(eph), "state") else None
+    mask = np.array([hasattr(type(x), "state") for x in eph], bool)
+    return mask if mask.any() else None
+
+
+def _mixed_state(eph, t_tx, mask):
+    if mask is True:
+        return type(eph).state(eph, t_tx)
+    ephs = list(eph)
+    other = type(ephs[int(np.flatnonzero(mask)[0])]).state
+    if mask.all():
+        return other(ephs, t_tx)
+    t = np.broadcast_to(np.asarray(t_tx, float), (len(ephs),))
+    pos, vel = np.empty((len(ephs), 3)), np.empty((len(ephs), 3))
+    bias, drift = np.empty(len(ephs)), np.empty(len(ephs))
+    for sel, fn in ((mask, other), (~mask, sat_state)):
+        idx = np.flatnonzero(sel)
+        r = fn([ephs[i] for i in idx], t[idx])
+        pos[idx], vel[idx], bias[idx], drift[idx] = r
+    return pos, vel, bias, drift
 
 
 def earth_rotation(pos, travel_time_s):

@@ -83,11 +83,25 @@ def _eph_from_values(prn, epoch, v, path):
     )
 
 
-def read_rinex_nav(path):
-    """Read a RINEX 2.x or 3.x GPS navigation file.
+def _bds_from_values(prn, epoch, v):
+    """BeiDou record (RINEX 3: epoch = toc in BDT; toe, week, transmission time in BDT)."""
+    from .bds_ephemeris import BdsEphemeris
+    y, mo, d, h, mi, s = epoch
+    _, toc = gps_time_from_calendar(y, mo, d, h, mi, s)      # BDT calendar -> BDT seconds of week
+    return BdsEphemeris(
+        prn=prn, week=int(round(v[21])), toe=v[11], toc=toc, af0=v[0], af1=v[1], af2=v[2], tgd=v[25],
+        iode=int(round(v[3])), iodc=int(round(v[28])), sqrt_a=v[10], e=v[8], i0=v[15], omega0=v[13],
+        omega=v[17], m0=v[6], delta_n=v[5], idot=v[19], omega_dot=v[18], cuc=v[7], cus=v[9], crc=v[16],
+        crs=v[4], cic=v[12], cis=v[14], health=int(round(v[24])), ura_index=ura_index_from_m(v[23]),
+        tgd2=v[26], tx_time=v[27] if abs(v[27]) < 0.9e9 else float("nan"))
+
+
+def read_rinex_nav(path, systems=("G", "J")):
+    """Read a RINEX 2.x or 3.x navigation file: GPS and QZSS records (QZSS Jnn as PRN 192 + nn), or with
+    ``systems=("C",)`` the BeiDou records of a RINEX 3 file (:class:`BdsEphemeris`, BDT).
 
     Returns (dict prn -> list of Ephemeris sorted by (week, toe), IonoUtc or None).
-    Raises UserError when the file is missing or not a RINEX GPS navigation file.
+    Raises UserError when the file is missing or has no usable record of those systems.
     """
     path = Path(path)
     try:
@@ -103,14 +117,17 @@ def read_rinex_nav(path):
         raise UserError(f"{path}: unreadable RINEX version in first line") from None
     ftype = lines[0][20:21].upper()
     system = lines[0][40:41].upper()
+    if version < 3 and "G" not in systems:
+        raise UserError(f"{path}: RINEX {version:g} navigation files hold GPS only (BeiDou needs RINEX 3)")
     if version < 3:
         if ftype != "N":
             raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a GPS navigation file")
     else:
         if ftype != "N":
             raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a navigation file")
-        if system not in ("G", "M", " ", ""):
-            raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not GPS")
+        if system not in tuple(systems) + ("M", " ", ""):
+            raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not "
+                            f"{'BeiDou' if 'C' in systems else 'GPS'}")
 
     alpha = beta = None
     a0 = a1 = tot = wnt = None
@@ -131,9 +148,9 @@ def read_rinex_nav(path):
                 tot, wnt = int(_num(line[41:50])), int(_num(line[50:59]))
             elif label == "IONOSPHERIC CORR":
                 key = line[:4].strip().upper()
-                if key == "GPSA":
+                if key == "GPSA" or (key == "BDSA" and "C" in systems and alpha is None):
                     alpha = tuple(_fixed(line, 5, 12, 4))
-                elif key == "GPSB":
+                elif key == "GPSB" or (key == "BDSB" and "C" in systems and beta is None):
                     beta = tuple(_fixed(line, 5, 12, 4))
             elif label == "TIME SYSTEM CORR":
                 if line[:4].strip().upper() == "GPUT":
@@ -177,9 +194,9 @@ def read_rinex_nav(path):
                 vals = _fixed(head, 22, 19, 3)
                 orbit_start = 3
             else:
-                if head[0].upper() != "G":
+                if head[0].upper() not in systems:     # QZSS J01.. records: PRN 193.., GPS layout
                     continue
-                prn = int(head[1:3])
+                prn = int(head[1:3]) + (192 if head[0].upper() == "J" else 0)
                 epoch = (int(head[4:8]), int(head[9:11]), int(head[12:14]), int(head[15:17]),
                          int(head[18:20]), float(head[21:23]))
                 vals = _fixed(head, 23, 19, 3)
@@ -188,11 +205,16 @@ def read_rinex_nav(path):
                 raise ValueError(f"record has {len(rec)} lines, expected 8")
             for ln in rec[1:8]:
                 vals += _fixed(ln.ljust(orbit_start + 76), orbit_start, 19, 4)
-            eph = _eph_from_values(prn, epoch, vals, path)
+            if version >= 3 and head[0].upper() == "C":
+                eph = _bds_from_values(prn, epoch, vals)
+            else:
+                eph = _eph_from_values(prn, epoch, vals, path)
         except (ValueError, IndexError) as exc:
             raise UserError(f"{path}: bad GPS navigation record '{head.strip()[:23]}': {exc}") from None
         out.setdefault(prn, []).append(eph)
     if not out:
+        if "C" in systems:
+            raise UserError(f"{path}: no usable BeiDou navigation records (RINEX 3 'Cnn' records needed)")
         raise UserError(f"{path}: no usable GPS navigation records (header only, no GPS records, or records "
                         f"not in the RINEX {version:g} layout the header declares)")
     for prn in out:
@@ -213,18 +235,42 @@ def _hdr(content: str, label: str) -> str:
     return content.ljust(60)[:60] + label.ljust(20) + "\n"
 
 
-def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gnssrx"):
-    """Write a RINEX 3.04 GPS navigation file.
+def _bds_record(e) -> list:
+    """RINEX 3.04 BeiDou navigation record (epoch = toc in BDT; toe, week and transmission time in BDT).
+    The Klobuchar set goes into the GPSA/GPSB header lines: gnssrx applies the broadcast BeiDou alpha/beta
+    with the GPS Klobuchar model (the simulator does the same), and readers such as RTKLIB take those lines
+    for their Klobuchar correction."""
+    from .bds_ephemeris import BDT_WEEK_OFFSET
+    t = calendar_from_gps_time(e.week + BDT_WEEK_OFFSET, e.toc)      # BDT calendar (same epoch layout)
+    sec = t.second + t.microsecond * 1e-6
+    out = [f"C{e.prn:02d} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} {t.minute:02d} "
+           f"{int(round(sec)):02d}" + _d19(e.af0) + _d19(e.af1) + _d19(e.af2) + "\n"]
+    tx = e.tx_time if np.isfinite(e.tx_time) else e.toe
+    rows = [(e.iode, e.crs, e.delta_n, e.m0), (e.cuc, e.e, e.cus, e.sqrt_a), (e.toe, e.cic, e.omega0, e.cis),
+            (e.i0, e.crc, e.omega, e.omega_dot), (e.idot, 0.0, e.week, 0.0),
+            (ura_m_from_index(e.ura_index), e.health, e.tgd, e.tgd2), (tx, e.iodc)]
+    for row in rows:
+        out.append("    " + "".join(_d19(float(v)) for v in row) + "\n")
+    return out
+
+
+def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gnssrx", system: str = "G"):
+    """Write a RINEX 3.04 navigation file of L1 C/A satellites (GPS; QZSS PRNs 193.. as J01.., same
+    record layout).
 
     ephs: dict prn -> list of Ephemeris, or a flat iterable of Ephemeris.
     """
+    from .satid import sat_label, sat_system
     if isinstance(ephs, dict):
         flat = [e for lst in ephs.values() for e in lst]
     else:
         flat = list(ephs)
     flat.sort(key=lambda e: (e.week, e.toc, e.prn))
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d %H%M%S UTC")
-    out = [_hdr(f"{3.04:9.2f}" + " " * 11 + "N: GNSS NAV DATA    G: GPS", "RINEX VERSION / TYPE"),
+    letters = {"C" if getattr(e, "system", "G") == "C" else sat_system(e.prn, system) for e in flat}
+    kind = {frozenset("G"): "G: GPS", frozenset("J"): "J: QZSS", frozenset("C"): "C: BeiDou"}.get(
+        frozenset(letters), "M: MIXED")
+    out = [_hdr(f"{3.04:9.2f}" + " " * 11 + f"N: GNSS NAV DATA    {kind}", "RINEX VERSION / TYPE"),
            _hdr(f"{program:<20}{'':<20}{now:<20}", "PGM / RUN BY / DATE")]
     if iono is not None:
         out.append(_hdr("GPSA " + "".join(_d12(v) for v in iono.alpha), "IONOSPHERIC CORR"))
@@ -237,11 +283,14 @@ def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gns
         out.append(_hdr(leap, "LEAP SECONDS"))
     out.append(_hdr("", "END OF HEADER"))
     for e in flat:
+        if getattr(e, "system", "G") == "C":
+            out.extend(_bds_record(e))
+            continue
         dtoc = e.toc - e.toe
         toc_week = e.week + (1 if dtoc < -WEEK_S / 2 else -1 if dtoc > WEEK_S / 2 else 0)
         t = calendar_from_gps_time(toc_week, e.toc)
         sec = t.second + t.microsecond * 1e-6
-        out.append(f"G{e.prn:02d} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} "
+        out.append(f"{sat_label(e.prn, system)} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} "
                    f"{t.minute:02d} {int(round(sec)):02d}" + _d19(e.af0) + _d19(e.af1) + _d19(e.af2) + "\n")
         tx = e.tx_time if np.isfinite(e.tx_time) else 0.9999e9
         rows = [

@@ -28,13 +28,38 @@ _G2_TAPS = {
     30: (2, 7), 31: (3, 8), 32: (4, 9),
 }
 GPS_PRNS = tuple(range(1, 33))
+# QZSS L1 C/A (IS-QZSS-PNT, Table 3.2.2-2): the GPS C/A generator with the G2 sequence delayed by these
+# numbers of chips, PRN 193..202 (satellites J01..J10)
+QZSS_G2_DELAY = {193: 339, 194: 208, 195: 711, 196: 189, 197: 263, 198: 537, 199: 663, 200: 942,
+                 201: 173, 202: 900}
+QZSS_PRNS = tuple(sorted(QZSS_G2_DELAY))
+L1CA_PRNS = GPS_PRNS + QZSS_PRNS
+
+
+def _g_sequences():
+    """G1 and G2 (IS-GPS-200 Figure 3-9), 1023 chips each from the all-ones state."""
+    g1, g2 = [1] * 10, [1] * 10
+    o1 = np.empty(CA_CODE_LEN, np.uint8)
+    o2 = np.empty(CA_CODE_LEN, np.uint8)
+    for i in range(CA_CODE_LEN):
+        o1[i], o2[i] = g1[9], g2[9]
+        f1 = g1[2] ^ g1[9]
+        f2 = g2[1] ^ g2[2] ^ g2[5] ^ g2[7] ^ g2[8] ^ g2[9]
+        g1 = [f1] + g1[:9]
+        g2 = [f2] + g2[:9]
+    return o1, o2
 
 
 @lru_cache(maxsize=None)
 def ca_code_bits(prn: int) -> np.ndarray:
-    """C/A code of a GPS PRN as 1023 bits (0/1, uint8), first chip first."""
+    """C/A code of a GPS PRN (1..32) or a QZSS PRN (193..202) as 1023 bits (0/1, uint8), first chip first."""
+    if prn in QZSS_G2_DELAY:
+        g1, g2 = _g_sequences()
+        out = g1 ^ np.roll(g2, QZSS_G2_DELAY[prn])
+        out.setflags(write=False)
+        return out
     if prn not in _G2_TAPS:
-        raise ValueError(f"GPS PRN must be 1..32, got {prn}")
+        raise ValueError(f"L1 C/A PRN must be 1..32 (GPS) or 193..202 (QZSS), got {prn}")
     t1, t2 = _G2_TAPS[prn]
     g1 = [1] * 10
     g2 = [1] * 10
@@ -73,7 +98,7 @@ class SignalDef:
     carrier_hz = L1_HZ
     chip_rate = CA_CHIP_RATE
     code_len = CA_CODE_LEN
-    prns = GPS_PRNS
+    prns = L1CA_PRNS             # GPS 1..32 and QZSS 193..202 (same signal, same LNAV message)
 
     def code(self, prn: int) -> np.ndarray:
         """Primary code as +/-1 float32 chips."""

@@ -23,7 +23,7 @@ import numpy as np
 from ..gnss.geodesy import ecef2lla
 from ..runfile.record import FIX_DTYPE, OBS_DTYPE
 from ..runfile.record import STATE_BIT_SYNC
-from ..gnss.signals import C_LIGHT, CA_CHIP_RATE, LAMBDA_L1
+from ..gnss.signals import C_LIGHT, GPS_L1CA
 from ..gnss.lnav import LnavDecoder, SubframeEvent
 from .pvt import NavSolver, Observation
 from .pvt_filter import make_pvt_filter
@@ -49,9 +49,14 @@ class ChannelNav:
     (:meth:`NavigationEngine._resolve_from_fix`) or frame sync.
     """
 
-    def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float):
+    def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float, signal=None):
         self.prn = prn
-        self.decoder = LnavDecoder(prn, week_hint=week_hint)
+        sig = signal if signal is not None else GPS_L1CA
+        self.signal = sig
+        self.bit_ms = sig.bit_ms(prn)             # LNAV / BeiDou D1: 20 ms; BeiDou D2: 2 ms
+        self.chip_rate = sig.chip_rate
+        self.wavelength = C_LIGHT / sig.carrier_hz
+        self.decoder = self._new_decoder(week_hint)
         self.if_hz = if_hz
         self.fs = fs
         self.bit_offset = -1
@@ -79,6 +84,13 @@ class ChannelNav:
         self.settle_s = None        # settle time of the current track (None: navigation.settle_s)
         self.tracks = 1             # tracks (channels) of this satellite so far
         self.resumed_with_time = 0  # re-acquisitions that kept the transmit-time reference
+
+    def _new_decoder(self, week_hint):
+        """LNAV for L1 C/A (GPS, QZSS); D1/D2 for BeiDou B1I (receiver.gnss.bds_nav)."""
+        if self.signal.system == "C":
+            from ..gnss.bds_nav import BdsDecoder
+            return BdsDecoder(self.prn, week_hint=week_hint, geo=self.bit_ms != BIT_MS)
+        return LnavDecoder(self.prn, week_hint=week_hint)
 
     def suspend(self):
         """The channel lost the signal: keep the memory, forget the track's measurement state."""
@@ -113,7 +125,7 @@ class ChannelNav:
             self.time_assisted = False
             self.bit_offset = -1
             old = self.decoder              # bit indices restart: new frame sync, same decoded data
-            self.decoder = LnavDecoder(self.prn, week_hint=old.week_hint)
+            self.decoder = self._new_decoder(old.week_hint)
             self.decoder.ephemeris, self.decoder.iono_utc, self.decoder.week = \
                 old.ephemeris, old.iono_utc, old.week
             self.decoder.parity_failures = old.parity_failures
@@ -126,13 +138,14 @@ class ChannelNav:
 
     def offset_candidates(self, s: float, tx_guess: float):
         """tx_offset making the transmit time at sample s nearest tx_guess, given bit synchronisation:
-        bit edges are transmitted at multiples of 20 ms of GPS time."""
+        bit edges are transmitted at multiples of the bit duration (20 ms; BeiDou D2 2 ms) of GPS time."""
         m = self.measure(s)
         if m is None or self.bit_offset < 0:
             return None, None
         base = -self.bit_offset * 1e-3
-        k = round((tx_guess - m[0] - base) / 0.02)
-        return base + 0.02 * k, m[0]
+        tb = self.bit_ms * 1e-3
+        k = round((tx_guess - m[0] - base) / tb)
+        return base + tb * k, m[0]
 
     def add(self, recs: np.ndarray, bit_offset: int):
         if len(recs) == 0:
@@ -157,7 +170,8 @@ class ChannelNav:
         if not sync.any():
             return
         r = recs[sync]
-        bits_idx = (r["code_period"] - bit_offset) // BIT_MS
+        bit_ms = self.bit_ms
+        bits_idx = (r["code_period"] - bit_offset) // bit_ms
         nc_from = self.noncoherent_from
         nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
         # per bit index: the prompt sums over its two 10-ms halves (their sum decides a phase-locked bit,
@@ -165,9 +179,9 @@ class ChannelNav:
         # order (a few per chunk), continuing the bit left incomplete by the last chunk.  An epoch's halves
         # (prompt1/2) go to the half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
         starts = np.flatnonzero(np.r_[True, bits_idx[1:] != bits_idx[:-1]])
-        o = (r["code_period"] - bit_offset) % BIT_MS                 # epoch start within its bit (ms)
-        late1 = o >= BIT_MS // 2
-        late2 = 2 * o + r["integration_ms"] >= BIT_MS
+        o = (r["code_period"] - bit_offset) % bit_ms                 # epoch start within its bit (ms)
+        late1 = o >= bit_ms // 2
+        late2 = 2 * o + r["integration_ms"] >= bit_ms
         p1 = r["prompt1_i"].astype(np.float64) + 1j * r["prompt1_q"].astype(np.float64)
         p2 = r["prompt2_i"].astype(np.float64) + 1j * r["prompt2_q"].astype(np.float64)
         ha = np.where(late1, 0.0, p1) + np.where(late2, 0.0, p2)
@@ -182,7 +196,7 @@ class ChannelNav:
         out_bits, first = [], None
         for b, a, bb, ms, n in seg:
             if self.cur_bit is None or b != self.cur_bit:
-                if self.cur_bit is not None and self.cur_ms == BIT_MS:
+                if self.cur_bit is not None and self.cur_ms == bit_ms:
                     v = self._soft_bit()
                     if first is None:
                         first = self.cur_bit
@@ -234,7 +248,7 @@ class ChannelNav:
             return
         for ev in self.decoder.feed(np.asarray(bits), first):
             if isinstance(ev, SubframeEvent):
-                cp_ref = self.bit_offset + BIT_MS * ev.bit_index
+                cp_ref = self.bit_offset + self.bit_ms * ev.bit_index
                 if self.time_assisted and abs(ev.tow_s - cp_ref * 1e-3 - self.tx_offset) > 1e-4:
                     self.time_mismatches += 1          # the assisted guess was wrong: frame sync wins
                 self.cp_ref = cp_ref
@@ -272,8 +286,8 @@ class ChannelNav:
                 return None
             r = recs[k]
             dt = (s - float(r["sample_index"])) / self.fs
-            txrel = (int(r["code_period"]) * 1e-3 + float(r["code_phase_chips"]) / CA_CHIP_RATE
-                     + dt * float(r["code_rate_hz"]) / CA_CHIP_RATE)
+            txrel = (int(r["code_period"]) * 1e-3 + float(r["code_phase_chips"]) / self.chip_rate
+                     + dt * float(r["code_rate_hz"]) / self.chip_rate)
             dop = float(r["doppler_hz"])
             phase = float(r["carrier_phase_cycles"]) + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
             if self.polarity < 0:
@@ -320,7 +334,7 @@ class ChannelNav:
             self.hatch = None
             return
         t = s / self.fs
-        z = C_LIGHT * (t - txrel) + LAMBDA_L1 * phase
+        z = C_LIGHT * (t - txrel) + self.wavelength * phase
         h = self.hatch
         if h is None or not self.locked:
             h = self.hatch = {"z0": z, "t0": t, "S": np.zeros(5), "n": 0}
@@ -362,7 +376,7 @@ class ChannelNav:
         else:
             b = slope
             a = (S[3] - b * S[1]) / S[0]
-        ys = h["z0"] + a + b * tr - LAMBDA_L1 * phase
+        ys = h["z0"] + a + b * tr - self.wavelength * phase
         return t - ys / C_LIGHT
 
     @staticmethod
@@ -377,7 +391,7 @@ class ChannelNav:
 
 class NavigationEngine:
     def __init__(self, nav_cfg, fs: float, if_hz: float, first_sample: int, ephemerides=None,
-                 iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None):
+                 iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None, signal=None):
         self.cfg = nav_cfg
         self.fs = fs
         self.if_hz = if_hz
@@ -386,6 +400,7 @@ class NavigationEngine:
         self.presence_cn0 = None
         self.pvt_filter = make_pvt_filter(nav_cfg)     # navigation.filter ekf|ckf (None: wls)
         self.channels: dict[int, ChannelNav] = {}
+        self.signal = signal                # SignalDef of the channels (None: GPS L1 C/A)
         self.assisted = ephemerides is not None
         self.rinex_ephs = ephemerides or {}
         self.iono_utc = iono_utc
@@ -403,7 +418,7 @@ class NavigationEngine:
 
     def channel(self, prn: int) -> ChannelNav:
         if prn not in self.channels:
-            self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs)
+            self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
         return self.channels[prn]
 
     def add_records(self, prn: int, recs, bit_offset: int):
@@ -669,7 +684,8 @@ class NavigationEngine:
         week = self._week()
         ephs = self._ephemerides(rx_tow)
         observations = [Observation(prn=prn, tx_tow=m[0], doppler_hz=m[1], cn0_dbhz=ch.cn0,
-                                    carrier_phase_cycles=m[2])
+                                    carrier_phase_cycles=m[2], wavelength_m=ch.wavelength,
+                                    system=ch.signal.system)
                         for prn, (m, ch) in sorted(meas.items()) if prn in ephs]
         fix = None
         if len(observations) >= 4 and week is not None:
@@ -702,7 +718,7 @@ class NavigationEngine:
             ch = meas[o.prn][1]
             pr = (rx_tow - o.tx_tow) * C_LIGHT
             obs_rows.append((self.epoch, fix.gps_week, fix.gps_tow, t_s, o.prn, pr,
-                             -o.doppler_hz * LAMBDA_L1, o.doppler_hz, o.carrier_phase_cycles, o.cn0_dbhz,
+                             -o.doppler_hz * ch.wavelength, o.doppler_hz, o.carrier_phase_cycles, o.cn0_dbhz,
                              t_s - (ch.lock_start_s if ch.lock_start_s is not None else t_s),
                              1 if ch.polarity != 0 else 0, 1 if o.prn in used else 0,
                              el.get(o.prn, np.nan), az.get(o.prn, np.nan), res.get(o.prn, np.nan)))

@@ -34,6 +34,8 @@ class Observation:
     doppler_hz: float = float("nan")
     cn0_dbhz: float = float("nan")
     carrier_phase_cycles: float = float("nan")
+    wavelength_m: float = LAMBDA_L1     # carrier wavelength of the signal (Doppler -> range rate)
+    system: str = "G"                   # clock group: every system but the first gets an inter-system bias
 
 
 @dataclass
@@ -68,6 +70,7 @@ class Fix:
     sat_vel_ecef: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     rx_tow: float = float("nan")
     iterations: int = 0
+    isb_m: dict = field(default_factory=dict)   # system letter -> inter-system clock bias (m) vs clock_bias_m
 
     @property
     def lla(self):
@@ -84,7 +87,11 @@ URA_M = (2.40, 3.40, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 76
 class _Sats:
     """Arrays of the satellites of one epoch (positions in the transmit-time ECEF frame)."""
 
-    def __init__(self, prn, rho, pos, vel, clk, drift, cn0, doppler, ura_m=None):
+    def __init__(self, prn, rho, pos, vel, clk, drift, cn0, doppler, ura_m=None, systems=None):
+        sy = list(systems) if systems is not None else ["G"] * len(prn)
+        order = sorted(set(sy), key=lambda c: ("GJCE".index(c) if c in "GJCE" else 9, c))
+        self.systems = order                                  # order[0]: the reference clock
+        self.group = np.array([order.index(c) for c in sy], dtype=int)
         self.ura_m = np.asarray(ura_m if ura_m is not None else np.zeros(len(prn)), float)
         self.prn = np.asarray(prn, dtype=int)
         self.rho = np.asarray(rho, float)
@@ -148,8 +155,9 @@ class NavSolver:
         pos, vel, clk, drift = sat_state(ephs, tx)
         rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
         return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
-                     [o.cn0_dbhz for o in obs], [o.doppler_hz for o in obs],
-                     ura_m=[URA_M[min(max(int(e.ura_index), 0), 15)] for e in ephs])
+                     [o.cn0_dbhz for o in obs], [o.doppler_hz * o.wavelength_m / LAMBDA_L1 for o in obs],
+                     ura_m=[URA_M[min(max(int(e.ura_index), 0), 15)] for e in ephs],
+                     systems=[o.system for o in obs])
 
     def _weights(self, el, cn0, iono=None, ura_m=None):
         if self.weighting == "rtklib" and el is not None:
@@ -181,10 +189,16 @@ class NavSolver:
         return iono, tropo
 
     def _wls(self, s: _Sats, active, x, b, corrections, iono_utc, tow):
-        """Gauss-Newton WLS on the active satellites. Returns dict or None."""
+        """Gauss-Newton WLS on the active satellites. Returns dict or None.
+
+        Several systems: one clock bias b (the first system's) plus one inter-system bias column per other
+        system with active satellites (unknowns 4 + extra systems)."""
         idx = np.nonzero(active)[0]
-        if len(idx) < 4:
+        extra = sorted(set(s.group[idx].tolist()) - {0})
+        if len(idx) < 4 + len(extra) or (extra and 0 not in s.group[idx]):
             return None
+        e_cols = (s.group[idx][:, None] == np.array(extra, int)[None, :]).astype(float)
+        isb = np.zeros(len(extra))
         rho_c = s.rho[idx] + C_LIGHT * s.clk[idx]
         pos_tx = s.pos[idx]
         for it in range(1, self.MAX_ITER + 1):
@@ -203,8 +217,8 @@ class NavSolver:
             else:
                 iono = tropo = np.zeros(len(idx))
             w = self._weights(el if (corrections and known) else None, s.cn0[idx], iono, s.ura_m[idx])
-            resid = rho_c - iono - tropo - (rng + b)
-            h = np.hstack([-los, np.ones((len(idx), 1))])
+            resid = rho_c - iono - tropo - (rng + b + e_cols @ isb)
+            h = np.hstack([-los, np.ones((len(idx), 1)), e_cols])
             sw = np.sqrt(w)
             a = h * sw[:, None]
             try:
@@ -215,6 +229,7 @@ class NavSolver:
                 return None
             x = x + dx[:3]
             b = b + dx[3]
+            isb = isb + dx[4:]
             if np.linalg.norm(dx) < self.CONVERGED_M:
                 break
         else:
@@ -226,7 +241,7 @@ class NavSolver:
             return None
         hat_diag = np.einsum("ij,jk,ik->i", a, np.linalg.inv(ata), a)
         norm_res = sw * resid / np.sqrt(np.maximum(1.0 - hat_diag, 1e-6))
-        return dict(idx=idx, x=x, b=b, resid=resid, norm_res=norm_res, h=h, w=w, los=los, tau=tau,
+        return dict(idx=idx, x=x, b=b, isb={s.systems[g]: float(v) for g, v in zip(extra, isb)}, resid=resid, norm_res=norm_res, h=h, w=w, los=los, tau=tau,
                     az=az, el=el, iono=iono, tropo=tropo, rho_c=rho_c, iterations=it)
 
     # -------------------------------------------------------------------------------------
@@ -284,7 +299,7 @@ class NavSolver:
             return None
 
         # velocity and clock drift from Doppler
-        rate_raw = -s.doppler[idx] * LAMBDA_L1
+        rate_raw = -s.doppler[idx] * LAMBDA_L1          # s.doppler: L1-equivalent Hz (see _prepare)
         rate_c = rate_raw + C_LIGHT * s.drift[idx]
         vel_sat = earth_rotation(s.vel[idx], sol["tau"])
         los = sol["los"]
@@ -311,5 +326,5 @@ class NavSolver:
             pseudoranges_m=sol["rho_c"] - sol["iono"] - sol["tropo"],
             pseudorange_rates_mps=rate_c, raw_pseudoranges_m=s.rho[idx],
             iono_m=sol["iono"], tropo_m=sol["tropo"], velocity_residuals_mps=v_res,
-            rejected_prns=rejected, rx_tow=float(rx_tow), iterations=sol["iterations"],
+            rejected_prns=rejected, rx_tow=float(rx_tow), iterations=sol["iterations"], isb_m=sol["isb"],
             sat_pos_ecef=earth_rotation(s.pos[idx], sol["tau"]), sat_vel_ecef=vel_sat)

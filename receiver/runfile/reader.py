@@ -226,6 +226,11 @@ class RunData:
     def assisted(self) -> bool:
         return bool(self.cfg("navigation.ephemeris"))
 
+    @property
+    def system(self) -> str:
+        """RINEX letter of the run's signal (G for gps_l1ca, whose PRNs 193..202 are QZSS J01..J10)."""
+        return str(self.attrs.get("system", "G"))
+
     # ----------------------------------------------------------------------------- iono/UTC
     def iono(self) -> IonoUtc | None:
         """Klobuchar + UTC parameters the receiver used (see the module docstring), or None."""
@@ -398,16 +403,19 @@ def _ephemerides(group) -> list:
         return []
     n = group["prn"].shape[0]
     cols = {k: group[k][:] for k in group}
+    cls = Ephemeris
+    if "tgd2" in cols:                       # BeiDou ephemerides (BDT toe/toc/week)
+        from ..gnss.bds_ephemeris import BdsEphemeris as cls
     out = []
     for i in range(n):
         kw = {}
-        for f in fields(Ephemeris):
+        for f in fields(cls):
             if f.name not in cols:
                 continue
             v = float(cols[f.name][i])
             kw[f.name] = int(round(v)) if f.type in ("int", int) else v
         try:
-            out.append(Ephemeris(**kw))
+            out.append(cls(**kw))
         except TypeError:
             continue
     return out

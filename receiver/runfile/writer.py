@@ -16,6 +16,7 @@ import numpy as np
 from .. import __version__
 from .. import interrupt
 from ..safeio import AtomicH5
+from ..gnss.satid import sat_label
 from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_LOST, STATE_NAMES
 
 
@@ -91,6 +92,7 @@ class RunWriter:
         1/rate interval of ``time_s``); None or 0: every epoch.  The per-channel statistics
         (:class:`ChannelStats`) always see every epoch."""
         self._buffers: dict[int, list] = {}
+        self.system = str((attrs or {}).get("system", "G"))     # RINEX letter of the signal: group names
         self.compression = compression
         self.channel_rate_hz = float(channel_rate_hz or 0.0)
         self._stats: dict[int, ChannelStats] = {}
@@ -154,7 +156,7 @@ class RunWriter:
         if not buf:
             return
         records = np.concatenate(buf)
-        g = self.f["channels"].require_group(f"G{prn:02d}")
+        g = self.f["channels"].require_group(sat_label(prn, self.system))
         if "prn" not in g.attrs:
             g.attrs["prn"] = prn
             g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
@@ -164,7 +166,7 @@ class RunWriter:
 
     def _write_stats(self):
         for prn, st in self._stats.items():
-            g = self.f["channels"].require_group(f"G{prn:02d}")
+            g = self.f["channels"].require_group(sat_label(prn, self.system))
             if "prn" not in g.attrs:
                 g.attrs["prn"] = prn
                 g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())

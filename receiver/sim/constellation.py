@@ -82,7 +82,7 @@ def nominal_ephemerides(path, week: int, tow_s: float) -> tuple[dict, IonoUtc]:
     for k, s in enumerate(sats):
         try:
             prn = int(s["prn"])
-            if not 1 <= prn <= 32:
+            if not (1 <= prn <= 32 or 193 <= prn <= 202):          # GPS or QZSS (L1 C/A)
                 raise ValueError
             iodc = (int(toe // 16) + 37 * prn) % 1024
             eph = Ephemeris(
@@ -98,7 +98,7 @@ def nominal_ephemerides(path, week: int, tow_s: float) -> tuple[dict, IonoUtc]:
                 fit_interval=0, code_on_l2=1, l2p_flag=0, aodo=0, tx_time=toe)
         except (KeyError, TypeError, ValueError):
             raise UserError(f"constellation file {path}: satellite entry {k + 1} is incomplete or invalid "
-                            "(needs prn 1..32, sqrt_a, e, i0_deg, raan_deg, omega_deg, m0_deg)") from None
+                            "(needs prn 1..32 or 193..202, sqrt_a, e, i0_deg, raan_deg, omega_deg, m0_deg)") from None
         out[prn] = quantize_ephemeris(eph)
     iu = raw.get("iono_utc") or {}
     try:
@@ -129,12 +129,18 @@ def rinex_ephemerides(path, week: int, tow_s: float) -> tuple[dict, IonoUtc | No
 
 
 def load_constellation(source: str, rinex_path: str | None, nominal_path: str, week: int,
-                       start_tow_s: float, mid_tow_s: float) -> Constellation:
+                       start_tow_s: float, mid_tow_s: float, qzss_path: str | None = None) -> Constellation:
     """Ephemerides for the run.
 
     The embedded constellation is re-epoched at the start (week, start_tow_s); RINEX sets are picked by
-    the run's middle, mid_tow_s (seconds of `week`, may exceed a week).
+    the run's middle, mid_tow_s (seconds of `week`, may exceed a week).  ``qzss_path``: a nominal QZSS
+    file whose satellites (PRN 193..202) are added, re-epoched the same way.
     """
+    if qzss_path:
+        con = load_constellation(source, rinex_path, nominal_path, week, start_tow_s, mid_tow_s)
+        qz, _ = nominal_ephemerides(qzss_path, week, start_tow_s)
+        return Constellation({**con.ephemerides, **qz}, con.iono_utc,
+                             con.source + f"+embedded:{os.path.basename(qzss_path)}")
     if source == "rinex":
         wk = week + int(mid_tow_s // WEEK_S)
         tow = mid_tow_s % WEEK_S

@@ -21,8 +21,10 @@ NOMINAL_CONSTELLATION = "data/gps_nominal_constellation.yaml"
 
 SCENARIO_SCHEMA = {
     "signal": P("gps_l1ca", "str", "signal generated: gps_l1ca, or bds_b1i (BeiDou B1I codes, carrier, NH/D1 "
-                                   "and D2 symbols with pseudo-random message bits, on the orbits of the same "
-                                   "PRN numbers of the constellation source)", choices=("gps_l1ca", "bds_b1i")),
+                                   "and D2 symbols; with constellation.source bds_nominal BeiDou orbits and "
+                                   "genuine D1/D2 messages, otherwise pseudo-random message bits on the orbits "
+                                   "of the same PRN numbers of the constellation source)",
+                choices=("gps_l1ca", "bds_b1i")),
     "time": {
         "gps_week": P(2190, "int", "full GPS week of the first sample", lo=0),
         "tow_s": P(525584.0, "float", "GPS time of week of the first sample as read by the receiver clock "
@@ -33,13 +35,25 @@ SCENARIO_SCHEMA = {
     },
     "constellation": {
         "source": P("embedded", "str", "ephemeris source: the embedded nominal 31-satellite constellation "
-                                       "(re-epoched to the start time) or a RINEX navigation file",
-                    choices=("embedded", "rinex")),
-        "rinex": P(None, "str", "RINEX 2/3 GPS navigation file (source: rinex); per PRN the healthy set "
-                                "whose toe is nearest to the middle of the run", nullable=True),
+                                       "(re-epoched to the start time), a RINEX navigation file, or "
+                                       "bds_nominal: the nominal BeiDou GEO/IGSO/MEO constellation (bds_file), "
+                                       "or bds_rinex: the BeiDou records of the RINEX 3 file `rinex`, both "
+                                       "broadcast in D1/D2 messages (signal: bds_b1i)",
+                    choices=("embedded", "rinex", "bds_nominal", "bds_rinex")),
+        "bds_file": P("data/bds_nominal_constellation.yaml", "str", "nominal BeiDou orbits (source: "
+                                                                     "bds_nominal)"),
+        "rinex": P(None, "str", "RINEX 2/3 GPS navigation file (source: rinex; RINEX 3 BeiDou records: "
+                                "source bds_rinex); per PRN the healthy set whose toe is nearest to the "
+                                "middle of the run", nullable=True),
         "nominal_file": P(NOMINAL_CONSTELLATION, "str", "the embedded constellation file (source: embedded)"),
-        "prns": P(None, "list_int", "simulate only these PRNs (empty: all)", nullable=True, lo=1, hi=32),
-        "exclude_prns": P([], "list_int", "PRNs never simulated", lo=1, hi=32),
+        "prns": P(None, "list_int", "simulate only these PRNs (empty: all; QZSS: 193-202; BeiDou 1-63)",
+                  nullable=True,
+                  lo=1, hi=202),
+        "exclude_prns": P([], "list_int", "PRNs never simulated", lo=1, hi=202),
+        "qzss": P(False, "bool", "add the QZSS satellites of qzss_file (PRN 193-202, on the L1 C/A signal; "
+                                 "source: embedded)"),
+        "qzss_file": P("data/qzss_nominal_constellation.yaml", "str", "nominal QZSS orbits (same format "
+                                                                       "as nominal_file)"),
         "elevation_mask_deg": P(5.0, "float", "satellites below this elevation carry no signal",
                                 lo=-10.0, hi=90.0),
     },
@@ -118,7 +132,7 @@ SCENARIO_SCHEMA = {
     },
     "scintillation": {
         "enabled": P(False, "bool", "apply ionospheric scintillation (Cornell model + phase)"),
-        "prns": P(None, "list_int", "scintillated PRNs (empty: all)", nullable=True, lo=1, hi=32),
+        "prns": P(None, "list_int", "scintillated PRNs (empty: all)", nullable=True, lo=1, hi=202),
         "s4": P(0.3, "float", "amplitude scintillation index S4", lo=0.0, hi=0.99),
         "sigma_phi_rad": P(0.25, "float", "phase scintillation standard deviation (rad)", lo=0.0, hi=10.0),
         "tau0_s": P(1.0, "float", "decorrelation time (s)", lo=0.01, hi=100.0),

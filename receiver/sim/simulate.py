@@ -50,6 +50,7 @@ from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import IonoUtc, earth_rotation, sat_state
 from ..gnss.lnav import encode_subframes
 from ..gnss.registry import get_signal
+from ..gnss.satid import sat_label
 from ..gnss.signals import CA_CHIP_RATE, C_LIGHT, L1_HZ, OMEGA_E, ca_code  # noqa: F401
 from ..gnss.signals_bds import data_signs
 from ..gnss.time import WEEK_S
@@ -281,7 +282,7 @@ def _scan_elevations(ephs, traj, t_ref_true, duration):
 class _TruthWriter:
     """Truth HDF5 file; rows are buffered and appended every ``flush_rows`` rows (bounded memory)."""
 
-    def __init__(self, path, attrs, prns, sat_attrs, flush_rows=6000):
+    def __init__(self, path, attrs, prns, sat_attrs, flush_rows=6000, system="G"):
         import h5py
         self.flush_rows = flush_rows
         self.path = path
@@ -296,7 +297,7 @@ class _TruthWriter:
         g.attrs["prns"] = np.array(sorted(prns), dtype=np.int32)
         self.sats = {}
         for prn in sorted(prns):
-            sg = g.create_group(f"G{prn:02d}")
+            sg = g.create_group(sat_label(prn, system))
             sg.attrs["prn"] = prn
             for k, v in sat_attrs[prn].items():
                 sg.attrs[k] = v
@@ -459,9 +460,29 @@ class _Simulator:
             raise UserError(f"trajectory CSV covers {traj.t_first:.3f}..{traj.t_last:.3f} s but the run "
                             f"needs 0..{duration:.3f} s after the first sample")
         con, atm = sc.constellation, sc.atmosphere
-        cons = load_constellation(con.source, resolve_path(con.rinex, "RINEX file") if con.rinex else None,
-                                  resolve_path(con.nominal_file, "constellation file"), week, t_ref,
-                                  t_ref + duration / 2.0)
+        bds_src = con.source in ("bds_nominal", "bds_rinex")
+        if bds_src and sc.signal != "bds_b1i":
+            raise UserError(f"constellation.source '{con.source}' needs signal: bds_b1i")
+        if bds_src:                             # BeiDou orbits + D1/D2 messages (sim/bds_constellation.py)
+            from .bds_constellation import bds_nominal_ephemerides, bds_rinex_ephemerides, source_name
+            if con.source == "bds_nominal":
+                path = resolve_path(con.bds_file, "constellation file")
+                b_ephs, b_iono = bds_nominal_ephemerides(path, week, t_ref)
+            else:
+                if not con.rinex:
+                    raise UserError("constellation.source is 'bds_rinex' but constellation.rinex is empty")
+                path = resolve_path(con.rinex, "RINEX file")
+                b_ephs, b_iono = bds_rinex_ephemerides(path, week, t_ref + duration / 2.0)
+            cons = None
+        else:
+            cons = load_constellation(con.source, resolve_path(con.rinex, "RINEX file") if con.rinex else None,
+                                      resolve_path(con.nominal_file, "constellation file"), week, t_ref,
+                                      t_ref + duration / 2.0,
+                                      resolve_path(con.qzss_file, "constellation file") if con.qzss else None)
+        if cons is None:
+            from types import SimpleNamespace
+            cons = SimpleNamespace(source=source_name(path, con.source), ephemerides=b_ephs,
+                                   iono_utc=quantize_iono(b_iono) if b_iono is not None else None)
         self.source = cons.source
         iono_b = cons.iono_utc
         if atm.klobuchar_alpha is not None or atm.klobuchar_beta is not None:
@@ -498,8 +519,14 @@ class _Simulator:
         self.cn0 = _Cn0(sc.cn0)
         self.impair = Impairments(sc.impairments, self.fs, self.if_hz, self.sigma, self.cplx)
         self.blockage = Blockage(sc.blockage, self.prns, duration, tm.seed, el_scan, self.mask)
-        self.nav = {p: _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
-                                sc.navigation.data) for p in self.prns}
+        if bds_src:
+            from ..gnss.bds_nav import BdsNavBits
+            from ..gnss.signals_bds import is_geo
+            self.nav = {p: BdsNavBits(self.ephs[p], iono_b, week, is_geo(p), sc.navigation.data)
+                        for p in self.prns}
+        else:
+            self.nav = {p: _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
+                                    sc.navigation.data) for p in self.prns}
         self.signal = get_signal(sc.signal)
         self.codes = {p: self.signal.code(p) for p in self.prns}
         self.amp_k = (2.0 if self.cplx else 4.0) * self.sigma ** 2 / self.fs     # A^2 = amp_k * C/N0
@@ -555,7 +582,7 @@ class _Simulator:
         sat_attrs = {p: {"toe": e.toe, "iode": e.iode, "week": e.week} for p, e in self.ephs.items()}
         self.writer = None
         self.fh = open(tmp["if"], "wb")
-        self.writer = _TruthWriter(tmp["truth"], self.attrs(), self.prns, sat_attrs)
+        self.writer = _TruthWriter(tmp["truth"], self.attrs(), self.prns, sat_attrs, system=self.signal.system)
         fe = self.sc.frontend
         self.encoder = None if self.fmt in _FAST_FORMATS else Encoder(self.fmt, 1.0, fe.bit_order, fe.encoding)
         bar = None
@@ -648,6 +675,7 @@ class _Simulator:
                 return np.zeros_like(v)
 
         sig, truth_sat = [], {}
+        con_src = self.sc.constellation.source
         for i, p in enumerate(self.prns):
             q = geo[p]
             i_dot, t_dot = rate(q["iono_m"]), rate(q["tropo_m"])
@@ -675,7 +703,7 @@ class _Simulator:
             if n_samp > 0 and np.any(amp > 0):
                 ms0 = int(math.floor(chips_total[0] / CODE_N))
                 chips_blk = chips_total - ms0 * CODE_N
-                if self.signal.name == "bds_b1i":
+                if self.signal.name == "bds_b1i" and con_src not in ("bds_nominal", "bds_rinex"):
                     dsign = data_signs(p, self.m_ref + ms0, int(chips_blk[-1] // CODE_N) + 2,
                                        self.sc.time.seed, self.sc.navigation.data)
                 else:

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..gnss.satid import sat_label
 from ..gnss.signals import C_LIGHT
 from . import kernel as K
 from .reacq import narrow_search
@@ -96,7 +97,8 @@ class ChannelManager:
 
     def _event(self, s, prn, what, detail=""):
         self.events.append((s / self.fs, prn, what, detail))
-        self.log(f"channels: {s / self.fs - self.reader.first / self.fs:7.2f} s G{prn:02d} {what} {detail}")
+        name = sat_label(prn, self.signal.system)
+        self.log(f"channels: {s / self.fs - self.reader.first / self.fs:7.2f} s {name} {what} {detail}")
 
     def _open(self, prn, doppler, code_phase, sample):
         sat = self._sat(prn)

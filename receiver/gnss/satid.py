@@ -1,0 +1,41 @@
+"""Satellite names: (system letter, PRN) <-> RINEX 3 labels ``G05``, ``J01``, ``C12``.
+
+A run tracks one signal, and its channels are keyed by the signal's PRN numbers (``SignalDef.prns``).
+The L1 C/A signal carries GPS (PRN 1..32) and QZSS (PRN 193..202) satellites: QZSS PRN 193 is RINEX
+``J01`` (PRN - 192).  BeiDou B1I PRNs are ``Cnn``; in an epoch combining systems BeiDou PRN p is 400 + p.  ``system`` is the signal's RINEX letter
+(``SignalDef.system``).
+"""
+from __future__ import annotations
+
+QZSS_FIRST_PRN = 193
+#: in an epoch combining systems (scripts/combined_pvt.py) BeiDou PRN p is satellite BDS_KEY + p
+BDS_KEY = 400
+
+SYSTEM_NAMES = {"G": "GPS", "J": "QZSS", "C": "BeiDou", "E": "Galileo"}
+
+
+def sat_system(prn: int, system: str = "G") -> str:
+    """The RINEX system letter of a satellite of a signal whose letter is ``system``."""
+    if system == "G" and prn > BDS_KEY:
+        return "C"
+    if system == "G" and prn >= QZSS_FIRST_PRN:
+        return "J"
+    return system
+
+
+def sat_label(prn: int, system: str = "G") -> str:
+    """RINEX 3 satellite label: G05, J01 (PRN 193), C12."""
+    letter = sat_system(prn, system)
+    if letter == "J":
+        prn = prn - QZSS_FIRST_PRN + 1
+    elif letter == "C" and prn > BDS_KEY:
+        prn -= BDS_KEY
+    return f"{letter}{prn:02d}"
+
+
+def parse_label(label: str) -> tuple[str, int]:
+    """(system letter, signal PRN) of a label: ``J01`` -> ("J", 193), ``C12`` -> ("C", 12)."""
+    letter, num = label[0].upper(), int(label[1:])
+    if letter == "J":
+        return "J", num + QZSS_FIRST_PRN - 1
+    return letter, num
