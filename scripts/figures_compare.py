@@ -17,7 +17,8 @@ leo/leo_results.json - the per-seed values behind every table cell.  For every c
 * counts (diverged runs, lost-lock seeds, failed LEO runs) must be equal when the seeds are the same, else
   their 95 % Wilson intervals must overlap.
 
-A cell also differs when the seed lists differ (then only the interval test applies).  Run times (wall_s)
+With different seed lists (e.g. a run cut short), the seeds both runs have must still agree per seed, and the
+means by the interval test.  Run times (wall_s)
 are not compared.  Prints one line per differing cell (every cell with --all) and a summary; exit 0 when
 every cell agrees within the intervals, 1 otherwise, 2 on bad input.
 """
@@ -154,20 +155,34 @@ def _same(a, b, rtol):
     return abs(a - b) <= rtol * max(abs(a), abs(b), 1e-300) or a == b
 
 
+def _common(ca, cb, key):
+    """Per-seed values of the seeds both cells have: (seeds, values in A, values in B)."""
+    ia = {s: i for i, s in enumerate(ca["seeds"])}
+    ib = {s: i for i, s in enumerate(cb["seeds"])}
+    seeds = [s for s in ca["seeds"] if s in ib]
+    return seeds, [ca[key][ia[s]] for s in seeds], [cb[key][ib[s]] for s in seeds]
+
+
 def compare_cell(ca, cb, rtol):
-    """(agree: bool, identical: bool, text)."""
+    """(agree: bool, identical: bool, text).  identical: same seeds, every per-seed value equal to rtol;
+    with different seed lists the seeds both have are compared per seed (shown) and the means by interval."""
     same_seeds = ca["seeds"] == cb["seeds"]
+    key = "flags" if ca["kind"] == "count" else "values"
+    cs, xa, xb = _common(ca, cb, key)
+    common_ok = all(_same(float(x), float(y), rtol) for x, y in zip(xa, xb))
+    common = "" if same_seeds else (f" | common seeds {cs}: {'identical' if common_ok else 'DIFFER'}"
+                                    if cs else " | no common seed")
     if ca["kind"] == "count":
         ka, na, kb, nb = ca["k"], ca["n"], cb["k"], cb["n"]
-        identical = same_seeds and ca["flags"] == cb["flags"]
+        identical = same_seeds and common_ok
         if same_seeds:
             agree = ka == kb
         else:
             (la, ha), (lb, hb) = wilson(ka, na), wilson(kb, nb)
-            agree = la <= hb and lb <= ha
-        return agree, identical, f"{ka}/{na} | {kb}/{nb}"
+            agree = la <= hb and lb <= ha and common_ok
+        return agree, identical, f"{ka}/{na} | {kb}/{nb}{common}"
     va, vb = ca["values"], cb["values"]
-    identical = same_seeds and len(va) == len(vb) and all(_same(x, y, rtol) for x, y in zip(va, vb))
+    identical = same_seeds and common_ok
     na, ma, ha = interval(va)
     nb, mb, hb = interval(vb)
     if na == 0 and nb == 0:
@@ -181,7 +196,9 @@ def compare_cell(ca, cb, rtol):
         agree = abs(delta) <= ha + hb
     if identical:
         agree = True
-    seed_diff = ""
+    elif not common_ok and not same_seeds:
+        agree = False                  # a seed both runs have gave a different number
+    seed_diff = common
     if same_seeds and not identical and len(va) == len(vb):
         d = [abs(x - y) for x, y in zip(va, vb) if not (math.isnan(x) or math.isnan(y))]
         seed_diff = f" | max per-seed |diff| {max(d):.4g}" if d else " | NaN pattern differs"

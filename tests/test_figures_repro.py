@@ -109,3 +109,10 @@ def test_figures_compare(tmp_path, capsys):
     assert "fixed_r/diverged: 1/3 | 0/3 -> OUTSIDE" in capsys.readouterr().out
     assert cmp.main([a, str(tmp_path / "nope")]) == 2
     assert "not a directory" in capsys.readouterr().err
+    # a run cut short (fewer seeds): the seeds both have must agree per seed, the means within the intervals
+    sub = _vector_dir(tmp_path / "sub", [10.0, 12.0], [False, False], fv)
+    assert cmp.main([a, sub]) == 0
+    assert "common seeds [8, 101]: identical" in capsys.readouterr().out
+    sub_bad = _vector_dir(tmp_path / "sub_bad", [10.3, 12.0], [False, False], fv)
+    assert cmp.main([a, sub_bad]) == 1
+    assert "common seeds [8, 101]: DIFFER" in capsys.readouterr().out
