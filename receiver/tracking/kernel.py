@@ -46,7 +46,11 @@ S_LAST_PQ = 27
 S_LOCK_ABSI = 28       # low-pass |I| and |Q| for the lock detector
 S_LOCK_ABSQ = 29
 S_DLL_RATE = 30        # 2nd-order DLL integrator (chips/s): code/carrier rate mismatch
-N_STATE = 32
+S_PRES_ACC = 32        # signal-presence test: prompt power (per ms^2) summed over the current window (x ms)
+S_PRES_MS = 33         # ms in the current presence window
+S_PRES_REF = 34        # reference: low-passed window power while the signal is present
+S_ABSENT_MS = 35       # ms since the presence test found the signal absent (0: present)
+N_STATE = 36
 
 # ---- config indices
 C_FS = 0
@@ -74,7 +78,11 @@ C_DLL_ORDER = 21
 C_NH_BASE = 22         # > 0: index in code_ext of the overlay-modulated code section (B1I D1 NH code)
 C_NO_DATA = 23         # 1: the signal carries no data symbols (skip bit sync: integrate from pull-in end)
 C_LOST_GRACE_MS = 24   # a channel younger than this is declared lost only after this long below the thresholds
-N_CONFIG = 25
+C_PRES_MS = 25         # signal-presence window (ms; 0 = no presence test)
+C_PRES_FRAC = 26       # absent: window power below this fraction of the reference
+C_PRES_CN0 = 27        # the test declares absence only for a channel whose C/N0 is at least this (dB-Hz)
+C_PRES_LOST_MS = 28    # absent this long: the channel is lost
+N_CONFIG = 29
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -90,7 +98,8 @@ MODE_LOST = 3
 
 #: state entries of the C/N0 estimator and the lock / PLI filters (reset if they become non-finite)
 _ESTIMATOR_STATE = (S_CN0, S_PLI_I2, S_PLI_Q2, S_ACC_ABSI, S_ACC_Q2, S_ACC_M2, S_ACC_M4, S_ACC_N, S_ACC_I2,
-                    S_LOCK_ABSI, S_LOCK_ABSQ, S_LAST_PI, S_LAST_PQ, S_PREV_I)
+                    S_LOCK_ABSI, S_LOCK_ABSQ, S_LAST_PI, S_LAST_PQ, S_PREV_I, S_PRES_ACC, S_PRES_MS,
+                    S_PRES_REF, S_ABSENT_MS)
 
 
 def repair_state(st: np.ndarray) -> bool:
@@ -109,14 +118,14 @@ def repair_state(st: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _samples_needed(st, cfg, periods):
     step = st[S_CODE_RATE] / cfg[C_FS]
     chips = periods * cfg[C_CODE_LEN] - st[S_CODE_PHASE]
     return int(math.ceil(chips / step))
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     """Run epochs while they fit in `samples` (file indices block_start...). Returns epochs written."""
     fs = cfg[C_FS]
@@ -234,6 +243,27 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
         st[S_LOCK_ABSQ] += b * (abs(qp) - st[S_LOCK_ABSQ])
         good = st[S_LOCK_ABSI] > cfg[C_LOCK_RATIO] * st[S_LOCK_ABSQ] and \
             (st[S_CN0] >= cfg[C_LOCK_CN0_MIN] or st[S_TOTAL_MS] < 1000)
+        # ---- signal presence: the prompt power over a short window against its level while present.  The
+        # lock filters and the C/N0 window lag a vanished strong signal by 0.15-0.4 s; the window power
+        # falls to the noise floor (-C/N0 T dB) at once.  Only channels whose C/N0 makes the test safe
+        # (C_PRES_CN0) can be declared absent; absent -> no lock, C/N0 0, lost after C_PRES_LOST_MS.
+        if cfg[C_PRES_MS] > 0 and st[S_MODE] != MODE_PULL_IN:
+            st[S_PRES_ACC] += (ip * ip + qp * qp) / periods
+            st[S_PRES_MS] += periods
+            if st[S_PRES_MS] >= cfg[C_PRES_MS]:
+                xw = st[S_PRES_ACC] / st[S_PRES_MS]
+                ref = st[S_PRES_REF]
+                if ref > 0.0 and xw < cfg[C_PRES_FRAC] * ref and \
+                        (st[S_ABSENT_MS] > 0 or st[S_CN0] >= cfg[C_PRES_CN0]):
+                    st[S_ABSENT_MS] += st[S_PRES_MS]
+                else:
+                    st[S_ABSENT_MS] = 0.0
+                    st[S_PRES_REF] = xw if ref <= 0.0 else ref + 0.25 * (xw - ref)
+                st[S_PRES_ACC] = 0.0
+                st[S_PRES_MS] = 0.0
+        if st[S_ABSENT_MS] > 0:
+            good = False
+            st[S_CN0] = 0.0
         if st[S_MODE] == MODE_PULL_IN:
             good = True
         st[S_LOCK] = 1.0 if (good and st[S_MODE] != MODE_PULL_IN) else 0.0
@@ -244,6 +274,8 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
             # a young channel (weak signal still pulling into phase lock) gets the longer grace time
             if st[S_BAD_MS] >= cfg[C_LOST_MS] and (st[S_TOTAL_MS] >= cfg[C_LOST_GRACE_MS]
                                                    or st[S_BAD_MS] >= cfg[C_LOST_GRACE_MS]):
+                st[S_MODE] = MODE_LOST
+            if st[S_ABSENT_MS] >= cfg[C_PRES_LOST_MS] and cfg[C_PRES_MS] > 0:
                 st[S_MODE] = MODE_LOST
         o[O_CN0] = st[S_CN0]
         o[O_PLI] = pli
