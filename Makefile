@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier figures-check batch-full batch-outages clean
+.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,22 +23,33 @@ bench: venv
 	$(PY) scripts/bench_tracking.py
 	$(PY) scripts/bench_simulate.py
 
+# Figure runs: FIGJOBS = runs / processes at a time (vector batch -j, carrier --jobs; the LEO Monte Carlo is one
+# process); FIGDIR = tables and figures; FIGDATA = the vector batch cache (recordings, run files): a second run
+# into another FIGDATA recomputes everything.  FIGVECTOR_ARGS / FIGCARRIER_ARGS / FIGLEO_ARGS: extra options.
+FIGJOBS ?= 2
+FIGDIR ?= figures
+FIGDATA ?= out/vector
+
 figures: figures-leo figures-vector figures-carrier
-	$(PY) scripts/figures_index.py figures
+	$(PY) scripts/figures_index.py $(FIGDIR)
 
 figures-leo: venv
-	$(PY) scripts/figures_leo.py --out figures/leo
+	$(PY) scripts/figures_leo.py --out $(FIGDIR)/leo $(FIGLEO_ARGS)
 
 figures-vector: venv
-	$(PY) scripts/figures_vector.py --out figures/vector
+	$(PY) scripts/figures_vector.py --out $(FIGDIR)/vector --data $(FIGDATA) -j $(FIGJOBS) $(FIGVECTOR_ARGS)
 
 figures-carrier: venv
-	$(PY) scripts/figures_carrier.py --out figures/carrier
+	$(PY) scripts/figures_carrier.py --out $(FIGDIR)/carrier --jobs $(FIGJOBS) $(FIGCARRIER_ARGS)
+
+# compare two figure directories (e.g. two FIGDIRs made with different FIGJOBS) within the stated intervals
+figures-compare: venv
+	$(PY) scripts/figures_compare.py $(A) $(B)
 
 # a cheap seeded subset of the three figure scripts against configs/figures_reference.json (a few minutes;
 # not part of `make test`); FIGCHECK_ARGS='--set tracking.carrier.ekf.bn_hz=12' shows it failing
 figures-check: venv
-	$(PY) scripts/figures_check.py $(FIGCHECK_ARGS)
+	$(PY) scripts/figures_check.py -j $(FIGJOBS) $(FIGCHECK_ARGS)
 
 batch-full: venv
 	$(VENV)/bin/gnssrx batch configs/batch/full.yaml

@@ -12,6 +12,7 @@ Writes into --out:
     fig8_geosot_search.png      GeoSOT coarse-to-fine search (cells evaluated per level)
     fig9_init_sensitivity.png   RMSE / final error against the GeoSOT end level (initial error)
     tables.md                   Tables 1-3 (measured beside the paper) + setup + extra tables
+    leo_results.json            the table numbers per seed block (scripts/figures_compare.py)
     results.h5                  all numbers behind the figures and tables
 
 Everything is seeded; the numbers depend only on the options (and not on the machine, except the run
@@ -558,7 +559,8 @@ def write_h5(path, mc, met, sens, div, t_s, over, args, blocks_met=()):
 @click.option("--seeds", default=5, show_default=True,
               help="seed blocks: the --runs runs are split into this many blocks of runs/seeds runs, each from its "
                    "own seed; the tables give mean ± 95 % interval over the blocks")
-@click.option("--json", "json_out", default=None, help="also write the table numbers (per block) to this file")
+@click.option("--json", "json_out", default=None, help="the table numbers per block (default: OUT/leo_results.json, read by "
+                                                          "scripts/figures_compare.py)")
 @click.option("--skip-figures", is_flag=True, help="numbers only (figures-check)")
 @click.option("--quiet", is_flag=True, help="no progress bars")
 def main(out, runs, sens_runs, noise_hz, seed, seeds, json_out, skip_figures, quiet):
@@ -597,8 +599,7 @@ def main(out, runs, sens_runs, noise_hz, seed, seeds, json_out, skip_figures, qu
             fig9(out, sens, plt)
     args = dict(out=out, runs=per * seeds, sens_runs=sens_runs, noise_hz=noise_hz, seed=seed, seeds=seeds)
     write_tables(out, args, cfg, base, mc, met, sens, div, float(np.mean(mc["t_grid"]) * 1e3), n_vis, met_b)
-    if json_out:
-        write_json(json_out, args, met_b, sens)
+    write_json(json_out or os.path.join(out, "leo_results.json"), args, met_b, sens)
     write_h5(os.path.join(out, "results.h5"), mc, met, sens, div, base.t_s, over, args, met_b)
     click.echo(f"wrote figures, tables.md and results.h5 to {out} "
                f"({time.perf_counter() - t_start:.0f} s)")
