@@ -280,6 +280,10 @@ RECEIVER_SCHEMA = {
         "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
         "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
+        "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and decimate by this "
+                                     "integer factor before acquisition and tracking (auto: the largest factor "
+                                     "that keeps >= 3 chip rates and the code-phase grid, 1 below ~6 MS/s; 1: "
+                                     "off); README \"High sample rates\""),
         "skip_s": P(0.0, "float", "seconds skipped at the start of the file", lo=0.0),
         "duration_s": P(None, "float", "seconds processed (empty: to the end of the file)",
                         nullable=True, lo=0.0),
@@ -595,6 +599,11 @@ RECEIVER_SCHEMA = {
         "compression": P("lzf", "str", "compression of the growing run-file datasets (channels, navigation, "
                                         "observables, vector): lzf (fast), gzip (level 4, smaller, slower) or "
                                         "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
+        "channel_rate_hz": P(None, "float", "store the /channels records at most at this rate (the first epoch "
+                                            "of every 1/rate interval; empty: every epoch).  Per-channel "
+                                            "statistics (lock losses, locked epochs, mean C/N0) are computed "
+                                            "over every epoch and stored as /channels/Gnn attributes",
+                             nullable=True, lo=0.0),
         "vector_log_hz": P(100.0, "float", "rate of the vector-loop diagnostics in /vector (chi-square tags, "
                                            "state sigmas, each channel's R); 0 = not written", lo=0.0),
     },
@@ -607,10 +616,38 @@ PATH_KEYS = (("input", "path"), ("navigation", "ephemeris"))
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+def shipped_dir() -> str:
+    """The directory of the shipped ``data/`` and ``configs/``: package data ``receiver/_share`` found through
+    importlib.resources (in a checkout, links to the repository's own ``data/`` and ``configs/``; in an
+    installed wheel, copies), so ``configs/default.yaml`` resolves from any directory."""
+    from importlib.resources import files
+    return str(files("receiver").joinpath("_share"))
+
+
+def search_bases() -> list:
+    """Fallback directories for relative file names after the current directory (and the referring
+    file's directory): the repository root (for ``../shared/...`` next to a checkout) and the shipped
+    data/configs."""
+    return [REPO_ROOT, shipped_dir()]
+
+
+def find_file(value):
+    """A relative config/scenario file name that does not exist here -> the shipped one (``configs/...``,
+    ``data/...``) when there is one; otherwise ``value`` unchanged."""
+    v = os.fspath(value)
+    if os.path.isabs(v) or os.path.exists(v):
+        return value
+    for base in search_bases():
+        cand = os.path.join(base, v)
+        if os.path.exists(cand):
+            return os.path.normpath(cand)
+    return value
+
+
 def resolve_path(value: str, config_path=None) -> str:
     if not value or os.path.isabs(value) or os.path.exists(value):
         return value
-    bases = ([os.path.dirname(os.path.abspath(os.fspath(config_path)))] if config_path else []) + [REPO_ROOT]
+    bases = ([os.path.dirname(os.path.abspath(os.fspath(config_path)))] if config_path else []) + search_bases()
     for base in bases:
         cand = os.path.join(base, value)
         if os.path.exists(cand):
@@ -619,6 +656,8 @@ def resolve_path(value: str, config_path=None) -> str:
 
 
 def load_receiver_config(path=None, overrides=None) -> Section:
+    if path is not None:
+        path = find_file(path)
     raw = read_yaml(path) if path is not None else {}
     for sec, key in PATH_KEYS:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
@@ -640,6 +679,9 @@ def validate_receiver(cfg: Section) -> Section:
     elif abs(i.if_hz) >= half:
         raise UserError(f"config key 'input.if_hz' must be within +/- sample_rate_hz/2 = {half:g}, "
                         f"got {i.if_hz:g}")
+    d = i.decimate
+    if d != "auto" and (isinstance(d, bool) or not isinstance(d, int) or d < 1):
+        raise UserError(f"config key 'input.decimate' must be auto or an integer >= 1, got {d!r}")
     prns = cfg.acquisition.prns
     if not prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")

@@ -118,14 +118,14 @@ def repair_state(st: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _samples_needed(st, cfg, periods):
     step = st[S_CODE_RATE] / cfg[C_FS]
     chips = periods * cfg[C_CODE_LEN] - st[S_CODE_PHASE]
     return int(math.ceil(chips / step))
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     """Run epochs while they fit in `samples` (file indices block_start...). Returns epochs written."""
     fs = cfg[C_FS]

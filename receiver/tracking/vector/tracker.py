@@ -53,7 +53,7 @@ class VectorTracker:
         self.cfg = cfg
         self.v = cfg.vector
         self.fs = float(fs)
-        self.if_hz = float(cfg.input.if_hz)
+        self.if_hz = float(getattr(nav, "if_hz", cfg.input.if_hz))    # 0 after the decimating stage
         self.channels = channels            # the pipeline's dict (shared)
         self.nav = nav
         self.filt = filt
