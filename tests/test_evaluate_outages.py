@@ -90,7 +90,11 @@ def test_total_outages_from_the_blockage_table():
     vis = Visibility(t, n, total_windows=[(20.0, 23.0), (8.0, 9.0), (22.0, 25.0), (29.0, 40.0)])
     out = total_outages(vis)
     assert len(out) == 3 and out[:2] == [(8.0, 9.0), (20.0, 25.0)] and out[2] == pytest.approx((29.0, 30.0))
-    assert total_outages(Visibility(t, n, total_windows=[])) == []
+    # a random-blockage truth: coincidences are not total outages
+    assert total_outages(Visibility(t, n, random_window=(4.0, 30.0), total_windows=[])) == []
+    # a table of per-satellite outages only (every satellite listed at once, configs/scenarios/
+    # fig8_total_outages.yaml): the runs with no satellite visible
+    assert total_outages(Visibility(t, n, total_windows=[])) == [pytest.approx((5.0, 6.0))]
 
 
 def test_total_outages_from_visibility():

@@ -134,3 +134,24 @@ def test_differential_detection_at_low_cn0_loses_little(frames):
     _, bits = frames
     ch, events = _decode(_records(bits, freq_hz=3.0, phase0=0.3, cn0_dbhz=30.0, seed=4), noncoherent_from=0)
     assert sum(type(e).__name__ == "SubframeEvent" for e in events) == 10
+
+
+def test_lock_guard_is_shorter_for_channels_the_presence_test_judges():
+    """A measurement needs lock at its epoch and a guard time later (the lock detectors lag a vanished
+    signal): 0.1 s, but 0.04 s for a channel strong enough for the signal-presence test (C/N0 >= the
+    engine's presence_cn0), whose lock flag goes within ~35 ms."""
+    fs = 1e5
+    ch = ChannelNav(5, 2300, 0.0, fs)
+    rec = np.zeros(100, EPOCH_DTYPE)                 # 20-ms epochs, lock lost at 1.0 s
+    rec["sample_index"] = np.arange(100) * 0.02 * fs
+    rec["time_s"] = rec["sample_index"] / fs
+    rec["pll_lock"] = rec["time_s"] < 1.0
+    rec["cn0_dbhz"] = np.where(rec["pll_lock"], 45.0, 0.0)
+    rec["state"] = STATE_BIT_SYNC
+    ch.recent.append(rec)
+    s = 0.94 * fs                                     # 60 ms before the loss
+    assert not ch.locked_at(s)
+    assert ch.locked_at(s, presence_cn0=33.0)
+    assert not ch.locked_at(0.98 * fs, presence_cn0=33.0)     # 20 ms before: still excluded
+    rec["cn0_dbhz"][rec["pll_lock"] > 0] = 30.0          # too weak for the presence test: the long guard
+    assert not ch.locked_at(s, presence_cn0=33.0)

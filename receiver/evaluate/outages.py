@@ -99,9 +99,11 @@ class Visibility:
 # ------------------------------------------------------------------------------------------ pure math
 def total_outages(vis: Visibility, min_s: float = MIN_OUTAGE_S) -> list:
     """[(start, end)]: the /blockage total windows (merged, clipped to the truth span) when the truth has
-    the table, else the runs of truth rows with no satellite visible (end: first row with one)."""
+    the table with such windows or a random blockage (whose coincidences are not total outages), else the
+    runs of truth rows with no satellite visible (end: first row with one; e.g. per-satellite outages listed
+    for every satellite at once)."""
     step = float(np.median(np.diff(vis.t))) if vis.t.size > 1 else 0.0
-    if vis.total_windows is not None:
+    if vis.total_windows is not None and (vis.total_windows or vis.random_window is not None):
         t0, t1 = float(vis.t[0]), float(vis.t[-1]) + step
         out = []
         for a, b in sorted(vis.total_windows):
