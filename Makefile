@@ -17,7 +17,7 @@ demo: venv
 	$(PY) scripts/demo.py
 
 test: venv
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile
 
 bench: venv
 	$(PY) scripts/bench_tracking.py

@@ -4,7 +4,9 @@
 (``../shared/data/gpssim_static_tokyo.bin``, GPS-SDR-SIM, static antenna in Tokyo) processed once per test
 session with ``configs/gpssim_static_tokyo.yaml`` (troposphere off, Klobuchar on, default weighting) in
 assisted mode (ephemerides from ``../shared/data/brdc0010.22n``; fixes from ~10 s, about 340 fixes at
-10 Hz).  It takes about 20 s.  Skips when ../shared is absent.  Treat the file as read-only: tests that
+10 Hz).  It takes about 20 s.  Skips when ../shared is absent.  Under pytest-xdist (``make test`` runs
+``-n auto``) the workers share one run: the first to need it runs it under a file lock in the session's
+common temporary directory, the others wait and reuse it.  Treat the file as read-only: tests that
 write files beside a run file should link or copy it into their own tmp_path first.
 """
 from pathlib import Path
@@ -18,13 +20,33 @@ TOKYO_NAV = SHARED / "brdc0010.22n"
 TOKYO_META = SHARED / "gpssim_static_tokyo.yaml"
 
 
+def _shared_tmp(tmp_path_factory) -> Path:
+    """A directory every xdist worker of this session sees (the per-worker base's parent), or the
+    session's base directory without xdist."""
+    import os
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
 @pytest.fixture(scope="session")
 def tokyo_run(tmp_path_factory):
     if not (TOKYO_REC.exists() and TOKYO_NAV.exists()):
         pytest.skip("../shared/data reference recording (gpssim_static_tokyo.bin, brdc0010.22n) absent")
+    import fcntl
+    d = _shared_tmp(tmp_path_factory) / "tokyo_run"
+    d.mkdir(exist_ok=True)
+    out = d / "tokyo.h5"
+    with open(d / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)          # released when the file closes
+        if not out.exists():
+            _run_tokyo(out)
+    assert out.exists()
+    return out
+
+
+def _run_tokyo(out: Path) -> None:
     from receiver.config import load_receiver_config
     from receiver.pipeline import run
-    out = tmp_path_factory.mktemp("tokyo_run") / "tokyo.h5"
     cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml",
                                [("input.path", str(TOKYO_REC)), ("output.path", str(out)),
                                 ("navigation.ephemeris", str(TOKYO_NAV)),
@@ -32,8 +54,6 @@ def tokyo_run(tmp_path_factory):
                                 # against our fixes on equal terms (tests/test_export_rinex.py)
                                 ("navigation.weighting", "rtklib")])
     run(cfg, quiet=True)
-    assert out.exists()
-    return out
 
 
 @pytest.fixture(scope="session")
