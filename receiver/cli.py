@@ -92,9 +92,13 @@ def _load(config, input_path, sets, output=None):
 @click.option("--output", "-o", type=str, help="HDF5 output (overrides output.path)")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a config key")
 @click.option("--quiet", "-q", is_flag=True, help="no progress bar (the summary is still printed)")
-def run(config, input_path, output, sets, quiet):
+@click.option("--threads", "n_threads", type=click.IntRange(min=0), default=0, show_default=True,
+              help="threads for tracking and acquisition (0: all cores); results do not depend on it")
+def run(config, input_path, output, sets, quiet, n_threads):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
     from .pipeline import run as run_pipeline
+    from .threads import set_threads
+    set_threads(n_threads)
     cfg = _load(config, input_path, sets, output)
     log = logging.getLogger("receiver.pipeline").info
     summary = run_pipeline(cfg, quiet=quiet, log=log, reads=[config])

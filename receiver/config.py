@@ -280,6 +280,10 @@ RECEIVER_SCHEMA = {
         "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
         "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
+        "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and decimate by this "
+                                     "integer factor before acquisition and tracking (auto: the largest factor "
+                                     "that keeps >= 3 chip rates and the code-phase grid, 1 below ~6 MS/s; 1: "
+                                     "off); README \"High sample rates\""),
         "skip_s": P(0.0, "float", "seconds skipped at the start of the file", lo=0.0),
         "duration_s": P(None, "float", "seconds processed (empty: to the end of the file)",
                         nullable=True, lo=0.0),
@@ -383,6 +387,20 @@ RECEIVER_SCHEMA = {
         "lost_grace_ms": P(1000, "int", "a channel is declared lost only after this long below the lock "
                                         "thresholds while it is younger than this (since its pull-in began): a "
                                         "weak signal needs time to reach phase lock", lo=0),
+        "presence": {
+            "window_ms": P(20, "int", "signal-presence test: the prompt power over windows of this length is "
+                                      "compared with its level while the signal was present; a vanished "
+                                      "signal is seen within 1-2 windows (the lock detectors and the C/N0 "
+                                      "window lag it by 0.15-0.4 s); 0 = off", lo=0),
+            "drop_db": P(10.0, "float", "the signal is absent when the window power falls this far below its "
+                                        "level while present", lo=1.0),
+            "min_cn0_dbhz": P(30.0, "float", "only a channel with at least this C/N0 can be declared absent by "
+                                             "the test (weaker signals: the lock detectors alone; a fade of a "
+                                             "weak signal must not read as a loss)", lo=0.0),
+            "lost_ms": P(40, "int", "absent this long: the channel declares the signal lost (then re-acquired "
+                                    "around the prediction); meanwhile it has no lock and C/N0 0, so no "
+                                    "measurement of it enters a fix (scalar or vector)", lo=1),
+        },
         "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
                                        "or no longer predictable", lo=0.1),
         "weak": {
@@ -427,8 +445,11 @@ RECEIVER_SCHEMA = {
             "noncoherent": P(10, "int", "non-coherent sums of the narrow search", lo=1, hi=100),
             "pfa": P(1e-4, "float", "false-alarm probability over the narrow search window", lo=1e-12,
                      hi=0.5),
-            "pull_in_ms": P(100, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
-            "settle_s": P(0.3, "float", "a re-acquired channel's measurements are used this long after its "
+            "pull_in_ms": P(40, "int", "FLL-assisted pull-in of a re-acquired channel (ms)", lo=0),
+            "dll_bw_pull_in_hz": P(15.0, "float", "DLL noise bandwidth during a re-acquired channel's pull-in "
+                                                 "(1st order: the code error left by the narrow search decays "
+                                                 "with time constant 1 / (4 B))", lo=0.01),
+            "settle_s": P(0.1, "float", "a re-acquired channel's measurements are used this long after its "
                                         "pull-in", lo=0.0),
             "search_step_s": P(0.125, "float", "narrow searches run at this step through each chunk just tracked "
                                                "(a returning satellite is found within a step, not a chunk); "
@@ -622,6 +643,11 @@ RECEIVER_SCHEMA = {
         "compression": P("lzf", "str", "compression of the growing run-file datasets (channels, navigation, "
                                         "observables, vector): lzf (fast), gzip (level 4, smaller, slower) or "
                                         "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
+        "channel_rate_hz": P(None, "float", "store the /channels records at most at this rate (the first epoch "
+                                            "of every 1/rate interval; empty: every epoch).  Per-channel "
+                                            "statistics (lock losses, locked epochs, mean C/N0) are computed "
+                                            "over every epoch and stored as /channels/Gnn attributes",
+                             nullable=True, lo=0.0),
         "vector_log_hz": P(100.0, "float", "rate of the vector-loop diagnostics in /vector (chi-square tags, "
                                            "state sigmas, each channel's R); 0 = not written", lo=0.0),
     },
@@ -634,10 +660,38 @@ PATH_KEYS = (("input", "path"), ("navigation", "ephemeris"))
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+def shipped_dir() -> str:
+    """The directory of the shipped ``data/`` and ``configs/``: package data ``receiver/_share`` found through
+    importlib.resources (in a checkout, links to the repository's own ``data/`` and ``configs/``; in an
+    installed wheel, copies), so ``configs/default.yaml`` resolves from any directory."""
+    from importlib.resources import files
+    return str(files("receiver").joinpath("_share"))
+
+
+def search_bases() -> list:
+    """Fallback directories for relative file names after the current directory (and the referring
+    file's directory): the repository root (for ``../shared/...`` next to a checkout) and the shipped
+    data/configs."""
+    return [REPO_ROOT, shipped_dir()]
+
+
+def find_file(value):
+    """A relative config/scenario file name that does not exist here -> the shipped one (``configs/...``,
+    ``data/...``) when there is one; otherwise ``value`` unchanged."""
+    v = os.fspath(value)
+    if os.path.isabs(v) or os.path.exists(v):
+        return value
+    for base in search_bases():
+        cand = os.path.join(base, v)
+        if os.path.exists(cand):
+            return os.path.normpath(cand)
+    return value
+
+
 def resolve_path(value: str, config_path=None) -> str:
     if not value or os.path.isabs(value) or os.path.exists(value):
         return value
-    bases = ([os.path.dirname(os.path.abspath(os.fspath(config_path)))] if config_path else []) + [REPO_ROOT]
+    bases = ([os.path.dirname(os.path.abspath(os.fspath(config_path)))] if config_path else []) + search_bases()
     for base in bases:
         cand = os.path.join(base, value)
         if os.path.exists(cand):
@@ -646,6 +700,8 @@ def resolve_path(value: str, config_path=None) -> str:
 
 
 def load_receiver_config(path=None, overrides=None) -> Section:
+    if path is not None:
+        path = find_file(path)
     raw = read_yaml(path) if path is not None else {}
     for sec, key in PATH_KEYS:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
@@ -667,6 +723,9 @@ def validate_receiver(cfg: Section) -> Section:
     elif abs(i.if_hz) >= half:
         raise UserError(f"config key 'input.if_hz' must be within +/- sample_rate_hz/2 = {half:g}, "
                         f"got {i.if_hz:g}")
+    d = i.decimate
+    if d != "auto" and (isinstance(d, bool) or not isinstance(d, int) or d < 1):
+        raise UserError(f"config key 'input.decimate' must be auto or an integer >= 1, got {d!r}")
     prns = cfg.acquisition.prns
     if not prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")

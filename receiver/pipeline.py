@@ -18,10 +18,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .acquisition import reject_cross_correlations, search, verify
-from . import interrupt
+from . import interrupt, threads
 from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
+from .source.decimate import DecimatingReader, plan
 from .config import RECEIVER_SCHEMA
 from .runfile.provenance import provenance
 from .runfile.writer import RunWriter
@@ -100,6 +101,11 @@ def open_input(cfg) -> SampleReader:
                    get_signal(cfg.signal).carrier_hz)           # SigMF .sigmf-meta beside the file
     reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
                           header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
+    reader.if_hz = i.if_hz            # the IF the stages below see (0 after the decimating stage)
+    chip_rate = get_signal(cfg.signal).chip_rate
+    l, m = plan(i.decimate, reader.fs, chip_rate)
+    if (l, m) != (1, 1):                                          # mix to 0 Hz, filter, resample
+        reader = DecimatingReader(reader, l, m, i.if_hz, chip_rate)
     c = i.conditioning
     if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
         from .source.conditioning import ConditionedReader
@@ -108,16 +114,18 @@ def open_input(cfg) -> SampleReader:
 
 
 def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
-            sensitive: bool = False, known_hz=()) -> list:
+            sensitive: bool = False, known_hz=(), doppler_window=None) -> list:
     """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
     (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
     found, search the others again over +/- acquisition.lo_search_hz; when fewer than
     acquisition.high_sensitivity.min_found, search them with the high-sensitivity pass
     (receiver/acquisition_hs.py).  ``sensitive``: run that pass on the PRNs not found whatever the count
     (cold searches while few channels track; ``known_hz``: their Dopplers narrow its range).  Lines for
-    the user are appended to ``notes`` (a list)."""
+    the user are appended to ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched
+    instead of the configured +/- acquisition.doppler_max_hz (the channel manager's cold searches once a
+    fix gives the clock drift)."""
     a = cfg.acquisition
-    fs, if_hz, sig = reader.fs, cfg.input.if_hz, get_signal(cfg.signal)
+    fs, if_hz, sig = reader.fs, reader.if_hz, get_signal(cfg.signal)
     notes = [] if notes is None else notes
     # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
     # uses up to 200 ms (20 blocks of 10 ms) where the file has them
@@ -130,9 +138,12 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
 
     def _search(prns_, dmax):
+        c_ = centre if dmax == a.doppler_max_hz else 0.0
+        if doppler_window is not None and dmax == a.doppler_max_hz:
+            c_, dmax = doppler_window
         res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
                       a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
-                      doppler_center_hz=centre if dmax == a.doppler_max_hz else 0.0)
+                      doppler_center_hz=c_)
         for r in res_:
             if r.detected and a.verify and len(block) >= 2 * dwell:
                 ok = verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r, a.coherent_ms,
@@ -199,12 +210,14 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     if cfg.navigation.enabled and cfg.navigation.ephemeris:
         from .gnss.rinex import read_rinex_nav
         ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
-    fs, if_hz = reader.fs, cfg.input.if_hz
+    fs, if_hz = reader.fs, reader.if_hz
     writer = RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
+        "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
+        "input_if_hz": cfg.input.if_hz,
         "command": " ".join(sys.argv), **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
-        compression=cfg.output.compression)
+        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz)
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
@@ -253,7 +266,7 @@ def _nonfinite(reader, writer, summary):
 
 def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     from .navigation.engine import NavigationEngine
-    fs, if_hz = reader.fs, cfg.input.if_hz
+    fs, if_hz = reader.fs, reader.if_hz
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
     notes = []
@@ -262,6 +275,10 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     if cfg.navigation.enabled and cfg.signal == "gps_l1ca":      # no B1I navigation decoding
         nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
                                cfg.input.start_gps_tow_s)
+        pres = cfg.tracking.presence
+        if pres.window_ms > 0:
+            from .navigation.engine import PRESENCE_MARGIN_DB
+            nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
     manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
     manager.start(acq_start, notes)
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
@@ -283,7 +300,10 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
             writer.append_fixes(vfixes)
             writer.append_vector_log(vector.last_diag)
         else:
-            block_recs = {prn: ch.process(block, start) for prn, ch in channels.items()}
+            # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
+            items = list(channels.items())
+            recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
+            block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
         for prn, ch in list(channels.items()):
             recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
             writer.append_channel(prn, recs)
@@ -325,6 +345,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     s.n_fixes = n_fixes
     s.first_fix_s = first_fix
     s.reacquisitions = sum(v["reacquisitions"] for v in manager.summary().values())
+    if hasattr(reader, "resample"):               # the decimating input stage
+        s.notes.append(reader.describe())
     if hasattr(reader, "summary_lines"):         # the input conditioning stage
         s.notes += reader.summary_lines()
         reader.write(writer)

@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
-"""Tracking real-time factor: seconds of signal tracked per second of wall time, 8 channels, one core.
+"""Tracking real-time factor: seconds of signal tracked per second of wall time, 8 channels, 1 and N threads.
 
 Uses the third-party recording (../shared/data/gpssim_static_tokyo.bin) when present, else a synthetic
 2.6 MS/s int8-like signal with 8 satellites.  Acquisition, HDF5 output and navigation are excluded: only
-the channels' epoch loop (correlators, discriminators, loop filters) is timed.
+the channels' epoch loop (correlators, discriminators, loop filters) is timed, first on one thread and
+then on all cores (channels in parallel, as ``gnssrx run`` does); "per CPU second" is the one-core figure.
 
     python scripts/bench_tracking.py [--seconds 20] [--channels 8] [--carrier pll|cpll_atan|ekf|pli_ekf|kf|adaptive_kf]
+           [--threads 1,2] [--python-loop]
 """
 import argparse
 import os
@@ -18,6 +20,7 @@ import numpy as np  # noqa: E402
 
 from receiver.config import load_receiver_config  # noqa: E402
 from receiver.gnss.signals import CA_CHIP_RATE, L1_HZ, ca_code, sample_code  # noqa: E402
+from receiver.threads import cores, map_ordered, set_threads  # noqa: E402
 from receiver.tracking.scalar import Channel  # noqa: E402
 
 FS = 2.6e6
@@ -39,11 +42,42 @@ def synthetic(seconds, sats):
     return x
 
 
+def measure(x, sats, cfg, n_threads, python_loop=False):
+    """Track x with fresh channels on n_threads threads; (signal s, wall s, CPU s, channel-epochs, locked)."""
+    set_threads(n_threads)
+    chans = [Channel(p, d, c, 0, cfg.tracking, FS, 0.0) for p, d, c in sats]
+    for ch in chans:
+        ch.use_compiled_loop = ch.use_compiled_loop and not python_loop
+    warm = int(0.1 * FS)
+    for ch in chans:                      # JIT warm-up (cached after the first run)
+        ch.process(x[:warm], 0)
+    chunk = int(0.5 * FS)
+    end_pad = int(0.03 * FS)
+    t0 = time.perf_counter()
+    c0 = time.process_time()
+    n_epochs = 0
+    for start in range(warm, len(x) - chunk, chunk):
+        # channels are behind `start` by < 1 ms after warm-up; give them the block from their sample
+        def run(ch):
+            s = ch.next_sample
+            return len(ch.process(x[s:start + chunk + end_pad], s))
+        n_epochs += sum(map_ordered(run, chans))
+    wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
+    sig = (len(x) - warm - chunk) / FS
+    return sig, wall, cpu, n_epochs, sum(not ch.lost for ch in chans)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--channels", type=int, default=8)
     ap.add_argument("--carrier", default="pll", help="tracking.carrier.variant (default: the built-in pll)")
+    ap.add_argument("--threads", default=f"1,{cores()}",
+                    help="comma-separated thread counts, measured one after the other (default: 1 and all "
+                         "cores)")
+    ap.add_argument("--python-loop", action="store_true",
+                    help="also measure the carrier loop stepped from Python (the reference implementation)")
     args = ap.parse_args()
     sats = REF[:args.channels]
     if SHARED.exists():
@@ -54,30 +88,19 @@ def main():
         x = synthetic(args.seconds, sats)
         src = "synthetic signal"
     cfg = load_receiver_config(None, [("tracking.carrier.variant", args.carrier)])
-    chans = [Channel(p, d, c, 0, cfg.tracking, FS, 0.0) for p, d, c in sats]
-    warm = int(0.1 * FS)
-    for ch in chans:                      # JIT warm-up (cached after the first run)
-        ch.process(x[:warm], 0)
-    chunk = int(0.5 * FS)
-    t0 = time.perf_counter()
-    c0 = time.process_time()
-    n_epochs = 0
-    for start in range(warm, len(x) - chunk, chunk):
-        block = x[start:start + chunk + int(0.03 * FS)]
-        for ch in chans:
-            # channels are behind `start` by < 1 ms after warm-up; give them the block from their sample
-            s = ch.next_sample
-            n_epochs += len(ch.process(x[s:start + chunk + int(0.03 * FS)], s))
-    wall = time.perf_counter() - t0
-    cpu = time.process_time() - c0
-    sig = (len(x) - warm - chunk) / FS
-    locked = sum(not ch.lost for ch in chans)
-    print(f"source: {src}; {len(chans)} channels at {FS / 1e6:.1f} MS/s; carrier loop {args.carrier}; "
-          f"{locked} still locked")
-    print(f"signal {sig:.1f} s, wall {wall:.2f} s, {n_epochs} channel-epochs")
-    print(f"tracking real-time factor: {sig / wall:.1f}x wall clock, {sig / cpu:.1f}x per CPU second "
-          f"({cpu / n_epochs * 1e6:.1f} us CPU per channel-epoch; the two differ when the machine is shared)")
-    del block
+    print(f"source: {src}; {len(sats)} channels at {FS / 1e6:.1f} MS/s; carrier loop {args.carrier}; "
+          f"{cores()} cores; load average {os.getloadavg()[0]:.1f} (wall-clock figures are only meaningful "
+          "on an otherwise idle machine)")
+    for n in [int(v) for v in args.threads.split(",")]:
+        sig, wall, cpu, n_epochs, locked = measure(x, sats, cfg, n)
+        print(f"threads {n}: signal {sig:.1f} s, wall {wall:.2f} s, CPU {cpu:.2f} s, {n_epochs} channel-epochs, "
+              f"{locked} still locked")
+        print(f"  tracking real-time factor: {sig / wall:.1f}x wall clock, {sig / cpu:.1f}x per CPU second "
+              f"({cpu / n_epochs * 1e6:.1f} us CPU per channel-epoch)")
+    if args.python_loop and args.carrier != "pll":
+        sig, wall, cpu, n_epochs, locked = measure(x, sats, cfg, 1, python_loop=True)
+        print(f"Python-stepped loop, threads 1: wall {wall:.2f} s, CPU {cpu:.2f} s: {sig / wall:.1f}x wall clock, "
+              f"{sig / cpu:.1f}x per CPU second ({cpu / n_epochs * 1e6:.1f} us CPU per channel-epoch)")
 
 
 if __name__ == "__main__":

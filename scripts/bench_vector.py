@@ -27,13 +27,14 @@ def bench(config, variant, channels, extra=()):
     from receiver.pipeline import run
     from receiver.tracking.vector import tracker as T
 
-    timing = {"wall": 0.0, "signal": 0.0, "calls": 0, "channels": []}
+    timing = {"wall": 0.0, "cpu": 0.0, "signal": 0.0, "calls": 0, "channels": []}
     orig = T.VectorTracker.process
 
     def timed(self, block, start):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = orig(self, block, start)
         timing["wall"] += time.perf_counter() - t0
+        timing["cpu"] += time.process_time() - c0
         timing["signal"] += self.stats["epochs"] * self.T_ms * 1e-3 - timing["signal"]
         timing["calls"] += 1
         timing["channels"].append(len(self.prns))
@@ -66,12 +67,16 @@ def main(argv=None):
     os.chdir(REPO)
     extra = [] if args.start_s is None else [("vector.start_s", args.start_s)]
     bench(args.config, "fixed_r", args.channels, extra)          # warm-up: numba compilation / cache
-    print(f"{'variant':<12} {'channels':>8} {'vector s':>9} {'wall s':>7} {'RTF':>6}   (whole run: signal / wall)")
+    print(f"load average {os.getloadavg()[0]:.1f} (wall-clock figures mean little on a shared machine; "
+          "RTF/CPU = signal / CPU seconds in the tracker)")
+    print(f"{'variant':<12} {'channels':>8} {'vector s':>9} {'wall s':>7} {'RTF':>6} {'CPU s':>6} {'RTF/CPU':>7}"
+          f"   (whole run: signal / wall)")
     for v in args.variants.split(","):
         t = bench(args.config, v.strip(), args.channels, extra)
         ch = max(t["channels"]) if t["channels"] else 0
         rtf = t["signal"] / t["wall"] if t["wall"] > 0 else float("nan")
-        print(f"{v:<12} {ch:>8d} {t['signal']:>9.2f} {t['wall']:>7.2f} {rtf:>6.2f}   "
+        rtc = t["signal"] / t["cpu"] if t["cpu"] > 0 else float("nan")
+        print(f"{v:<12} {ch:>8d} {t['signal']:>9.2f} {t['wall']:>7.2f} {rtf:>6.2f} {t['cpu']:>6.2f} {rtc:>7.2f}   "
               f"({t['duration']:.1f} s / {t['total_wall']:.1f} s)")
 
 

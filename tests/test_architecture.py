@@ -19,7 +19,7 @@ PKG = ROOT / "receiver"
 #: bottom -> top; a module's layer is that of the longest prefix listed here (``receiver`` itself: the
 #: package's __init__ only).  A new top-level module must be placed here (and in the README) explicitly.
 LAYERS: list[tuple[str, ...]] = [
-    ("receiver", "receiver.errors", "receiver.config", "receiver.logs", "receiver.safeio",
+    ("receiver", "receiver.errors", "receiver.config", "receiver.logs", "receiver.safeio", "receiver.threads",
      "receiver.interrupt"),
     ("receiver.gnss",),
     ("receiver.estimation",),

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from receiver.batch.metrics import METRIC_KEYS, compute_metrics
 from receiver.cli import main
 from receiver.evaluate.outages import (OUTAGE_METRIC_KEYS, Fixes, Visibility, batch_metrics, canyon_report,
-                                       end_report, outage_report, report, total_outages)
+                                       end_report, loss_report, outage_report, report, total_outages)
 
 OFF = 1e-4            # receiver clock bias: fixes at round GPS times sit 0.1 ms late on the truth axis
 
@@ -214,3 +214,25 @@ def test_eval_outages_without_outages_is_a_user_error(tmp_path):
     assert "no total outage" in res.output and "Traceback" not in res.output
     res = CliRunner().invoke(main, ["eval", str(run), str(truth)])       # plain eval: no outage section
     assert res.exit_code == 0 and "total outages" not in res.output
+
+
+def test_loss_report_latencies():
+    """Blockages of >= 0.5 s of a satellite in lock: time to the first unlocked record and to the end of the
+    track; a short blockage, one of a satellite not in lock and a track that never ends (vector) are handled."""
+    tt = np.round(np.arange(0.0, 20.0, 0.01), 6)                 # truth at 100 Hz
+    vis = {1: np.ones(tt.size, bool), 2: np.ones(tt.size, bool), 3: np.ones(tt.size, bool)}
+    vis[1][(tt >= 5.0) & (tt < 7.0)] = False                    # G1: lock gone 0.04 s, track ends 0.10 s later
+    vis[1][(tt >= 12.0) & (tt < 12.3)] = False                  # too short: not scored
+    vis[2][(tt >= 8.0) & (tt < 9.0)] = False                    # G2: never loses its track (vector): lock 0.06 s
+    vis[3][(tt >= 3.0) & (tt < 4.0)] = False                    # G3: not in lock before: not scored
+    t = np.round(np.arange(0.0, 20.0, 0.02), 6)
+    ok1 = ~((t >= 5.04) & (t < 7.2))
+    keep1 = ~((t > 5.10) & (t < 7.2))
+    ok2 = ~((t >= 8.06) & (t < 9.1))
+    tracks = {1: (t[keep1], ok1[keep1]), 2: (t, ok2), 3: (t, np.zeros(t.size, bool))}
+    r = loss_report(tracks, vis, tt)
+    assert r["n"] == 2 and r["n_lost"] == 1
+    assert r["lock_lag_mean_s"] == pytest.approx(0.05, abs=1e-6)
+    assert r["lock_lag_max_s"] == pytest.approx(0.06, abs=1e-6)
+    assert r["lost_lag_mean_s"] == pytest.approx(0.10, abs=1e-6)
+    assert loss_report({}, vis, tt) is None

@@ -76,6 +76,42 @@ def test_loss_of_lock_when_signal_disappears():
     assert r["time_s"][-1] < 2.6
 
 
+def test_presence_test_sees_a_vanished_signal_within_tens_of_ms():
+    """tracking.presence: the prompt power over 20-ms windows against its level while present.  A 45 dB-Hz
+    signal that vanishes loses the lock flag within 50 ms and the channel declares the loss within 70 ms;
+    the lock detectors alone (presence test off) take more than 0.15 s."""
+    bits = np.random.default_rng(2).choice([-1, 1], size=200)
+    sat = dict(prn=21, doppler_hz=500.0, code_phase_chips=5.0, cn0_dbhz=45.0, bits=bits, bit_start_ms=4)
+    x = make_signal([sat], FS, 2.0, seed=7)
+    gone = 1.5013
+    x[int(gone * FS):] = make_signal([], FS, 2.0 - gone + 1e-6, seed=8)[:len(x) - int(gone * FS)]
+    ch, r = _track(x, 21, 500.0, 5.0)
+    assert ch.lost
+    before = r[(r["time_s"] > 1.0) & (r["time_s"] < gone - 0.03)]
+    assert before["pll_lock"].all() and (before["cn0_dbhz"] > 40).all()
+    after = r[r["time_s"] >= gone]
+    assert after["time_s"][np.flatnonzero(after["pll_lock"] == 0)[0]] - gone < 0.05
+    assert r["time_s"][-1] - gone < 0.07
+    assert (after["cn0_dbhz"][after["pll_lock"] == 0] == 0).all()      # no C/N0 claimed while absent
+    ch_off, r_off = _track(x, 21, 500.0, 5.0, overrides=["tracking.presence.window_ms=0"])
+    assert ch_off.lost and r_off["time_s"][-1] - gone > 0.15
+
+
+def test_presence_test_keeps_a_weak_signal():
+    """Signals at 31 and 34 dB-Hz (just above presence.min_cn0_dbhz) are tracked for 4.5 s without a false
+    loss, and the presence test never fired: the lock flags equal those of a run without it."""
+    bits = np.random.default_rng(3).choice([-1, 1], size=250)
+    for cn0 in (31.0, 34.0):
+        sat = dict(prn=5, doppler_hz=-1500.0, code_phase_chips=700.2, cn0_dbhz=cn0, bits=bits, bit_start_ms=11)
+        x = make_signal([sat], FS, 4.5, seed=int(cn0))
+        ch, r = _track(x, 5, -1505.0, 700.0)
+        assert not ch.lost, cn0
+        late = r[r["time_s"] > 1.5]
+        assert late["pll_lock"].mean() > 0.95, (cn0, late["pll_lock"].mean())
+        _, r_off = _track(x, 5, -1505.0, 700.0, overrides=["tracking.presence.window_ms=0"])
+        assert np.array_equal(r["pll_lock"], r_off["pll_lock"]), cn0
+
+
 def test_external_nco_commands():
     """A channel whose NCOs are commanded from outside follows the commands (vector-loop contract)."""
     sat = dict(prn=14, doppler_hz=-2000.0, code_phase_chips=400.0, cn0_dbhz=45.0)

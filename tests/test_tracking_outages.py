@@ -78,7 +78,7 @@ def test_narrow_search_finds_the_signal_in_its_window_only():
 
 
 def test_channels_lose_and_hot_reacquire_the_signal(drive, scalar_run):
-    """Every channel declares the loss within 0.5 s, is re-acquired within 1 s of the signal's return with
+    """Every channel declares the loss within 0.1 s (signal-presence test), is re-acquired within 1 s of the signal's return with
     the predicted Doppler (within 10 Hz of the truth) and continues its code-period count: the relative
     transmit time minus the true transmit time is the same constant before and after the outage."""
     with h5py.File(scalar_run, "r") as f:
@@ -100,7 +100,7 @@ def test_channels_lose_and_hot_reacquire_the_signal(drive, scalar_run):
         gap = np.flatnonzero(np.diff(t) > 0.1)
         assert len(gap) >= 1, prn
         t_last, t_new = t[gap[0]], t[gap[0] + 1]
-        assert OUT_A <= t_last <= OUT_A + 0.5, (prn, t_last)
+        assert OUT_A <= t_last <= OUT_A + 0.1, (prn, t_last)        # presence test: lost within 0.1 s
         assert OUT_B <= t_new <= OUT_B + 1.0, (prn, t_new)
         d_true = np.interp(t_new, tru["time_s"], tru["doppler_hz"])
         assert abs(rec["doppler_hz"][gap[0] + 1] - d_true) < 10.0, (prn, rec["doppler_hz"][gap[0] + 1], d_true)
@@ -120,14 +120,15 @@ def test_channels_lose_and_hot_reacquire_the_signal(drive, scalar_run):
 
 
 def test_navigation_memory_fixes_resume_without_a_new_subframe(drive, scalar_run):
-    """Fixes resume within 2 s of the signal's return, within 10 m, although no subframe is decoded after
+    """Fixes resume within 0.5 s of the signal's return, within 10 m (hot re-acquisition: short pull-in with a
+    wide DLL, short settle), although no subframe is decoded after
     the outage (the next one would complete at 38 s); no fix anywhere worse than 30 m; the run file lists
     the ephemeris of every satellite decoded, G11 included (blocked from 28.5 s to the end)."""
     t, err, mode, _ = _fix_errors(scalar_run, drive["truth"])
     assert np.all(mode == 0)
     assert err.max() < 30.0, err.max()
     good_after = t[(t >= OUT_B) & (err <= 10.0)]
-    assert len(good_after) and good_after[0] - OUT_B <= 2.0, good_after[:3]
+    assert len(good_after) and good_after[0] - OUT_B <= 0.5, good_after[:3]
     assert t.max() > 31.5                                   # fixes to the end of the file
     with h5py.File(scalar_run, "r") as f:
         obs = f["observables"]
@@ -138,13 +139,13 @@ def test_navigation_memory_fixes_resume_without_a_new_subframe(drive, scalar_run
 
 
 def test_vector_coast_is_flagged_and_fixes_resume(drive, tmp_path):
-    """Vector loop from 23 s: epochs of the outage are written as coast (mode 2) with the channels actually
+    """Vector loop from 23 s: epochs of the outage from 0.1 s on are written as coast (mode 2) with the channels actually
     carrying signal as n_sats (< 4); every non-coast fix is within 30 m; vector fixes within 10 m again
     within 2 s of the signal's return."""
     out = _run(drive, tmp_path / "vec.h5", [("vector.enabled", True), ("vector.start_s", 23.0)])
     t, err, mode, nsat = _fix_errors(out, drive["truth"])
     vec = t >= 23.5
-    inside = vec & (t > OUT_A + 0.7) & (t < OUT_B)
+    inside = vec & (t > OUT_A + 0.1) & (t < OUT_B)          # presence test: coast within 0.1 s
     assert inside.any() and np.all(mode[inside] == 2), mode[inside]
     assert np.all(nsat[mode == 2] < 4)
     assert np.all(mode[vec & (t < OUT_A)] == 1)

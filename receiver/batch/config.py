@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..config import P, Section, build, parse_override, read_yaml
+from ..config import P, Section, build, find_file, parse_override, read_yaml, search_bases
 from ..errors import UserError
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -136,7 +136,7 @@ def resolve(path: str, base_dir: str, what: str) -> str:
         if os.path.exists(p):
             return p
         raise UserError(f"{what} not found: {path}")
-    for base in (base_dir, os.getcwd(), str(REPO_ROOT)):
+    for base in (base_dir, os.getcwd(), *search_bases()):
         cand = os.path.normpath(os.path.join(base, p))
         if os.path.exists(cand):
             return cand
@@ -309,7 +309,7 @@ def load_batch(source, overrides=()) -> Batch:
         raw, path, base_dir = source, None, os.getcwd()
         stem = "batch"
     else:
-        path = os.path.abspath(os.fspath(source))
+        path = os.path.abspath(os.fspath(find_file(source)))
         raw = read_yaml(path)
         base_dir = os.path.dirname(path)
         stem = Path(path).stem

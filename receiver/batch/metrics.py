@@ -15,7 +15,9 @@ Every metric is a float (NaN when it cannot be computed, e.g. no fix or no truth
 ``pos_h_max_m``, ``pos_v_max_m``
     Maximum horizontal error and maximum absolute vertical error over the scored fixes (same ENU errors).
 ``loss_of_lock``
-    Number of PLL lock losses: transitions of ``pll_lock`` from 1 to 0, summed over all channels.
+    Number of PLL lock losses: transitions of ``pll_lock`` from 1 to 0, summed over all channels (from the
+    channels' ``lock_losses`` attributes, counted over every epoch even when output.channel_rate_hz stores
+    fewer records; files without them: from the stored records).
 ``channels_dropped``
     Channels that had locked and were later dropped (``state`` reached 3 = lost).
 ``n_channels_locked``
@@ -223,17 +225,29 @@ def _channel_metrics(out, rf: RunFile, truth_h5, settle_s):
         if "pll_lock" not in ch or not ch["pll_lock"].size:
             continue
         lock = ch["pll_lock"] > 0
-        if not lock.any():
-            continue
-        n_locked += 1
-        n_lol += int(np.count_nonzero(np.diff(lock.astype(np.int8)) == -1))
-        if "state" in ch and np.any(ch["state"] == STATE_LOST):
-            n_drop += 1
-        if "cn0_dbhz" in ch:
-            c = ch["cn0_dbhz"][lock].astype(float)
-            c = c[np.isfinite(c)]
-            if c.size:
-                cn0_means.append(float(np.mean(c)))
+        st = rf.group_attrs(f"channels/{name}") or {}
+        if "lock_losses" in st:          # statistics over every epoch (exact with output.channel_rate_hz)
+            if not st["epochs_locked"]:
+                continue
+            n_locked += 1
+            n_lol += int(st["lock_losses"])
+            n_drop += int(bool(st["dropped"]))
+            if np.isfinite(st["cn0_locked_mean_dbhz"]):
+                cn0_means.append(float(st["cn0_locked_mean_dbhz"]))
+            if not lock.any():
+                continue
+        else:                            # files written before the statistics attributes
+            if not lock.any():
+                continue
+            n_locked += 1
+            n_lol += int(np.count_nonzero(np.diff(lock.astype(np.int8)) == -1))
+            if "state" in ch and np.any(ch["state"] == STATE_LOST):
+                n_drop += 1
+            if "cn0_dbhz" in ch:
+                c = ch["cn0_dbhz"][lock].astype(float)
+                c = c[np.isfinite(c)]
+                if c.size:
+                    cn0_means.append(float(np.mean(c)))
         t_lock = ch["time_s"][np.argmax(lock)]
         settled = lock & (ch["time_s"] >= t_lock + settle_s)
         if "state" in ch:

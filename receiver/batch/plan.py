@@ -27,7 +27,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..config import RECEIVER_SCHEMA, apply_overrides, build, read_yaml
+from ..config import RECEIVER_SCHEMA, apply_overrides, build, read_yaml, search_bases
 from ..errors import UserError
 from .config import REPO_ROOT, Batch
 
@@ -172,7 +172,7 @@ def _receiver_file(v: str, base_dir: str) -> str | None:
     if not _pathlike(v):
         return None
     p = os.path.expanduser(v)
-    cands = [p] if os.path.isabs(p) else [os.path.join(b, p) for b in (os.getcwd(), base_dir, str(REPO_ROOT))]
+    cands = [p] if os.path.isabs(p) else [os.path.join(b, p) for b in (os.getcwd(), base_dir, *search_bases())]
     for c in cands:
         if os.path.isfile(c):
             return os.path.abspath(c)

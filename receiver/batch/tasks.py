@@ -70,6 +70,8 @@ def execute_run(task: dict) -> dict:
     log = io.StringIO()
     try:
         from ..pipeline import run
+        from ..threads import set_threads
+        set_threads(1)                                # the batch parallelises over runs: 1 thread each
         cfg = build(RECEIVER_SCHEMA, task["config"])
         with capture(log):                            # log records of the stages go to the run's record
             summary = run(cfg, quiet=True, log=lambda *a, **k: None)

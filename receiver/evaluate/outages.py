@@ -25,6 +25,10 @@ Total outages
     Over the whole run: ``max_err_m`` / ``max_err_all_m`` (measured / all fixes), ``n_coast`` (coast
     fixes), ``n_inside`` (summed over the outages).
 
+Loss of signal (:func:`loss_report`)
+    For each blockage of a satellite (>= 0.5 s) whose channel was in lock just before: the time until its
+    records lose the lock flag (``lock_lag``) and until its track ends (``lost_lag``, channel declared lost).
+
 Fixes to the end (any blockage)
     ``fixes_to_end``: true when the last measured fix is at most ``end_tol_s`` (2 s) before the end of the
     truth (``end_gap_s``).
@@ -55,6 +59,7 @@ GOOD_M = 10.0
 END_TOL_S = 2.0
 LOSS_GRACE_S = 0.3
 MIN_OUTAGE_S = 0.05
+LOSS_MIN_BLOCK_S = 0.5
 N_OUTAGE_KEYS = 4            # outages reported one by one in the batch metrics
 
 #: batch metric keys of this module (see :func:`batch_metrics`)
@@ -62,7 +67,8 @@ OUTAGE_METRIC_KEYS = (
     ("outage_n",)
     + tuple(f"outage{k}_{m}" for k in range(1, N_OUTAGE_KEYS + 1) for m in ("dur_s", "ttgf_s", "max_err_m"))
     + ("outage_max_err_m", "outage_max_err_all_m", "outage_coast_fixes", "outage_fixes_inside", "fixes_to_end",
-       "canyon_epochs", "canyon_availability", "canyon_rms_3d_m", "canyon_max_err_m")
+       "canyon_epochs", "canyon_availability", "canyon_rms_3d_m", "canyon_max_err_m",
+       "loss_lock_lag_mean_s", "loss_lock_lag_max_s", "loss_lost_lag_mean_s", "loss_lost_lag_max_s")
 )
 
 
@@ -198,6 +204,48 @@ def canyon_report(fx: Fixes, vis: Visibility, rate_hz: float, min_visible: int =
             "max_err_m": float(e.max()) if e.size else math.nan}
 
 
+def loss_report(tracks: dict, sat_vis: dict, t_truth: np.ndarray, min_block_s: float = LOSS_MIN_BLOCK_S) -> dict | None:
+    """Loss-of-signal detection latency.  tracks: prn -> (record times, lock flags) of its channel(s);
+    sat_vis: prn -> truth visibility per t_truth row.  For every blockage of a satellite (visible -> not
+    visible, lasting at least min_block_s) whose channel was in lock during the 0.2 s before it:
+    ``lock_lag`` = time to the first record without lock (no measurement of it enters a fix from there),
+    ``lost_lag`` = time to the end of the track (the channel declared the signal lost; a channel that never
+    does - vector tracking - is left out of this one).  None when no such blockage exists."""
+    lock, lost = [], []
+    for prn, vis in sat_vis.items():
+        if prn not in tracks:
+            continue
+        t, ok = tracks[prn]
+        v = np.asarray(vis, bool)
+        starts = np.flatnonzero(v[:-1] & ~v[1:]) + 1
+        for i in starts:
+            tb = float(t_truth[i])
+            j = np.flatnonzero(v[i:])
+            te = float(t_truth[i + j[0]]) if j.size else float(t_truth[-1])
+            if te - tb < min_block_s:
+                continue
+            pre = (t >= tb - 0.2) & (t < tb)
+            if not pre.any() or not ok[pre].all():
+                continue
+            k = int(np.searchsorted(t, tb))
+            after_t, after_ok = t[k:], ok[k:]
+            bad = np.flatnonzero(~after_ok)
+            gap = np.flatnonzero(np.diff(t[k - 1:]) > 0.1)       # the track ends: the next record is later
+            t_end = float(t[k - 1 + gap[0]]) if gap.size else math.inf
+            t_bad = float(after_t[bad[0]]) if bad.size else math.inf
+            lock.append(min(t_bad, t_end) - tb)
+            if t_end < te:
+                lost.append(t_end - tb)
+    if not lock:
+        return None
+    lock, lost = np.array(lock), np.array(lost)
+    out = {"n": int(lock.size), "lock_lag_mean_s": float(lock.mean()), "lock_lag_max_s": float(lock.max()),
+           "n_lost": int(lost.size), "lost_lag_mean_s": math.nan, "lost_lag_max_s": math.nan}
+    if lost.size:
+        out.update(lost_lag_mean_s=float(lost.mean()), lost_lag_max_s=float(lost.max()))
+    return out
+
+
 def batch_metrics(rep: dict) -> dict:
     """Flat float metrics (:data:`OUTAGE_METRIC_KEYS`) of :func:`report`'s result; NaN where n/a."""
     m = {k: math.nan for k in OUTAGE_METRIC_KEYS}
@@ -213,6 +261,10 @@ def batch_metrics(rep: dict) -> dict:
         m["outage_fixes_inside"] = float(o["n_inside"])
     if "fixes_to_end" in rep and has_outages(rep):
         m["fixes_to_end"] = float(rep["fixes_to_end"])
+    lr = rep.get("loss")
+    if lr is not None:
+        for k in ("lock_lag_mean_s", "lock_lag_max_s", "lost_lag_mean_s", "lost_lag_max_s"):
+            m[f"loss_{k}"] = lr[k]
     if c is not None:
         m["canyon_epochs"] = float(c["counted"])
         m["canyon_availability"] = c["availability"]
@@ -242,6 +294,32 @@ def read_visibility(truth_h5) -> Visibility:
                 sel = b["kind"] == KIND_TOTAL
                 total = [(float(x), float(y)) for x, y in zip(b["start_s"][sel], b["end_s"][sel])]
     return Visibility(t=t, n_visible=n, random_window=win, total_windows=total)
+
+
+def read_tracks(run_h5) -> dict:
+    """prn -> (record times, lock flags) of its channel records, sorted by time."""
+    out = {}
+    with RunFile(run_h5) as rf:
+        for name in rf.channel_names():
+            c = rf.channel(name, ("time_s", "pll_lock"))
+            prn = rf.channel_prn(name)
+            t0, l0 = out.get(prn, (np.zeros(0), np.zeros(0, bool)))
+            out[prn] = (np.concatenate([t0, c["time_s"]]), np.concatenate([l0, c["pll_lock"] > 0]))
+    for prn, (t, ok) in out.items():
+        o = np.argsort(t, kind="stable")
+        out[prn] = (t[o], ok[o])
+    return out
+
+
+def read_sat_visibility(truth_h5):
+    """(truth time_s, prn -> visible per row)."""
+    with TruthFile(truth_h5) as tf:
+        t = tf.receiver(("time_s",))["time_s"]
+        vis = {}
+        for name, s in tf.satellites(("visible",)).items():
+            if "visible" in s and s["visible"].shape[0] == t.size and name[1:].isdigit():
+                vis[int(name[1:])] = s["visible"].astype(bool)
+    return t, vis
 
 
 def read_fixes(run_h5, truth_h5):
@@ -282,7 +360,9 @@ def report(run_h5, truth_h5, good_m: float = GOOD_M) -> dict:
     vis = read_visibility(truth_h5)
     fx, rate, t_end = read_fixes(run_h5, truth_h5)
     outs = total_outages(vis)
+    t_truth, sat_vis = read_sat_visibility(truth_h5)
     return {"total": outage_report(fx, outs, t_end, good_m) if outs else None,
+            "loss": loss_report(read_tracks(run_h5), sat_vis, t_truth),
             "canyon": canyon_report(fx, vis, rate), "rate_hz": rate, "good_m": good_m,
             **end_report(fx, t_end)}
 
@@ -322,6 +402,13 @@ def format_report(rep: dict) -> str:
                   f"availability (measured fix in those epochs)  {_f(100 * c['availability'], '{:.1f}')} %",
                   f"measured fixes in all epochs                 {_f(100 * c['fix_fraction_all'], '{:.1f}')} %",
                   f"3D RMS / max of the measured fixes           {_f(c['rms_3d_m'])} / {_f(c['max_err_m'])} m"]
+    lr = rep.get("loss")
+    if lr is not None and has_outages(rep):
+        lines += ["", f"loss of signal ({lr['n']} blockages >= {LOSS_MIN_BLOCK_S:g} s of a satellite in lock)",
+                  f"lock flag drops after  mean {_f(lr['lock_lag_mean_s'], '{:.3f}')} s, "
+                  f"max {_f(lr['lock_lag_max_s'], '{:.3f}')} s",
+                  f"channel declares lost  mean {_f(lr['lost_lag_mean_s'], '{:.3f}')} s, "
+                  f"max {_f(lr['lost_lag_max_s'], '{:.3f}')} s ({lr['n_lost']} losses)"]
     if has_outages(rep) and "fixes_to_end" in rep:
         lines.append(f"fixes continue to the end: {'yes' if rep['fixes_to_end'] else 'NO'} "
                      f"(last measured fix {_f(rep['end_gap_s'])} s before the end)")

@@ -274,8 +274,9 @@ def read_tle_file(path) -> list[tuple[str, str, str]]:
 
 
 def default_tle_path() -> str:
-    """The synthetic Iridium-like TLE set shipped with the repository."""
-    return os.path.join(os.path.dirname(__file__), "..", "..", "data", "iridium_synthetic.tle")
+    """The synthetic Iridium-like TLE set shipped with the package (data/, package data)."""
+    from ..config import shipped_dir
+    return os.path.join(shipped_dir(), "data", "iridium_synthetic.tle")
 
 
 # --------------------------------------------------------------------------------------------------

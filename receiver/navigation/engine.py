@@ -30,6 +30,8 @@ from .pvt_filter import make_pvt_filter
 
 BIT_MS = 20
 LOCK_GUARD_S = 0.1           # a measurement needs lock this long after its epoch too (detector lag)
+LOCK_GUARD_PRESENT_S = 0.04  # the same for a channel judged by the signal-presence test (lock gone <= 35 ms)
+PRESENCE_MARGIN_DB = 3.0     # ... i.e. its C/N0 this far above tracking.presence.min_cn0_dbhz
 ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
 
 
@@ -279,10 +281,12 @@ class ChannelNav:
             return txrel, dop, phase
         return None
 
-    def locked_at(self, s: float, guard_s: float = LOCK_GUARD_S) -> bool:
+    def locked_at(self, s: float, guard_s: float = LOCK_GUARD_S, presence_cn0: float | None = None) -> bool:
         """The channel's lock detectors (PLL lock and C/N0) were good at sample s and guard_s later (or at its
         latest epoch, if earlier): the detectors lag a vanished signal, so the epochs just before a loss are
-        noise-tracking too.  A channel tracking noise during a blockage never enters a fix."""
+        noise-tracking too.  A channel tracking noise during a blockage never enters a fix.  presence_cn0: a
+        channel at least this strong at s is judged by the signal-presence test, whose lag is shorter: the
+        guard is then LOCK_GUARD_PRESENT_S."""
         for t in (s, s + guard_s * self.fs):
             found = None
             for recs in reversed(self.recent):
@@ -298,6 +302,9 @@ class ChannelNav:
                 continue
             if not found["pll_lock"]:
                 return False
+            if t == s and presence_cn0 is not None and found["cn0_dbhz"] >= presence_cn0 and \
+                    guard_s > LOCK_GUARD_PRESENT_S:
+                return self.locked_at(s, LOCK_GUARD_PRESENT_S)
         return True
 
     def smooth_update(self, s: float, txrel: float, phase: float, window_epochs: int):
@@ -380,6 +387,8 @@ class NavigationEngine:
         self.fs = fs
         self.if_hz = if_hz
         self.solver = NavSolver(nav_cfg)
+        # C/N0 (dB-Hz) from which a channel's loss is seen by the tracking's signal-presence test (None: off)
+        self.presence_cn0 = None
         self.pvt_filter = make_pvt_filter(nav_cfg)     # navigation.filter ekf|ckf (None: wls)
         self.channels: dict[int, ChannelNav] = {}
         self.assisted = ephemerides is not None
@@ -627,7 +636,7 @@ class NavigationEngine:
         dt = 1.0 / self.rate
         window = int(round(self.cfg.smoothing_s * self.rate))
         for prn, ch in self.channels.items():
-            if not ch.settled(s, self.cfg.settle_s) or not ch.locked_at(s):
+            if not ch.settled(s, self.cfg.settle_s) or not ch.locked_at(s, presence_cn0=self.presence_cn0):
                 ch.hatch = None
                 continue
             m = ch.measure(s)

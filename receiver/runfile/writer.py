@@ -6,6 +6,7 @@ length of the recording.
 """
 from __future__ import annotations
 
+import math
 import os
 import time
 
@@ -15,7 +16,7 @@ import numpy as np
 from .. import __version__
 from .. import interrupt
 from ..safeio import AtomicH5
-from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_NAMES
+from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_LOST, STATE_NAMES
 
 
 COMPRESSION = {"none": {}, "lzf": {"compression": "lzf", "shuffle": True},
@@ -34,15 +35,65 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
         ds[n:] = data
 
 
+class ChannelStats:
+    """Statistics of one channel over every epoch (written as attributes of /channels/Gnn, so they stay
+    exact when output.channel_rate_hz stores fewer records): ``epochs``, ``epochs_locked`` (pll_lock),
+    ``lock_losses`` (pll_lock 1 -> 0 transitions), ``cn0_locked_mean_dbhz`` (mean C/N0 over the locked
+    epochs, NaN when none), ``dropped`` (state reached 3 = lost), ``first_time_s`` / ``last_time_s``."""
+
+    def __init__(self):
+        self.epochs = self.locked = self.losses = 0
+        self.cn0_sum = 0.0
+        self.cn0_n = 0
+        self.dropped = False
+        self.first = self.last = math.nan
+        self._last_lock = 0
+        self._last_bucket = None
+
+    def add(self, r: np.ndarray):
+        lock = (r["pll_lock"] > 0).astype(np.int8)
+        self.epochs += len(r)
+        self.locked += int(lock.sum())
+        self.losses += int(np.count_nonzero(np.diff(np.concatenate(([self._last_lock], lock))) == -1))
+        self._last_lock = int(lock[-1])
+        c = r["cn0_dbhz"][lock > 0].astype(float)
+        c = c[np.isfinite(c)]
+        self.cn0_sum += float(c.sum())
+        self.cn0_n += c.size
+        self.dropped |= bool(np.any(r["state"] == STATE_LOST))
+        if math.isnan(self.first):
+            self.first = float(r["time_s"][0])
+        self.last = float(r["time_s"][-1])
+
+    def thin(self, r: np.ndarray, rate_hz: float) -> np.ndarray:
+        """The first record of every 1/rate_hz interval of time_s not yet stored."""
+        b = np.floor(r["time_s"] * rate_hz + 1e-9).astype(np.int64)
+        prev = np.concatenate(([b[0] - 1 if self._last_bucket is None else self._last_bucket], b[:-1]))
+        keep = b > prev
+        self._last_bucket = int(max(b[-1], self._last_bucket if self._last_bucket is not None else b[-1]))
+        return r[keep]
+
+    def attrs(self) -> dict:
+        return {"epochs": self.epochs, "epochs_locked": self.locked, "lock_losses": self.losses,
+                "cn0_locked_mean_dbhz": self.cn0_sum / self.cn0_n if self.cn0_n else math.nan,
+                "dropped": self.dropped, "first_time_s": self.first, "last_time_s": self.last}
+
+
 class RunWriter:
     FLUSH_ROWS = 20000
 
-    def __init__(self, path, config_yaml: str, attrs: dict | None = None, reads=(), compression: str = "none"):
+    def __init__(self, path, config_yaml: str, attrs: dict | None = None, reads=(), compression: str = "none",
+                 channel_rate_hz: float | None = None):
         """Checks the output path first (safeio.check_output: directory, name length, not one of `reads`,
         not locked by another run), then opens ``<path>.partial``.  ``compression`` (none, lzf, gzip; both
-        with the shuffle filter) applies to the growing datasets (channels, navigation, observables)."""
+        with the shuffle filter) applies to the growing datasets (channels, navigation, observables).
+        ``channel_rate_hz``: store channel records at most at this rate (the first epoch of every
+        1/rate interval of ``time_s``); None or 0: every epoch.  The per-channel statistics
+        (:class:`ChannelStats`) always see every epoch."""
         self._buffers: dict[int, list] = {}
         self.compression = compression
+        self.channel_rate_hz = float(channel_rate_hz or 0.0)
+        self._stats: dict[int, ChannelStats] = {}
         self._out = AtomicH5(path, "output", reads=reads)
         self.path, self.tmp, self.f = self._out.path, self._out.tmp, self._out.f
         try:
@@ -53,7 +104,7 @@ class RunWriter:
             a["schema"] = "gnssrx-run-1"
             for k, v in (attrs or {}).items():
                 a[k] = v
-            self.f.create_group("channels")
+            self.f.create_group("channels").attrs["channel_rate_hz"] = self.channel_rate_hz
             g = self.f.create_group("navigation")
             g.attrs["mode_mapping"] = "0=scalar,1=vector,2=coast"
             self._out.check()
@@ -87,6 +138,12 @@ class RunWriter:
         """Buffered: records are written in blocks of FLUSH_ROWS per channel (few large HDF5 writes)."""
         if len(records) == 0:
             return
+        st = self._stats.setdefault(prn, ChannelStats())
+        st.add(records)
+        if self.channel_rate_hz > 0:
+            records = st.thin(records, self.channel_rate_hz)
+            if len(records) == 0:
+                return
         buf = self._buffers.setdefault(prn, [])
         buf.append(records)
         if sum(len(b) for b in buf) >= self.FLUSH_ROWS:
@@ -104,6 +161,15 @@ class RunWriter:
         for name in EPOCH_DTYPE.names:
             _append(g, name, np.ascontiguousarray(records[name]), self.compression)
         self._out.check()
+
+    def _write_stats(self):
+        for prn, st in self._stats.items():
+            g = self.f["channels"].require_group(f"G{prn:02d}")
+            if "prn" not in g.attrs:
+                g.attrs["prn"] = prn
+                g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+            for k, v in st.attrs().items():
+                g.attrs[k] = v
 
     # ------------------------------------------------------------------ navigation
     def _append_table(self, group: str, rows: np.ndarray):
@@ -173,6 +239,7 @@ class RunWriter:
         try:
             for prn in list(self._buffers):
                 self._flush_channel(prn)
+            self._write_stats()
             self._out.check()
         except BaseException:
             self.f = None

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..config import P, Section, build, defaults_doc, read_yaml
+from ..config import P, Section, build, defaults_doc, find_file, read_yaml, search_bases, shipped_dir
 from ..errors import UserError
 from ..source.io import BIT_ORDERS, ENCODINGS, FORMATS, NOISE_SIGMA, is_complex
 from .clock import CLOCK_PRESETS
@@ -188,11 +188,12 @@ def resolve_path(path: str | None, what: str = "file") -> str | None:
         if not os.path.exists(p):
             raise UserError(f"{what} not found: {path}")
         return p
-    for base in (os.getcwd(), str(REPO_ROOT)):
+    for base in (os.getcwd(), *search_bases()):
         cand = os.path.join(base, p)
         if os.path.exists(cand):
             return os.path.normpath(cand)
-    raise UserError(f"{what} not found: {path} (looked in the current directory and in {REPO_ROOT})")
+    raise UserError(f"{what} not found: {path} (looked in the current directory, in {REPO_ROOT} and in the "
+                    f"shipped data {shipped_dir()})")
 
 
 def _check(sc: Section):
@@ -228,7 +229,7 @@ def load_scenario(scenario=None, overrides=()) -> Section:
     elif scenario is None:
         raw = {}
     else:
-        raw = read_yaml(scenario)
+        raw = read_yaml(find_file(scenario))
     sc = build(SCENARIO_SCHEMA, raw, overrides)
     _check(sc)
     return sc

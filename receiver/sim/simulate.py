@@ -45,7 +45,7 @@ from ..estimation.interpolation import hermite
 from ..safeio import TMP_SUFFIX, GuardedFile, OutputLock, check_output, write_error_message
 from ..gnss.geodesy import ecef2lla
 from ..source.io import Encoder, is_complex
-from ..source.metadata import write_sigmf
+from ..source.metadata import write_sigmf, write_tag
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import IonoUtc, earth_rotation, sat_state
 from ..gnss.lnav import encode_subframes
@@ -71,13 +71,15 @@ _WEEK_FRAMES = int(WEEK_S) // 30
 # ------------------------------------------------------------------------------------------ helpers
 def output_paths(out_path) -> dict:
     """IF file, truth file (<stem>.truth.h5), receiver input fragment (<stem>.yaml) and SigMF metadata
-    (<stem>.sigmf-meta; <stem> drops a .bin or .sigmf-data extension)."""
+    (<stem>.sigmf-meta; <stem> drops a .bin or .sigmf-data extension) and PocketSDR tag (<out>.tag: only for
+    the formats PocketSDR names, receiver/source/metadata.py)."""
     out_path = os.fspath(out_path)
     stem = out_path
     for ext in (".bin", ".sigmf-data"):
         if out_path.endswith(ext):
             stem = out_path[:-len(ext)]
-    return {"if": out_path, "truth": stem + ".truth.h5", "yaml": stem + ".yaml", "sigmf": stem + ".sigmf-meta"}
+    return {"if": out_path, "truth": stem + ".truth.h5", "yaml": stem + ".yaml", "sigmf": stem + ".sigmf-meta",
+            "tag": out_path + ".tag"}
 
 
 def enu_components(vec, lat_deg, lon_deg):
@@ -388,12 +390,13 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     sc = load_scenario(scenario, overrides)
     paths = output_paths(out_path)
     reads = _files_read(scenario, sc)
-    if len(set(map(os.path.abspath, paths.values()))) < 4:
+    if len(set(map(os.path.abspath, paths.values()))) < len(paths):
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
     for kind, p in paths.items():
         check_output(p, reads, what={"if": "output", "truth": "truth file",
-                                     "yaml": "receiver-input fragment", "sigmf": "SigMF metadata"}[kind],
+                                     "yaml": "receiver-input fragment", "sigmf": "SigMF metadata",
+                                     "tag": "PocketSDR tag"}[kind],
                      make_dirs=False)
     sim = _Simulator(sc)                 # input errors surface here, before any file is touched
     lock = OutputLock(paths["if"]).acquire()
@@ -404,7 +407,10 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
         except OSError as exc:
             raise UserError(write_error_message("output", paths["if"], exc)) from None
         interrupt.check()
-        for k in ("truth", "yaml", "sigmf", "if"):  # the IF file last: its presence means complete
+        for k in ("truth", "yaml", "sigmf", "tag", "if"):  # the IF file last: its presence means complete
+            if k == "tag" and not os.path.exists(tmp[k]):
+                _remove([paths[k]])            # a format PocketSDR does not name: no (stale) tag
+                continue
             os.replace(tmp[k], paths[k])
     except BaseException:
         _remove(tmp.values())
@@ -582,6 +588,8 @@ class _Simulator:
         write_sigmf(tmp["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
                     description="gnssrx simulator output; truth: " + os.path.basename(paths["truth"]),
                     bit_order=fe.bit_order, encoding=fe.encoding, version=__version__, meta=tmp["sigmf"])
+        write_tag(tmp["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
+                  tag=tmp["tag"])
         with open(tmp["yaml"], "w") as f:
             f.write(f"# gnssrx simulator output (gnssrx {__version__}): receiver input section for "
                     f"{os.path.basename(paths['if'])}\n# truth: {os.path.basename(paths['truth'])}\n")

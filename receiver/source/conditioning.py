@@ -35,8 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 from scipy.ndimage import median_filter
-from scipy.signal.windows import blackmanharris
-from scipy.stats import gamma
+from ..estimation.stats import gamma_isf, gamma_median
 
 # equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
 _ENBW_BH = 2.0044
@@ -63,7 +62,9 @@ class Detection:
 
 
 def _bh_window(n):
-    return blackmanharris(n, sym=False).astype(np.float64)
+    # 4-term Blackman-Harris (periodic form: the DFT-even window of an n-point segment)
+    x = 2.0 * np.pi * np.arange(n) / n
+    return 0.35875 - 0.48829 * np.cos(x) + 0.14128 * np.cos(2 * x) - 0.01168 * np.cos(3 * x)
 
 
 def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e-3, min_db: float = 6.0,
@@ -84,9 +85,9 @@ def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e
     freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
     fb = min(floor_bins, nfft // 4) | 1
     med = median_filter(spec, size=fb, mode="wrap")
-    floor = med / gamma.median(k, scale=1.0 / k)
+    floor = med / gamma_median(k)
     floor = np.maximum(floor, 1e-30)
-    thr = max(float(gamma.isf(pfa / nfft, k, scale=1.0 / k)), 10 ** (min_db / 10.0))
+    thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
     det.threshold_db = 10 * np.log10(thr)
     wp = float(np.sum(w ** 2))
     det.noise_power = float(np.sum(floor)) / (wp * nfft)       # per-sample noise power

@@ -1,4 +1,4 @@
-"""Metadata files beside a recording: SigMF ``.sigmf-meta`` (plain JSON, no dependency).
+"""Metadata files beside a recording: SigMF ``.sigmf-meta`` (plain JSON, no dependency) and PocketSDR ``.tag``.
 
 For an input ``<stem>.sigmf-data`` or ``<stem>.<ext>`` the file ``<stem>.sigmf-meta`` is read when present:
 
@@ -11,8 +11,24 @@ For an input ``<stem>.sigmf-data`` or ``<stem>.<ext>`` the file ``<stem>.sigmf-m
   captures[0].core:datetime   -> input.start_gps_week / start_gps_tow_s (UTC + leap seconds)
   captures[0].core:sample_start, global.gnssrx:header_bytes -> input.header_bytes (bytes)
 
+PocketSDR ``<file>.tag`` (the input's full name plus ``.tag``; written by PocketSDR's ``pocket_dump`` /
+``pocket_trk`` IF logs): text lines ``KEY = value`` --
+
+  FMT   INT8 (one int8 per sample; with IQ = 1 a real signal), INT8X2 (int8 I, Q pairs whose Q has the
+        opposite sign: read with input.iq_swap, a spectral inversion up to a constant phase), CS8 / CS16
+        (int8 / int16 I, Q); the multi-channel raw front-end formats RAW8/RAW16/RAW16I/RAW32 are an error
+  F_S   sample rate (MHz)                         -> input.sample_rate_hz
+  F_LO  LO frequency of each RF channel (MHz)     -> input.if_hz = carrier - F_LO (0: not known)
+  IQ    1 = real (I) sampling, 2 = I/Q sampling   -> the real or I/Q format
+  BITS  bits per sample (informational)
+  TIME  start of the recording, GPS time, ``yyyy/mm/dd hh:mm:ss.sss`` -> input.start_gps_week / _tow_s
+  PROG  the program that wrote it
+
+``gnssrx simulate`` writes a ``.tag`` beside recordings in the formats PocketSDR names (int8_real -> INT8,
+int8_iq -> CS8, int16_iq -> CS16).
+
 A config key left at its default takes the metadata's value; a key set to another value that disagrees
-with the metadata is an error (one line).
+with the metadata is an error (one line), and so is a .tag that disagrees with a .sigmf-meta.
 """
 from __future__ import annotations
 
@@ -112,28 +128,134 @@ def write_sigmf(data_path, fmt: str, sample_rate_hz: float, if_hz: float, carrie
     return mp
 
 
+TAG_EXT = ".tag"
+# PocketSDR FMT -> (our format for IQ = 1, for IQ = 2, iq_swap)
+TAG_FORMATS = {"INT8": ("int8_real", "int8_iq", True), "INT8X2": ("int8_iq", "int8_iq", True),
+               "CS8": ("int8_iq", "int8_iq", False), "CS16": ("int16_iq", "int16_iq", False)}
+TAG_RAW = ("RAW8", "RAW16", "RAW16I", "RAW32")
+# our format -> (FMT, IQ, BITS) written by the simulator
+TAG_WRITE = {"int8_real": ("INT8", 1, 8), "int8_iq": ("CS8", 2, 8), "int16_iq": ("CS16", 2, 16)}
+
+
+def tag_path(data_path) -> str:
+    return os.fspath(data_path) + TAG_EXT
+
+
+def read_tag(path) -> dict | None:
+    """Input keys from the PocketSDR tag ``<path>.tag`` (module doc), None without a file."""
+    tp = tag_path(path)
+    if not os.path.isfile(tp):
+        return None
+    try:
+        with open(tp, encoding="utf-8") as fh:
+            lines = fh.read().splitlines()
+    except (OSError, UnicodeDecodeError):
+        raise UserError(f"PocketSDR tag {tp} cannot be read as text") from None
+    kv = {}
+    for line in lines:
+        if "=" in line:
+            k, v = line.split("=", 1)
+            kv[k.strip().upper()] = v.strip()
+    fmt = kv.get("FMT", "")
+    if fmt in TAG_RAW:
+        raise UserError(f"PocketSDR tag {tp}: FMT {fmt} is a multi-channel raw front-end format (not "
+                        f"supported: split it into per-channel files)")
+    if fmt not in TAG_FORMATS:
+        raise UserError(f"PocketSDR tag {tp}: FMT '{fmt}' is not one of {', '.join(TAG_FORMATS)}")
+
+    def first(key, conv):
+        if key not in kv:
+            return None
+        try:
+            return conv(kv[key].split(",")[0])
+        except ValueError:
+            raise UserError(f"PocketSDR tag {tp}: {key} = '{kv[key]}' is not a number") from None
+
+    iq = first("IQ", int) or 2
+    real_fmt, iq_fmt, swap = TAG_FORMATS[fmt]
+    out = {"format": real_fmt if iq == 1 else iq_fmt, "iq_swap": swap and iq == 2}
+    fs = first("F_S", float)
+    if fs:
+        out["sample_rate_hz"] = fs * 1e6
+    out["_lo_hz"] = (first("F_LO", float) or 0.0) * 1e6
+    if "TIME" in kv:
+        try:
+            t = _dt.datetime.strptime(kv["TIME"][:23], "%Y/%m/%d %H:%M:%S.%f" if "." in kv["TIME"]
+                                      else "%Y/%m/%d %H:%M:%S")
+        except ValueError:
+            raise UserError(f"PocketSDR tag {tp}: TIME '{kv['TIME']}' is not yyyy/mm/dd hh:mm:ss") from None
+        sec = (t - GPS_EPOCH).total_seconds()           # PocketSDR tags are in GPS time
+        week = int(sec // WEEK_S)
+        out["start_gps_week"], out["start_gps_tow_s"] = week, sec - week * WEEK_S
+    return out
+
+
+def write_tag(data_path, fmt: str, sample_rate_hz: float, if_hz: float, carrier_hz: float,
+              start_week: int | None = None, start_tow_s: float | None = None, tag: str | None = None):
+    """Write the PocketSDR tag of a recording in int8_real / int8_iq / int16_iq (else nothing; returns the
+    path or None)."""
+    f = resolve_format(fmt)
+    if f.name not in TAG_WRITE:
+        return None
+    name, iq, bits = TAG_WRITE[f.name]
+    lines = ["PROG = gnssrx"]
+    if start_week is not None and start_tow_s is not None:
+        t = GPS_EPOCH + _dt.timedelta(seconds=start_week * WEEK_S + start_tow_s)
+        lines.append("TIME = " + t.strftime("%Y/%m/%d %H:%M:%S.%f")[:23])
+    lines += [f"FMT  = {name}", f"F_S  = {sample_rate_hz * 1e-6:.9g}",
+              f"F_LO = {(carrier_hz - if_hz) * 1e-6:.12g}", f"IQ   = {iq}", f"BITS = {bits}"]
+    tp = tag or tag_path(data_path)
+    with open(tp, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    return tp
+
+
+def read_metadata(path, carrier_hz: float) -> tuple[dict, dict]:
+    """Input keys from the SigMF metadata and the PocketSDR tag beside ``path``: (keys, key -> the file
+    that gave it).  A tag that disagrees with the SigMF metadata is an error."""
+    meta, src = {}, {}
+    sig = read_sigmf(path, carrier_hz)
+    for k, v in (sig or {}).items():
+        meta[k], src[k] = v, meta_path(path)
+    tag = read_tag(path)
+    if tag:
+        lo = tag.pop("_lo_hz")
+        if lo > 0:
+            tag["if_hz"] = round(carrier_hz - lo, 6)
+        for k, v in tag.items():
+            if k in meta and not _same(k, meta[k], v):
+                raise UserError(f"{tag_path(path)} ({k} {v!r}) disagrees with {meta_path(path)} ({meta[k]!r})")
+            meta.setdefault(k, v)
+            src.setdefault(k, tag_path(path))
+    return meta, src
+
+
+def _same(key, cur, value) -> bool:
+    if key == "start_gps_tow_s":
+        return cur is not None and abs(float(cur) - float(value)) <= 1.0      # a hint: datetime resolution
+    if isinstance(value, (str, bool)) or key == "start_gps_week":
+        return cur == value
+    return cur is not None and math.isclose(float(cur), float(value), rel_tol=1e-9, abs_tol=1e-3)
+
+
 def apply_metadata(inp, defaults: dict, carrier_hz: float) -> dict:
     """Fill the input section ``inp`` (a config Section) from the metadata beside ``inp.path``.
 
     ``defaults`` holds the schema defaults of the input keys: a key at its default takes the metadata's
     value; any other value must agree with it (UserError naming the key).  Returns the metadata used.
     """
-    meta = read_sigmf(inp.path, carrier_hz)
+    meta, src = read_metadata(inp.path, carrier_hz)
     if not meta:
         return {}
     for key, value in meta.items():
         cur = inp[key]
         if key == "format":
             cur = resolve_format(cur).name
-        same = (cur == value if isinstance(value, str) or key == "start_gps_week"
-                else cur is not None and math.isclose(float(cur), float(value), rel_tol=1e-9, abs_tol=1e-3))
-        if key == "start_gps_tow_s" and cur is not None:
-            same = abs(float(cur) - float(value)) <= 1.0          # a hint: datetime resolution
-        if same:
+        if _same(key, cur, value):
             continue
         if cur == defaults.get(key):
             inp._values[key] = value          # sections are read-only to users; this fills in the input
             continue
-        raise UserError(f"config key 'input.{key}' = {cur!r} disagrees with {meta_path(inp.path)} "
+        raise UserError(f"config key 'input.{key}' = {cur!r} disagrees with {src[key]} "
                         f"({value!r}); remove the key or fix the metadata")
     return meta

@@ -2,14 +2,17 @@
 
 A carrier loop turns each epoch's prompt correlator outputs into the carrier NCO frequency for the next
 epoch.  The default ``pll`` (FLL-assisted PLL, 2nd/3rd order) runs inside the numba kernel
-(``builtin = True``); any other variant is a Python object stepped once per epoch by the channel:
+(``builtin = True``); any other variant is a Python object (the reference) with a compiled twin in
+``loops/compiled.py`` that the channel runs inside its compiled epoch loop; a variant without a twin is
+stepped once per epoch from Python:
 
     loop.start(doppler_hz, channel_config)
     doppler_hz = loop.update(epoch)    # epoch: one row of receiver.runfile.record.EPOCH_DTYPE (+ halves)
 
 Adding a variant = one module in ``loops/`` with a :class:`~receiver.tracking.loops.base.CarrierLoop` subclass +
-one line in :data:`REGISTRY`.  The loop modules import only ``loops/base.py`` (and ``loops/common.py``), never
-this registry.
+one line in :data:`REGISTRY` + its compiled twin in ``loops/compiled.py`` (tests/test_carrier_compiled.py
+checks every variant has one).  The loop modules import only ``loops/base.py`` (and ``loops/common.py``),
+never this registry.
 """
 from __future__ import annotations
 

@@ -45,6 +45,8 @@ REACQ_PER_ATTEMPT = 4           # cold searches per attempt
 GOOD_KEEP_S = 1.5               # good-state history used for the Doppler rate
 HOT_DLL_FIRST_ORDER_S = 0.4     # a hot-started channel's DLL is 1st order this long (then per the config)
 CATCH_UP_OVERLAP_S = 0.03       # as the pipeline's chunk overlap: a channel's epochs may end inside it
+MAX_LOS_RATE_MPS = 1000.0       # bound of a GPS/BeiDou MEO satellite's range rate seen from the ground (~930 m/s)
+COLD_MARGIN_HZ = 500.0          # cold search after a fix: margin of the Doppler window (drift error, rate)
 GOOD_MARGIN_S = 0.1             # lock detectors lag: the prediction starts this long before the last good epoch
 
 
@@ -135,8 +137,10 @@ class ChannelManager:
         self._rr += REACQ_PER_ATTEMPT
         hs = self.cfg.acquisition.high_sensitivity
         weak = hs.enabled and hs.cold and len(self.channels) < hs.min_found
+        window = self._cold_doppler_window()
         res = self.acquire(self.cfg, self.reader, next_start, pick, sensitive=weak,
-                           known_hz=[ch.doppler_hz for ch in self.channels.values()] if weak else ())
+                           known_hz=[ch.doppler_hz for ch in self.channels.values()] if weak else (),
+                           **({"doppler_window": window} if window is not None else {}))
         if self.writer is not None:
             self.writer.write_acquisition(res, {"fs": self.fs})
         for r in res:
@@ -161,10 +165,10 @@ class ChannelManager:
             return
         r = recs[ok][::10]
         chip = self.signal.chip_rate
-        for row in r:
-            sat.good.append((float(row["sample_index"]),
-                             int(row["code_period"]) * 1e-3 + float(row["code_phase_chips"]) / chip,
-                             float(row["doppler_hz"])))
+        # (sample, relative transmit time, Doppler) per kept epoch, computed column-wise
+        txrel = r["code_period"].astype(np.int64) * 1e-3 + r["code_phase_chips"].astype(np.float64) / chip
+        sat.good.extend(zip(r["sample_index"].astype(np.float64).tolist(), txrel.tolist(),
+                            r["doppler_hz"].astype(np.float64).tolist()))
         keep = GOOD_KEEP_S * self.fs
         while sat.good and sat.good[-1][0] - sat.good[0][0] > keep:
             sat.good.popleft()
@@ -254,6 +258,20 @@ class ChannelManager:
         sat.searches = 0
         self._event(s0, prn, "lost", f"Doppler {d0:.0f} Hz, rate {rate:.2f} Hz/s")
 
+    def _cold_doppler_window(self):
+        """(centre, half width) Hz of a cold search once there is a fix: any satellite's Doppler lies within
+        (MAX_LOS_RATE_MPS + receiver speed) / lambda of the receiver clock's Doppler -drift / lambda, plus
+        COLD_MARGIN_HZ; None (the configured grid) before the first fix or when that is not narrower."""
+        fix = self.nav.last_fix[1] if self.nav is not None and self.nav.last_fix is not None else None
+        if fix is None or not np.isfinite(fix.clock_drift_mps):
+            return None
+        v = np.asarray(fix.velocity_ecef, float)
+        speed = float(np.linalg.norm(v)) if np.all(np.isfinite(v)) else self.rc.speed_mps
+        half = (MAX_LOS_RATE_MPS + speed) / self.lambda_m + COLD_MARGIN_HZ
+        if half >= self.cfg.acquisition.doppler_max_hz:
+            return None
+        return -fix.clock_drift_mps / self.lambda_m, half
+
     def _below_mask(self, prn, s) -> bool:
         if self.nav is None:
             return False
@@ -333,6 +351,8 @@ class ChannelManager:
             st[K.S_BIT_OFFSET] = bit_off
             ch.hist[bit_off % bit_ms] = 12        # bit sync known: the histogram confirms it at once
         ch.cfg[K.C_PULL_IN_MS] = rc.pull_in_ms
+        # the code error left by the search (a fraction of a chip) converges within the short pull-in
+        ch.cfg[K.C_DLL_BW_PULL] = rc.dll_bw_pull_in_hz
         # a 2nd-order DLL would wind its rate integrator up on the search's initial code error (metres, at
         # the pull-in bandwidth) and ring for seconds: 1st order until the error has converged
         ch.cfg[K.C_DLL_ORDER] = 1

@@ -29,7 +29,7 @@ _SIN = np.sin(2 * np.pi * (np.arange(_N_TABLE) + 0.5) / _N_TABLE).astype(np.floa
 _FP = 4294967296.0     # 2**32: fixed-point scale of the NCO accumulators (per cycle / per chip)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def correlate(samples, off, n, code_ext, code_phase, code_step, half_el, carr_phase, carr_step):
     """Fast path. Returns (E, P, L, P_first_half, P_second_half) as complex128.
 
@@ -58,29 +58,34 @@ def correlate(samples, off, n, code_ext, code_phase, code_step, half_el, carr_ph
     half = n // 2
     p1r = zero
     p1i = zero
-    for k in range(n):
-        if k == half:
+    # two passes (first half, second half) instead of a test for the half-way sample in every iteration
+    k0 = 0
+    for part in range(2):
+        k1 = half if part == 0 else n
+        for k in range(k0, k1):
+            idx = (ph >> shift) & mask
+            c = cos_t[idx]
+            s = sin_t[idx]
+            x = samples[off + k]
+            xr = x.real
+            xi = x.imag
+            mr = xr * c + xi * s
+            mi = xi * c - xr * s
+            ce = code_ext[(cp + hel) >> 32]
+            cpp = code_ext[cp >> 32]
+            cl = code_ext[(cp - hel) >> 32]
+            er += mr * ce
+            ei += mi * ce
+            pr += mr * cpp
+            pi_ += mi * cpp
+            lr += mr * cl
+            li += mi * cl
+            ph += dph
+            cp += dcp
+        if part == 0:
             p1r = pr
             p1i = pi_
-        idx = (ph >> shift) & mask
-        c = cos_t[idx]
-        s = sin_t[idx]
-        x = samples[off + k]
-        xr = x.real
-        xi = x.imag
-        mr = xr * c + xi * s
-        mi = xi * c - xr * s
-        ce = code_ext[(cp + hel) >> 32]
-        cpp = code_ext[cp >> 32]
-        cl = code_ext[(cp - hel) >> 32]
-        er += mr * ce
-        ei += mi * ce
-        pr += mr * cpp
-        pi_ += mi * cpp
-        lr += mr * cl
-        li += mi * cl
-        ph += dph
-        cp += dcp
+        k0 = half
     return (complex(er, ei), complex(pr, pi_), complex(lr, li), complex(p1r, p1i),
             complex(pr - p1r, pi_ - p1i))
 

@@ -46,14 +46,18 @@ S_LAST_PQ = 27
 S_LOCK_ABSI = 28       # low-pass |I| and |Q| for the lock detector
 S_LOCK_ABSQ = 29
 S_DLL_RATE = 30        # 2nd-order DLL integrator (chips/s): code/carrier rate mismatch
-S_WEAK = 31            # 1: weak channel (C/N0 estimate below C_WEAK_CN0 once; latched until lost)
-S_ESYNC = 32           # 20 slots: bit-sync energy per bit-edge hypothesis (sum of |20-ms prompt sum|^2)
-S_RING = 52            # 20 slots: the last 20 one-ms prompt I values
-S_ESYNC_Q2 = 72        # sum of the 1-ms prompt power while the energies accumulate
-S_RINGQ = 73           # 20 slots: the last 20 one-ms prompt Q values
-S_CN0_MAX = 93         # largest C/N0 estimate after the pull-in (weak classification)
-S_WEAK_DONE = 94       # 1: the weak classification has been made
-N_STATE = 95
+S_PRES_ACC = 32        # signal-presence test: prompt power (per ms^2) summed over the current window (x ms)
+S_PRES_MS = 33         # ms in the current presence window
+S_PRES_REF = 34        # reference: low-passed window power while the signal is present
+S_ABSENT_MS = 35       # ms since the presence test found the signal absent (0: present)
+S_WEAK = 31            # 1: weak channel (tracking.weak; latched until lost)
+S_ESYNC = 36           # 20 slots: bit-sync energy per bit-edge hypothesis (sum of |20-ms prompt sum|^2)
+S_RING = 56            # 20 slots: the last 20 one-ms prompt I values
+S_ESYNC_Q2 = 76        # sum of the 1-ms prompt power while the energies accumulate
+S_RINGQ = 77           # 20 slots: the last 20 one-ms prompt Q values
+S_CN0_MAX = 97         # largest C/N0 estimate after the pull-in (weak classification)
+S_WEAK_DONE = 98       # 1: the weak classification has been made
+N_STATE = 99
 
 # ---- config indices
 C_FS = 0
@@ -81,17 +85,21 @@ C_DLL_ORDER = 21
 C_NH_BASE = 22         # > 0: index in code_ext of the overlay-modulated code section (B1I D1 NH code)
 C_NO_DATA = 23         # 1: the signal carries no data symbols (skip bit sync: integrate from pull-in end)
 C_LOST_GRACE_MS = 24   # a channel younger than this is declared lost only after this long below the thresholds
-C_WEAK_CN0 = 25        # > 0: a channel whose C/N0 estimate falls below this becomes weak (tracking.weak)
-C_WEAK_INT_MS = 26     # coherent integration of a weak channel after bit sync (code periods)
-C_WEAK_PLL_BW = 27     # PLL noise bandwidth of a weak channel (built-in loop)
-C_WEAK_LOCK_RATIO = 28  # lock ratio of a weak channel (|I| over |Q|, low-passed over C_WEAK_LOCK_MS)
-C_WEAK_LOCK_CN0 = 29   # C/N0 below which a weak channel's lock is lost
-C_WEAK_LOCK_MS = 30    # low-pass time constant of a weak channel's lock detector (ms)
-C_ESYNC_MIN_MS = 31    # > 0: bit sync by the energy of 20-ms sums once this many ms accumulated (weak signals)
-C_WEAK_DLL_BW = 32     # DLL noise bandwidth of a weak channel after pull-in
-C_WEAK_FLL_BW = 33     # FLL noise bandwidth of a weak channel's pull-in (0: none, the PLL alone)
-C_WEAK_GRACE_MS = 34   # lost-grace time of a weak channel (it needs longer to reach phase lock)
-N_CONFIG = 35
+C_PRES_MS = 25         # signal-presence window (ms; 0 = no presence test)
+C_PRES_FRAC = 26       # absent: window power below this fraction of the reference
+C_PRES_CN0 = 27        # the test declares absence only for a channel whose C/N0 is at least this (dB-Hz)
+C_PRES_LOST_MS = 28    # absent this long: the channel is lost
+C_WEAK_CN0 = 29        # > 0: a channel whose C/N0 estimates stay below this becomes weak (tracking.weak)
+C_WEAK_INT_MS = 30     # coherent integration of a weak channel after bit sync (code periods)
+C_WEAK_PLL_BW = 31     # PLL noise bandwidth of a weak channel (built-in loop)
+C_WEAK_LOCK_RATIO = 32  # lock ratio of a weak channel (|I| over |Q|, low-passed over C_WEAK_LOCK_MS)
+C_WEAK_LOCK_CN0 = 33   # C/N0 below which a weak channel's lock is lost
+C_WEAK_LOCK_MS = 34    # low-pass time constant of a weak channel's lock detector (ms)
+C_ESYNC_MIN_MS = 35    # > 0: bit sync by the energy of 20-ms sums once this many ms accumulated (weak signals)
+C_WEAK_DLL_BW = 36     # DLL noise bandwidth of a weak channel after pull-in
+C_WEAK_FLL_BW = 37     # FLL noise bandwidth of a weak channel's pull-in (0: none, the PLL alone)
+C_WEAK_GRACE_MS = 38   # lost-grace time of a weak channel (it needs longer to reach phase lock)
+N_CONFIG = 39
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -110,7 +118,8 @@ MODE_LOST = 3
 
 #: state entries of the C/N0 estimator and the lock / PLI filters (reset if they become non-finite)
 _ESTIMATOR_STATE = (S_CN0, S_PLI_I2, S_PLI_Q2, S_ACC_ABSI, S_ACC_Q2, S_ACC_M2, S_ACC_M4, S_ACC_N, S_ACC_I2,
-                    S_LOCK_ABSI, S_LOCK_ABSQ, S_LAST_PI, S_LAST_PQ, S_PREV_I)
+                    S_LOCK_ABSI, S_LOCK_ABSQ, S_LAST_PI, S_LAST_PQ, S_PREV_I, S_PRES_ACC, S_PRES_MS,
+                    S_PRES_REF, S_ABSENT_MS)
 
 
 def repair_state(st: np.ndarray) -> bool:
@@ -129,14 +138,14 @@ def repair_state(st: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _samples_needed(st, cfg, periods):
     step = st[S_CODE_RATE] / cfg[C_FS]
     chips = periods * cfg[C_CODE_LEN] - st[S_CODE_PHASE]
     return int(math.ceil(chips / step))
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     """Run epochs while they fit in `samples` (file indices block_start...). Returns epochs written."""
     fs = cfg[C_FS]
@@ -273,6 +282,27 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
         st[S_LOCK_ABSQ] += b * (abs(qp) - st[S_LOCK_ABSQ])
         good = st[S_LOCK_ABSI] > (cfg[C_WEAK_LOCK_RATIO] if weak else cfg[C_LOCK_RATIO]) * st[S_LOCK_ABSQ] \
             and (st[S_CN0] >= (cfg[C_WEAK_LOCK_CN0] if weak else cfg[C_LOCK_CN0_MIN]) or st[S_TOTAL_MS] < 1000)
+        # ---- signal presence: the prompt power over a short window against its level while present.  The
+        # lock filters and the C/N0 window lag a vanished strong signal by 0.15-0.4 s; the window power
+        # falls to the noise floor (-C/N0 T dB) at once.  Only channels whose C/N0 makes the test safe
+        # (C_PRES_CN0) can be declared absent; absent -> no lock, C/N0 0, lost after C_PRES_LOST_MS.
+        if cfg[C_PRES_MS] > 0 and st[S_MODE] != MODE_PULL_IN:
+            st[S_PRES_ACC] += (ip * ip + qp * qp) / periods
+            st[S_PRES_MS] += periods
+            if st[S_PRES_MS] >= cfg[C_PRES_MS]:
+                xw = st[S_PRES_ACC] / st[S_PRES_MS]
+                ref = st[S_PRES_REF]
+                if ref > 0.0 and xw < cfg[C_PRES_FRAC] * ref and \
+                        (st[S_ABSENT_MS] > 0 or st[S_CN0] >= cfg[C_PRES_CN0]):
+                    st[S_ABSENT_MS] += st[S_PRES_MS]
+                else:
+                    st[S_ABSENT_MS] = 0.0
+                    st[S_PRES_REF] = xw if ref <= 0.0 else ref + 0.25 * (xw - ref)
+                st[S_PRES_ACC] = 0.0
+                st[S_PRES_MS] = 0.0
+        if st[S_ABSENT_MS] > 0:
+            good = False
+            st[S_CN0] = 0.0
         if st[S_MODE] == MODE_PULL_IN:
             good = True
         st[S_LOCK] = 1.0 if (good and st[S_MODE] != MODE_PULL_IN) else 0.0
@@ -285,6 +315,8 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
             if weak and cfg[C_WEAK_GRACE_MS] > grace:
                 grace = cfg[C_WEAK_GRACE_MS]
             if st[S_BAD_MS] >= cfg[C_LOST_MS] and (st[S_TOTAL_MS] >= grace or st[S_BAD_MS] >= grace):
+                st[S_MODE] = MODE_LOST
+            if st[S_ABSENT_MS] >= cfg[C_PRES_LOST_MS] and cfg[C_PRES_MS] > 0:
                 st[S_MODE] = MODE_LOST
         o[O_CN0] = st[S_CN0]
         o[O_PLI] = pli

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.stats import gamma
+from ..estimation.stats import gamma_isf, gamma_median
 
 from ..gnss.signals import GPS_L1CA, sample_code
 
@@ -78,7 +78,7 @@ def narrow_search(samples: np.ndarray, start_index: int, fs: float, if_hz: float
         corr = sfft.ifft(spec * cf[None, :], axis=1, workers=1)
         p = corr.real ** 2 + corr.imag ** 2                # (K, n): lags repeat every n1 samples
         power[i] = p.reshape(K, m, n1)[:, 0, :].sum(axis=0)
-    noise = float(np.median(power)) / gamma.median(K, scale=1.0 / K)   # robust mean of the noise cells
+    noise = float(np.median(power)) / gamma_median(K)   # robust mean of the noise cells
     if noise <= 0:
         return None
     win = power[:, mask]
@@ -87,7 +87,7 @@ def narrow_search(samples: np.ndarray, start_index: int, fs: float, if_hz: float
     li = int(lags[wi])
     ptm = float(power[di, li]) / noise
     n_cells = win.size
-    thr = float(gamma.isf(pfa / n_cells, K, scale=1.0 / K))
+    thr = float(gamma_isf(pfa / n_cells, K))
     if ptm < thr:
         return None
     # code phase: a triangle (the code's correlation function) through the peak and its neighbours, in

@@ -3,9 +3,10 @@
 A :class:`Channel` is created from an acquisition result and consumes blocks of samples:
 ``records = channel.process(block, block_start)`` returns the channel-epoch records
 (:data:`receiver.record.EPOCH_DTYPE`) of all epochs that fit in the block.  With the built-in PLL and no
-external commands the whole block runs in one compiled call.  A Python carrier loop or a vector loop
-steps the channel epoch by epoch with ``process(..., max_epochs=1)`` and sets the NCOs between epochs
-with :meth:`Channel.command`.
+external commands the whole block runs in one compiled call, and so it does with another carrier loop
+that has a compiled twin (receiver/tracking/loops/compiled.py: all registered variants).  A vector loop
+(or a carrier loop without a compiled twin) steps the channel epoch by epoch with
+``process(..., max_epochs=1)`` and sets the NCOs between epochs with :meth:`Channel.command`.
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from .correlator import CODE_PAD
 from ..gnss.signals import GPS_L1CA
 from . import kernel as K
 from .carrier import make_carrier_loop
+from .loops import compiled as LC
 
 
 class Channel:
@@ -58,7 +60,11 @@ class Channel:
             self.code_ext = np.ascontiguousarray(np.concatenate([self.code_ext, sec]), dtype=np.float32)
         self.hist = np.zeros(20, np.int64)
         self.loop = make_carrier_loop(car.variant, trk_cfg)
-        self._loop_started = False
+        # the loop's compiled twin (loops/compiled.py) runs inside the compiled epoch loop; the Python
+        # object steps epoch by epoch when use_compiled_loop is False (the reference, for tests)
+        self.use_compiled_loop = not self.loop.builtin and self.loop.name in LC.KINDS
+        self._lp, self._ls = LC.pack(self.loop) if self.use_compiled_loop else (None, None)
+        self._py_loop_started = False
         c = np.zeros(K.N_CONFIG)
         c[K.C_FS] = fs
         c[K.C_IF] = if_hz
@@ -80,6 +86,7 @@ class Channel:
         c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
         c[K.C_LOST_MS] = trk_cfg.lost_ms
         c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
+        set_presence(c, trk_cfg)
         c[K.C_BIT_MS] = bit_ms
         c[K.C_NH_BASE] = nh_base
         c[K.C_NO_DATA] = 1.0 if dataless else 0.0
@@ -138,6 +145,12 @@ class Channel:
         return int(self.st[K.S_BIT_OFFSET])
 
     @property
+    def _loop_started(self) -> bool:
+        if self.use_compiled_loop:
+            return bool(self._ls[LC.L_STARTED])
+        return self._py_loop_started
+
+    @property
     def stepped(self) -> bool:
         """True when Python must see every epoch (Python carrier loop or outside NCO control)."""
         return self.vector_carrier or self.vector_code or not self.loop.builtin
@@ -178,6 +191,8 @@ class Channel:
                               self._out, cap)
             K.repair_state(self.st)              # (before and after the compiled call)
             return to_records(self._out[:n])
+        if self.use_compiled_loop and not self.vector_carrier:
+            return self._process_compiled(block, block_start, max_epochs)
         limit = max_epochs if max_epochs is not None else 10 ** 9
         rows = []
         while len(rows) < limit:
@@ -194,12 +209,36 @@ class Channel:
             return np.zeros(0, record.EPOCH_DTYPE)
         return to_records(np.array(rows))
 
+    def _process_compiled(self, block, block_start, max_epochs):
+        """The carrier loop's compiled twin stepped inside the compiled epoch loop (same epochs and NCO
+        commands as the Python stepping below)."""
+        cap = int(len(block) / self.fs * 1000) + 2
+        if max_epochs is not None:
+            cap = min(cap, max_epochs)
+        if self._out.shape[0] < cap:
+            self._out = np.zeros((cap, K.N_OUT))
+        K.repair_state(self.st)
+        total = 0
+        carrier_hz = float(self.signal.carrier_hz)
+        while total < cap:
+            n, pending = LC.run_epochs(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
+                                       self._out[total:], cap - total, self._lp, self._ls, carrier_hz)
+            total += n
+            if not pending:
+                break
+            K.repair_state(self.st)          # non-finite state: as after every Python-stepped epoch
+            LC.apply_epoch(self._out[total - 1], self.st, self.cfg, self._lp, self._ls, carrier_hz)
+        K.repair_state(self.st)
+        if total == 0:
+            return np.zeros(0, record.EPOCH_DTYPE)
+        return to_records(self._out[:total])
+
     def _python_carrier_update(self, row):
         if not self._loop_started:
             # hand-over from the built-in pull-in loop when the integration may grow (bit sync)
             if row[K.O_STATE] != K.MODE_BIT_SYNC:
                 return
-            self._loop_started = True
+            self._py_loop_started = True
             self.loop.start(self.st[K.S_CARR_FREQ] - self.if_hz, row[K.O_INT_MS] * 1e-3,
                             rate_hz_s=self.st[K.S_PLL_RATE], carrier_hz=self.signal.carrier_hz)
             self.set_external(self.vector_carrier, self.vector_code)
@@ -217,6 +256,15 @@ class Channel:
             # keep the DLL carrier-aided with the new carrier frequency
             cr, fc = self.signal.chip_rate, self.signal.carrier_hz
             self.st[K.S_CODE_RATE] += cr * (dop - old) / fc
+
+
+def set_presence(c: np.ndarray, trk_cfg):
+    """The signal-presence test's configuration (tracking.presence) in a channel's config array."""
+    p = trk_cfg.presence
+    c[K.C_PRES_MS] = p.window_ms
+    c[K.C_PRES_FRAC] = 10.0 ** (-p.drop_db / 10.0)
+    c[K.C_PRES_CN0] = p.min_cn0_dbhz
+    c[K.C_PRES_LOST_MS] = p.lost_ms
 
 
 def early_late_spacing(trk_cfg, fs: float, chip_rate: float) -> float:

@@ -179,7 +179,8 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
             if cnt[j] > 0:
                 zc[j] /= cnt[j]
                 zf[j] /= cnt[j]
-                valid[j] = ST[j, K.S_CN0] >= prm[P_CN0_MASK] and abs(zc[j]) < GROSS_CODE_M and \
+                valid[j] = ST[j, K.S_CN0] >= prm[P_CN0_MASK] and ST[j, K.S_ABSENT_MS] == 0 and \
+                    abs(zc[j]) < GROSS_CODE_M and \
                     abs(zf[j]) < GROSS_RATE_MPS
         if prm[P_COAST_MASK] > 0 and nlock < 4:
             # coasting: a channel without signal measures noise; the filter is propagated, not pulled

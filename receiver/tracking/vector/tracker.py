@@ -53,7 +53,7 @@ class VectorTracker:
         self.cfg = cfg
         self.v = cfg.vector
         self.fs = float(fs)
-        self.if_hz = float(cfg.input.if_hz)
+        self.if_hz = float(getattr(nav, "if_hz", cfg.input.if_hz))    # 0 after the decimating stage
         self.channels = channels            # the pipeline's dict (shared)
         self.nav = nav
         self.filt = filt
@@ -148,6 +148,7 @@ class VectorTracker:
         """Hand a channel's NCOs to the vector loop."""
         ch.set_external(True, True)
         ch.cfg[K.C_LOST_MS] = NEVER_LOST_MS
+        ch.cfg[K.C_PRES_LOST_MS] = NEVER_LOST_MS        # (the presence test still zeroes C/N0: coast at once)
         ch.cfg[K.C_CN0_EST] = 1.0                       # M2M4: phase-lock independent
         ch.cfg[K.C_CN0_WIN_MS] = float(self.v.cn0_window_ms)
         ch.cfg[K.C_MAX_INT_MS] = self.T_ms

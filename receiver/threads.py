@@ -1,0 +1,57 @@
+"""How many threads the receiver's parallel stages use (``gnssrx run --threads N``; default: all cores).
+
+Tracking runs the channels of a chunk on a thread pool: the compiled epoch loop releases the GIL
+(``nogil``), and every channel owns its state, so the records are the same whatever the thread count
+(each channel's arithmetic is the same sequence of operations on its own arrays; tests compare run files
+bit for bit).  The acquisition's FFTs use the same count.  Batch workers run with 1 thread each (the batch
+parallelises over runs).
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+_threads: int | None = None
+_pool: ThreadPoolExecutor | None = None
+_pool_n = 0
+
+
+def cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:       # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def set_threads(n: int | None) -> None:
+    """Use n threads (None or 0: all cores)."""
+    global _threads
+    if n is not None and n < 0:
+        raise ValueError("the thread count must be >= 0")
+    _threads = int(n) if n else None
+
+
+def threads() -> int:
+    """The thread count in force (GNSSRX_THREADS in the environment when set_threads was not called)."""
+    if _threads is not None:
+        return _threads
+    env = os.environ.get("GNSSRX_THREADS", "")
+    if env.strip().isdigit() and int(env) > 0:
+        return int(env)
+    return cores()
+
+
+def map_ordered(fn, items: list) -> list:
+    """[fn(x) for x in items], on the thread pool when more than one thread is allowed (results in the
+    order of ``items``)."""
+    global _pool, _pool_n
+    n = min(threads(), len(items))
+    if n <= 1:
+        return [fn(x) for x in items]
+    if _pool is None or _pool_n != threads():
+        if _pool is not None:
+            _pool.shutdown(wait=True)
+        _pool_n = threads()
+        _pool = ThreadPoolExecutor(max_workers=_pool_n, thread_name_prefix="gnssrx-track")
+    return list(_pool.map(fn, items))

@@ -1,0 +1,70 @@
+"""Cheaper acquisition (issue 19): the fine Doppler by a direct DFT at the lines it needs equals the
+zero-padded-FFT estimate it replaced; the cold search after a fix covers every satellite's Doppler with a
+window narrower than the configured grid."""
+import numpy as np
+import pytest
+
+from receiver.acquisition import refine_doppler
+from receiver.gnss.signals import GPS_L1CA, sample_code
+
+from synth import make_signal
+
+FS = 2.6e6
+
+
+def _refine_fft(samples, fs, prn, code_phase_chips, coarse_hz, bin_hz, block_ms=10, n_blocks=20):
+    """The former implementation: n_blocks zero-padded FFTs of nfft points, power summed, peak within
+    +/- 1.5 bins interpolated (written out here as the reference)."""
+    n = int(round(block_ms * 1e-3 * fs))
+    code = sample_code(GPS_L1CA.code(prn), GPS_L1CA.chip_rate * (1.0 + coarse_hz / GPS_L1CA.carrier_hz), fs,
+                       n * n_blocks, code_phase_chips)
+    t = np.arange(n * n_blocks) / fs
+    x = samples[:n * n_blocks] * code * np.exp(-2j * np.pi * coarse_hz * t)
+    nfft = 1 << int(np.ceil(np.log2(n * 8)))
+    spec = sum(np.abs(np.fft.fft(x[k * n:(k + 1) * n], nfft)) ** 2 for k in range(n_blocks))
+    freqs = np.fft.fftfreq(nfft, 1.0 / fs)
+    idx = np.flatnonzero(np.abs(freqs) <= 1.5 * bin_hz)
+    i = idx[np.argmax(spec[idx])]
+    a, b, c = spec[i - 1], spec[i], spec[(i + 1) % nfft]
+    d = 0.5 * (a - c) / (a - 2 * b + c) if 0 < i < nfft - 1 else 0.0
+    return coarse_hz + freqs[i] + d * fs / nfft
+
+
+@pytest.mark.parametrize("true_hz, coarse_hz", [(1234.5, 1250.0), (-3377.0, -3375.0), (61.0, 0.0),
+                                                (-150.0, 0.0)])
+def test_fine_doppler_equals_the_fft_estimate(true_hz, coarse_hz):
+    x = make_signal([dict(prn=7, doppler_hz=true_hz, code_phase_chips=100.5, cn0_dbhz=40.0)], FS, 0.2,
+                    seed=3).astype(np.complex64)
+    got = refine_doppler(x, FS, 0.0, 7, 100.5, coarse_hz, 125.0, block_ms=10, n_blocks=20)
+    ref = _refine_fft(x, FS, 7, 100.5, coarse_hz, 125.0)
+    assert got == pytest.approx(ref, abs=1e-6)
+    assert abs(got - true_hz) < 5.0
+
+
+def test_cold_search_window_after_a_fix_covers_the_tracked_satellites(tokyo_run):
+    """At every fix of the reference run, the Doppler of every tracked satellite lies inside the cold-search
+    window computed from that fix (clock drift, velocity), and the window is narrower than the grid."""
+    import h5py
+    from types import SimpleNamespace
+
+    from receiver.config import load_receiver_config
+    from receiver.tracking.channels import ChannelManager
+    cfg = load_receiver_config(None, [])
+    with h5py.File(tokyo_run) as f:
+        nav = f["navigation"]
+        fixes = {k: nav[k][:] for k in ("time_s", "clock_drift_mps", "velocity_ecef")}
+        chans = {k: (f["channels"][k]["time_s"][:], f["channels"][k]["doppler_hz"][:]) for k in f["channels"]}
+    fake_nav = SimpleNamespace(last_fix=None)
+    m = ChannelManager(cfg, None, fake_nav, FS, 0.0, GPS_L1CA, acquire=None)
+    assert m._cold_doppler_window() is None                     # no fix yet: the configured grid
+    checked = 0
+    for t, drift, v in zip(fixes["time_s"][::20], fixes["clock_drift_mps"][::20], fixes["velocity_ecef"][::20]):
+        fake_nav.last_fix = (0, SimpleNamespace(clock_drift_mps=drift, velocity_ecef=v))
+        centre, half = m._cold_doppler_window()
+        assert half < cfg.acquisition.doppler_max_hz * 0.65
+        for ts, dop in chans.values():
+            i = np.searchsorted(ts, t)
+            if 0 < i < len(ts):
+                assert abs(dop[i] - centre) < half - 300.0, (t, dop[i], centre, half)
+                checked += 1
+    assert checked > 50

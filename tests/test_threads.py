@@ -1,0 +1,75 @@
+"""Parallel tracking (receiver/threads.py): the run file does not depend on the thread count.
+
+Two runs of the first seconds of the reference recording (assisted: fixes within ~2 s), one thread and
+two threads, compared bit for bit with scripts/compare_runs.py (every dataset and attribute except the
+wall-clock ones)."""
+import sys
+
+import pytest
+
+from conftest import ROOT, TOKYO_NAV, TOKYO_REC
+from receiver import threads
+
+
+@pytest.fixture(autouse=True)
+def _restore_threads():
+    yield
+    threads.set_threads(None)
+
+
+def test_map_ordered_keeps_the_order_and_uses_the_pool():
+    import threading
+    threads.set_threads(2)
+    names = threads.map_ordered(lambda i: (i, threading.current_thread().name), list(range(8)))
+    assert [i for i, _ in names] == list(range(8))
+    assert all(n.startswith("gnssrx-track") for _, n in names)
+    threads.set_threads(1)
+    assert threads.map_ordered(lambda i: threading.current_thread().name, [0, 1]) == \
+        [threading.current_thread().name] * 2
+
+
+def test_thread_count_from_the_environment(monkeypatch):
+    threads.set_threads(None)
+    monkeypatch.setenv("GNSSRX_THREADS", "3")
+    assert threads.threads() == 3
+    monkeypatch.setenv("GNSSRX_THREADS", "")
+    assert threads.threads() == threads.cores()
+    threads.set_threads(1)
+    assert threads.threads() == 1
+    with pytest.raises(ValueError):
+        threads.set_threads(-1)
+
+
+@pytest.mark.parametrize("variant", ["pll", "kf"])
+def test_run_files_are_bit_identical_whatever_the_thread_count(tmp_path, variant):
+    if not (TOKYO_REC.exists() and TOKYO_NAV.exists()):
+        pytest.skip("../shared/data reference recording absent")
+    from receiver.config import load_receiver_config
+    from receiver.pipeline import run
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from compare_runs import compare_h5
+    out = {}
+    for n in (1, 2):
+        threads.set_threads(n)
+        out[n] = tmp_path / f"t{n}" / "run.h5"
+        out[n].parent.mkdir()
+        cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml",
+                                   [("input.path", str(TOKYO_REC)), ("output.path", str(out[n])),
+                                    ("navigation.ephemeris", str(TOKYO_NAV)), ("input.duration_s", 2.5),
+                                    ("tracking.carrier.variant", variant),
+                                    ("acquisition.prns", [10, 12, 13, 15, 18, 19, 23, 24, 25, 32])])
+        s = run(cfg, quiet=True, log=lambda *a: None)
+        assert len(s.tracked) >= 8 and s.n_fixes > 0
+    diffs = []
+    compare_h5(out[1], out[2], diffs)
+    assert diffs == [], diffs[:5]
+
+
+def test_cli_threads_option_rejects_a_negative_count(tmp_path):
+    from click.testing import CliRunner
+
+    from receiver.cli import main
+    r = CliRunner().invoke(main, ["run", str(ROOT / "configs" / "gpssim_static_tokyo.yaml"), "--threads", "-1",
+                                  "-o", str(tmp_path / "x.h5")])
+    assert r.exit_code == 2 and "--threads" in r.output
+    assert not (tmp_path / "x.h5").exists()
