@@ -342,6 +342,24 @@ RECEIVER_SCHEMA = {
                           lo=0.0),
         "lo_warn_hz": P(3000.0, "float", "warn when the median Doppler of the satellites found exceeds "
                                          "this (a common LO / oscillator offset)", lo=0.0),
+        "high_sensitivity": {
+            "enabled": P(True, "bool", "when the fast search finds fewer than min_found satellites, search "
+                                       "the others again with the high-sensitivity pass (receiver/"
+                                       "acquisition_hs.py: 10-ms blocks, alternate half-bit sums, code Doppler "
+                                       "compensated, Doppler range narrowed by the satellites found)"),
+            "min_found": P(6, "int", "run the high-sensitivity pass when the fast search finds fewer "
+                                     "satellites than this", lo=1, hi=32),
+            "coherent_ms": P(10, "int", "coherent block (ms; divides 20: a data bit holds whole blocks)",
+                             choices=(1, 2, 4, 5, 10)),
+            "noncoherent": P(20, "int", "blocks summed non-coherently (the verification dwell is another as "
+                                        "many)", lo=2, hi=200),
+            "pfa": P(1e-3, "float", "false-alarm probability over one PRN's search grid", lo=1e-12, hi=0.5),
+            "sat_doppler_hz": P(5000.0, "float", "bound of a satellite's own Doppler (line of sight, plus the "
+                                                 "receiver's motion): the satellites found bound the common "
+                                                 "oscillator offset and narrow the search", lo=0.0),
+            "cold": P(True, "bool", "the periodic cold searches of missing satellites use this pass too while "
+                                    "fewer than min_found channels track"),
+        },
     },
     "tracking": {
         "max_channels": P(12, "int", "maximum number of tracking channels", lo=1, hi=64),
@@ -387,6 +405,32 @@ RECEIVER_SCHEMA = {
         },
         "reacquire_s": P(5.0, "float", "interval between cold re-acquisition attempts for PRNs never tracked "
                                        "or no longer predictable", lo=0.1),
+        "weak": {
+            "enabled": P(True, "bool", "weak-signal tracking: a channel whose C/N0 estimates stay below "
+                                       "cn0_dbhz during the first second after its pull-in is weak (latched "
+                                       "until it is lost); a channel that starts strong keeps the thresholds "
+                                       "above (signal outages are detected as fast)"),
+            "cn0_dbhz": P(32.0, "float", "C/N0 below which a starting channel is weak (the acquisition's "
+                                         "estimate opens a channel weak at once)", lo=0.0, hi=60.0),
+            "integration_ms": P(20, "int", "coherent integration of a weak channel after bit sync",
+                                choices=(1, 2, 4, 5, 10, 20)),
+            "pll_bw_hz": P(10.0, "float", "PLL noise bandwidth of a weak channel (built-in loop; B T <= 0.2 "
+                                          "at 20 ms)", lo=0.1),
+            "dll_bw_hz": P(0.5, "float", "DLL noise bandwidth of a weak channel (carrier aided: the code noise, "
+                                         "not the dynamics, sets it)", lo=0.01),
+            "fll_bw_hz": P(0.0, "float", "FLL noise bandwidth of a weak channel's pull-in (the 1-ms frequency "
+                                         "discriminator is noise below ~30 dB-Hz; 0: the PLL alone, started "
+                                         "from the acquisition's fine Doppler)", lo=0.0),
+            "lost_grace_ms": P(3000, "int", "lost-grace time of a young weak channel (tracking.lost_grace_ms "
+                                            "for the others)", lo=0),
+            "lock_ratio_min": P(1.25, "float", "lock ratio of a weak channel (low-passed |I| / |Q|)", lo=1.0),
+            "lock_window_ms": P(200.0, "float", "low-pass time constant of a weak channel's lock detector (ms)",
+                                lo=1.0),
+            "lock_cn0_min_dbhz": P(20.0, "float", "C/N0 below which a weak channel's lock is lost", lo=0.0),
+            "bit_sync_ms": P(1000, "int", "bit sync by the energy of 20-ms prompt sums per edge hypothesis "
+                                          "after this many ms when the sign-change histogram has not decided "
+                                          "(0: off)", lo=0),
+        },
         "reacquisition": {
             "doppler_hz": P(40.0, "float", "Doppler half-window of the hot search right after a loss (error of "
                                            "the Doppler extrapolated from the last tracked state)", lo=0.0),

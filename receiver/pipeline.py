@@ -116,12 +116,16 @@ def open_input(cfg) -> SampleReader:
 
 
 def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
-            doppler_window=None) -> list:
+            sensitive: bool = False, known_hz=(), doppler_window=None) -> list:
     """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
     (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
-    found, search the others again over +/- acquisition.lo_search_hz.  Lines for the user are appended to
-    ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched instead of the configured
-    +/- acquisition.doppler_max_hz (the channel manager's cold searches once a fix gives the clock drift)."""
+    found, search the others again over +/- acquisition.lo_search_hz; when fewer than
+    acquisition.high_sensitivity.min_found, search them with the high-sensitivity pass
+    (receiver/acquisition_hs.py).  ``sensitive``: run that pass on the PRNs not found whatever the count
+    (cold searches while few channels track; ``known_hz``: their Dopplers narrow its range).  Lines for
+    the user are appended to ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched
+    instead of the configured +/- acquisition.doppler_max_hz (the channel manager's cold searches once a
+    fix gives the clock drift)."""
     a = cfg.acquisition
     fs, if_hz, sig = reader.fs, reader.if_hz, get_signal(cfg.signal)
     notes = [] if notes is None else notes
@@ -162,6 +166,13 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
         notes.append(f"acquisition     {found} satellite(s) within +/-{a.doppler_max_hz / 1e3:g} kHz: searched "
                      f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
                      f"{sum(r.detected for r in res)} found")
+    hs = a.high_sensitivity
+    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and \
+            (sensitive or (widen and sum(r.detected for r in res) < hs.min_found)):       # GPS L1 C/A
+        from .acquisition_hs import second_pass
+        res, line = second_pass(a, reader, start, if_hz, res, sig, known_hz, centre)
+        if line and widen:
+            notes.append(line)
     dop = [r.doppler_hz for r in res if r.detected]
     if len(dop) >= 3 and abs(np.median(dop) - centre) > a.lo_warn_hz:
         med = float(np.median(dop))

@@ -8,7 +8,7 @@ import pytest
 
 from receiver.gnss.ephemeris import Ephemeris
 from receiver.gnss.lnav import (EPH_LSB, IONO_LSB, PREAMBLE, EphemerisEvent, IonoUtcEvent,
-                               LnavDecoder, SubframeEvent, decode_word, encode_frames,
+                               LnavDecoder, SubframeEvent, correct_word, decode_word, encode_frames,
                                encode_subframes, encode_word, parity_bits, subframe45_page,
                                word_parity_ok)
 from receiver.gnss.rinex import read_rinex_nav
@@ -266,7 +266,7 @@ def test_decoder_bit_errors_never_give_wrong_ephemeris():
         idx = rng.choice(len(bad), size=6, replace=False)
         bad[idx] ^= 1
         dec, events = _decode(bad, prn=3)
-        assert dec.parity_failures > 0
+        assert dec.parity_failures + dec.words_corrected > 0
         if dec.ephemeris is not None:
             _assert_eph_close(dec.ephemeris, eph)
         for e in events:
@@ -331,3 +331,86 @@ def test_decoder_gap_in_bit_indices():
     _assert_eph_close(dec.ephemeris, eph)
     # overlapping re-feed is ignored
     assert dec.feed(soft[4000:4200], 4000) == []
+
+
+# ------------------------------------------------------------------ low C/N0: correction, assembly
+
+def test_single_bit_errors_corrected_double_errors_never_miscorrected():
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        d = rng.integers(0, 2, 24).astype(np.uint8)
+        p29, p30 = (int(v) for v in rng.integers(0, 2, 2))
+        w = encode_word(d, p29, p30)
+        for k in range(30):
+            bad = w.copy()
+            bad[k] ^= 1
+            fix = correct_word(bad, p29, p30)
+            assert fix is not None and fix[1] == k and np.array_equal(fix[0], w)
+        for i, j in itertools.combinations(range(30), 2):
+            bad = w.copy()
+            bad[[i, j]] ^= 1
+            assert correct_word(bad, p29, p30) is None      # detected, not "corrected" into a wrong word
+
+
+def _flip_in_word(bits, sf_start, word, positions):
+    for p in positions:
+        bits[sf_start + 30 * (word - 1) + p] ^= 1
+
+
+def test_one_error_in_every_word_still_decodes_exactly():
+    ephs, iono = _need_brdc()
+    eph = ephs[3][0]
+    bits = encode_frames(eph, iono, 518400.0 - 600, 2190, 2)
+    rng = np.random.default_rng(12)
+    bad = bits.copy()
+    for sf in range(1, 10):                  # after the first subframe (frame sync needs a clean one)
+        for w in range(1, 11):
+            _flip_in_word(bad, 300 * sf, w, [int(rng.integers(0, 30))])
+    dec, events = _decode(bad, prn=3)
+    assert dec.words_corrected == 90 and dec.parity_failures == 0
+    _assert_eph_close(dec.ephemeris, eph)
+    tows = [e.tow_s for e in events if isinstance(e, SubframeEvent)]
+    assert tows == [518400.0 - 600 + 6 * k for k in range(10)]
+
+
+def test_ephemeris_assembled_word_by_word_across_frames():
+    """Two uncorrectable words in each of subframes 1-3, at different places in each of three frames:
+    no frame carries a clean subframe 1, 2 or 3, but together they hold every word."""
+    ephs, iono = _need_brdc()
+    eph = ephs[3][0]
+    bits = encode_frames(eph, iono, 518400.0 - 600, 2190, 4)
+    bad = bits.copy()
+    broken = {0: (4, 5), 1: (6, 7), 2: (9, 10)}          # frame -> words with two bit errors
+    for frame, words in broken.items():
+        for sf in (0, 1, 2):
+            for w in words:
+                _flip_in_word(bad, 1500 * frame + 300 * sf, w, [3, 17])
+    # frame 0 subframe 1 must still give frame sync: keep its TLM/HOW (words 1-2) intact (they are)
+    dec, events = _decode(bad[:1500 * 3], prn=3)
+    assert dec.parity_failures == 3 * 3 * 2
+    assert dec.ephemeris is not None
+    _assert_eph_close(dec.ephemeris, eph)
+    # the old rule (a subframe used only when all its words pass) would have had nothing: check the
+    # frames really carry no clean subframe 1-3
+    from receiver.gnss.lnav import _decode_subframe_bits
+    for frame in range(3):
+        for sf in range(3):
+            s0 = 1500 * frame + 300 * sf
+            assert not all(_decode_subframe_bits(bad[s0:s0 + 300])[1])
+
+
+def test_assembly_never_mixes_issues_of_data():
+    """Subframe 2 words from an old issue of data must not complete a subframe 2 of a new one."""
+    ephs, iono = _need_brdc()
+    eph = ephs[3][0]
+    new = replace(eph, iode=(eph.iode + 1) % 256, iodc=(eph.iodc + 1) % 1024, crs=eph.crs + 10.0)
+    a = encode_frames(eph, iono, 518400.0 - 600, 2190, 1)
+    b = encode_frames(new, iono, 518400.0 - 570, 2190, 2)
+    bad = np.concatenate([a, b])
+    _flip_in_word(bad, 0 + 300, 5, [3, 17])          # old frame: subframe 2 word 5 bad
+    _flip_in_word(bad, 1500 + 300, 3, [3, 17])       # new frame 1: subframe 2 word 3 (crs) bad
+    dec, events = _decode(bad[:3000], prn=3)
+    ephs_out = [e.ephemeris for e in events if isinstance(e, EphemerisEvent)]
+    for e in ephs_out:                                # whatever is decoded is one consistent set
+        ref = new if e.iode == new.iode else eph
+        _assert_eph_close(e, ref)

@@ -188,6 +188,11 @@ _SF4_SVID = {1: 57, 2: 25, 3: 26, 4: 27, 5: 28, 6: 57, 7: 29, 8: 30, 9: 31, 10: 
 _ALMANAC_SF4_PAGES = {2, 3, 4, 5, 7, 8, 9, 10}
 
 
+#: issue-of-data field per subframe 1-3 (one word each): the key of word-by-word assembly across frames
+_IOD_KEY = {1: _Field("iodc_lsb", ((8, 1, 8),)), 2: _Field("iode", ((3, 1, 8),)),
+            3: _Field("iode", ((10, 1, 8),))}
+
+
 def _put(words: list, fld: _Field, raw: int):
     """Write the raw (two's complement) integer of a field into the 24-bit data words."""
     n = fld.nbits
@@ -388,20 +393,48 @@ class IonoUtcEvent:
     iono_utc: IonoUtc
 
 
-def _decode_subframe_bits(b300: np.ndarray):
+def correct_word(word30, d29s: int, d30s: int):
+    """Single-bit error correction of a transmitted word that fails parity: the 30 one-bit flips are
+    tried; the parity code (an extended Hamming code shortened to 30 bits, minimum distance 4) makes the
+    flip that satisfies the parity unique when one bit is wrong, and no flip succeeds when two are.
+    Returns (corrected word D1..D30, flipped bit index 0..29) or None."""
+    w = np.asarray(word30, dtype=np.uint8).reshape(30)
+    hits = []
+    for k in range(30):
+        v = w.copy()
+        v[k] ^= 1
+        if decode_word(v, d29s, d30s)[1]:
+            hits.append((v, k))
+    return hits[0] if len(hits) == 1 else None
+
+
+def _decode_subframe_bits(b300: np.ndarray, correct: bool = False):
     """Polarity-corrected 300 bits -> (list of 10 data words (int) or None, list of ok flags).
 
     The TLM word is checked with D29* = D30* = 0 (word 10 of the previous subframe always
-    ends with 00), so each subframe is decodable on its own.
+    ends with 00), so each subframe is decodable on its own.  ``correct``: a word failing parity is
+    corrected when one flipped bit explains it (:func:`correct_word`; its ok flag is then True and the
+    corrected D29/D30 feed the next word); the number of corrected words is the third value returned.
     """
     words, oks = [], []
     d29s = d30s = 0
+    n_corr = 0
+    fixed = np.array(b300, dtype=np.uint8) if correct else None
     for k in range(10):
         w = b300[k * 30:(k + 1) * 30]
         d, ok = decode_word(w, d29s, d30s)
+        if not ok and correct:
+            fix = correct_word(w, d29s, d30s)
+            if fix is not None:
+                w = fix[0]
+                fixed[k * 30:(k + 1) * 30] = w
+                d, ok = decode_word(w, d29s, d30s)
+                n_corr += 1
         words.append(bits_to_int(d) if ok else None)
         oks.append(ok)
         d29s, d30s = int(w[28]), int(w[29])
+    if correct:
+        return words, oks, n_corr, fixed
     return words, oks
 
 
@@ -434,7 +467,13 @@ class LnavDecoder:
     Returns a list of events (SubframeEvent, EphemerisEvent, IonoUtcEvent).  State:
     ``ephemeris`` (latest complete set), ``iono_utc``, ``week`` (full GPS week of the latest
     subframe 1), ``synced``, ``polarity``, ``parity_failures`` (count of words that failed
-    parity once in sync; such words are never used).
+    parity once in sync and could not be corrected; such words are never used), ``words_corrected``
+    (words with one wrong bit, corrected by the parity: weak signals).
+
+    Once in frame sync a word that fails parity is corrected when a single flipped bit explains it
+    (:func:`correct_word`), and subframes 1-3 are assembled word by word: the good words of a subframe
+    with bad ones are kept and completed by the same subframe of later frames carrying the same issue
+    of data (IODC / IODE), so an ephemeris is decoded even when no frame arrives without an error.
     """
 
     MAX_MISSES = 3              # consecutive bad TLM/HOW before frame sync is dropped
@@ -459,6 +498,8 @@ class LnavDecoder:
         self._sf_start = 0              # bit index of the next subframe to decode (synced)
         self._misses = 0
         self._sub = {}                  # sfid -> (words, tow, bit_index) of last good subframe 1..3
+        self._partial = {}              # sfid -> (issue of data, words with None) of an incomplete 1..3
+        self.words_corrected = 0
 
     # -- input ---------------------------------------------------------------------------
     def feed(self, bits, first_bit_index: int) -> list:
@@ -572,7 +613,9 @@ class LnavDecoder:
                     pol, b = -pol, b2
                     self.polarity = pol
             self._sf_start += SUBFRAME_BITS
-            words, oks = _decode_subframe_bits(b)
+            # words with one wrong bit are corrected; TLM/HOW are checked on the corrected bits
+            words, oks, n_corr, b = _decode_subframe_bits(b, correct=True)
+            self.words_corrected += n_corr
             self.parity_failures += oks.count(False)
             self.words_ok += oks.count(True)
             head = _check_tlm_how(b[:60])
@@ -594,8 +637,29 @@ class LnavDecoder:
             self.last_tow, self._last_tow_index = tow, s
             events.append(SubframeEvent(bit_index=s, tow_s=tow, subframe_id=sfid, polarity=pol))
             if all(oks):
+                self._partial.pop(sfid, None)
                 self._parse(words, sfid, tow, s, events)
+            elif sfid in (1, 2, 3):
+                merged = self._merge(sfid, words)
+                if merged is not None:
+                    self._parse(merged, sfid, tow, s, events)
         return True
+
+    def _merge(self, sfid, words):
+        """Word-by-word assembly of subframe ``sfid`` (1-3) across frames: ``words`` (None = bad) joins
+        the kept partial subframe of the same issue of data; the complete word list, or None."""
+        key_fld = _IOD_KEY[sfid]
+        if words[key_fld.chunks[0][0] - 1] is None:
+            return None                             # no issue of data: nothing to join safely
+        iod = _get(words, key_fld)
+        prev = self._partial.get(sfid)
+        if prev is not None and prev[0] == iod:
+            words = [w if w is not None else p for w, p in zip(words, prev[1])]
+        if all(w is not None for w in words):
+            self._partial.pop(sfid, None)
+            return words
+        self._partial[sfid] = (iod, words)
+        return None
 
     def _trim(self):
         keep_from = self._sf_start if self.synced else max(self._search_from, self._end() - self.KEEP_BITS)

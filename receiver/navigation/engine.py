@@ -342,10 +342,15 @@ class ChannelNav:
         S = h["S"]
         if h["n"] >= 20:
             a, b = self._fit(S)
-            if abs(zr - (a + b * tr)) > 20.0:            # slip: restart
+            res = zr - (a + b * tr)
+            # slip: restart.  The threshold is 20 m, or 6 x the RMS of the code against the fit when that is
+            # larger (weak channels: a 0.5-Hz DLL at 27 dB-Hz wanders +/- 10 m; restarting on such an
+            # excursion would put the raw code back into the smoothed range)
+            if abs(res) > max(20.0, 6.0 * np.sqrt(h.get("r2", 0.0))):
                 self.hatch = None
                 self.smooth_update(s, txrel, phase, window_epochs)
                 return
+            h["r2"] = h.get("r2", res * res) + (res * res - h.get("r2", res * res)) / min(h["n"], window_epochs)
         S *= 1.0 - 1.0 / window_epochs
         S += (1.0, tr, tr * tr, zr, tr * zr)
         h["n"] += 1

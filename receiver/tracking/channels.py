@@ -100,10 +100,11 @@ class ChannelManager:
         name = sat_label(prn, self.signal.system)
         self.log(f"channels: {s / self.fs - self.reader.first / self.fs:7.2f} s {name} {what} {detail}")
 
-    def _open(self, prn, doppler, code_phase, sample):
+    def _open(self, prn, doppler, code_phase, sample, cn0_est=None):
         sat = self._sat(prn)
+        weak = cn0_est is not None and cn0_est < self.cfg.tracking.weak.cn0_dbhz     # README "Weak signals"
         ch = Channel(prn, doppler, code_phase, sample, self.cfg.tracking, self.fs, self.if_hz,
-                     channel_id=sat.channel_id, signal=self.signal)
+                     channel_id=sat.channel_id, signal=self.signal, weak=weak)
         self.channels[prn] = ch
         sat.state = "tracking"
         sat.good.clear()
@@ -121,7 +122,7 @@ class ChannelManager:
                                                     "notes": "\n".join(notes)})
         detected = sorted([r for r in results if r.detected], key=lambda r: -r.metric)
         for r in detected[:self.max_ch]:
-            self._open(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index)
+            self._open(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index, r.cn0_dbhz_est)
         self._next_cold = acq_start + int(self.cfg.tracking.reacquire_s * self.fs)
         return results
 
@@ -136,8 +137,11 @@ class ChannelManager:
             return
         pick = [missing[(self._rr + k) % len(missing)] for k in range(min(REACQ_PER_ATTEMPT, len(missing)))]
         self._rr += REACQ_PER_ATTEMPT
+        hs = self.cfg.acquisition.high_sensitivity
+        weak = hs.enabled and hs.cold and len(self.channels) < hs.min_found
         window = self._cold_doppler_window()
-        res = self.acquire(self.cfg, self.reader, next_start, pick,
+        res = self.acquire(self.cfg, self.reader, next_start, pick, sensitive=weak,
+                           known_hz=[ch.doppler_hz for ch in self.channels.values()] if weak else (),
                            **({"doppler_window": window} if window is not None else {}))
         if self.writer is not None:
             self.writer.write_acquisition(res, {"fs": self.fs})
@@ -145,7 +149,7 @@ class ChannelManager:
             if r.detected and len(self.channels) < self.max_ch:
                 sat = self._sat(r.prn)
                 known = self.nav is not None and r.prn in self.nav.channels
-                self._open(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index)
+                self._open(r.prn, r.doppler_hz, r.code_phase_chips, r.sample_index, r.cn0_dbhz_est)
                 if known:
                     self.nav.resume(r.prn, continuous=False)
                 self._event(r.sample_index, r.prn, "cold acquisition", f"Doppler {r.doppler_hz:.0f} Hz")

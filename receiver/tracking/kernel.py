@@ -50,7 +50,14 @@ S_PRES_ACC = 32        # signal-presence test: prompt power (per ms^2) summed ov
 S_PRES_MS = 33         # ms in the current presence window
 S_PRES_REF = 34        # reference: low-passed window power while the signal is present
 S_ABSENT_MS = 35       # ms since the presence test found the signal absent (0: present)
-N_STATE = 36
+S_WEAK = 31            # 1: weak channel (tracking.weak; latched until lost)
+S_ESYNC = 36           # 20 slots: bit-sync energy per bit-edge hypothesis (sum of |20-ms prompt sum|^2)
+S_RING = 56            # 20 slots: the last 20 one-ms prompt I values
+S_ESYNC_Q2 = 76        # sum of the 1-ms prompt power while the energies accumulate
+S_RINGQ = 77           # 20 slots: the last 20 one-ms prompt Q values
+S_CN0_MAX = 97         # largest C/N0 estimate after the pull-in (weak classification)
+S_WEAK_DONE = 98       # 1: the weak classification has been made
+N_STATE = 99
 
 # ---- config indices
 C_FS = 0
@@ -82,13 +89,26 @@ C_PRES_MS = 25         # signal-presence window (ms; 0 = no presence test)
 C_PRES_FRAC = 26       # absent: window power below this fraction of the reference
 C_PRES_CN0 = 27        # the test declares absence only for a channel whose C/N0 is at least this (dB-Hz)
 C_PRES_LOST_MS = 28    # absent this long: the channel is lost
-N_CONFIG = 29
+C_WEAK_CN0 = 29        # > 0: a channel whose C/N0 estimates stay below this becomes weak (tracking.weak)
+C_WEAK_INT_MS = 30     # coherent integration of a weak channel after bit sync (code periods)
+C_WEAK_PLL_BW = 31     # PLL noise bandwidth of a weak channel (built-in loop)
+C_WEAK_LOCK_RATIO = 32  # lock ratio of a weak channel (|I| over |Q|, low-passed over C_WEAK_LOCK_MS)
+C_WEAK_LOCK_CN0 = 33   # C/N0 below which a weak channel's lock is lost
+C_WEAK_LOCK_MS = 34    # low-pass time constant of a weak channel's lock detector (ms)
+C_ESYNC_MIN_MS = 35    # > 0: bit sync by the energy of 20-ms sums once this many ms accumulated (weak signals)
+C_WEAK_DLL_BW = 36     # DLL noise bandwidth of a weak channel after pull-in
+C_WEAK_FLL_BW = 37     # FLL noise bandwidth of a weak channel's pull-in (0: none, the PLL alone)
+C_WEAK_GRACE_MS = 38   # lost-grace time of a weak channel (it needs longer to reach phase lock)
+N_CONFIG = 39
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
     O_E, O_L, O_CN0, O_PLI, O_CARR_ERR, O_CODE_ERR, O_LOCK, O_STATE, O_INT_MS, \
     O_P1I, O_P1Q, O_P2I, O_P2Q = range(22)  # same order as EPOCH_DTYPE
 N_OUT = 22
+
+#: a channel is classed weak (tracking.weak) from its C/N0 estimates over this long after its pull-in
+WEAK_DECIDE_MS = 1000.0
 
 MODE_PULL_IN = 0
 MODE_TRACK = 1
@@ -135,10 +155,13 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     bit_ms = int(cfg[C_BIT_MS])
     while n_out < max_epochs and st[S_MODE] != MODE_LOST:
         periods = int(st[S_INT_MS])
-        # after bit sync, grow the integration at a bit edge
-        if st[S_MODE] == MODE_BIT_SYNC and periods < cfg[C_MAX_INT_MS]:
+        # after bit sync, grow the integration at a bit edge (a weak channel to C_WEAK_INT_MS)
+        target = cfg[C_MAX_INT_MS]
+        if st[S_WEAK] > 0 and cfg[C_WEAK_INT_MS] > target:
+            target = cfg[C_WEAK_INT_MS]
+        if st[S_MODE] == MODE_BIT_SYNC and periods < target:
             if (int(st[S_CODE_PERIOD]) - int(st[S_BIT_OFFSET])) % bit_ms == 0:
-                periods = int(cfg[C_MAX_INT_MS])
+                periods = int(target)
                 st[S_INT_MS] = periods
         n = _samples_needed(st, cfg, periods)
         off = int(st[S_NEXT_SAMPLE]) - block_start
@@ -216,6 +239,10 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
                 mi = st[S_ACC_ABSI] / nacc
                 pd = mi * mi
                 pn = (st[S_ACC_I2] / nacc - pd) + st[S_ACC_Q2] / nacc
+                if st[S_WEAK] > 0:
+                    # 20-ms weak channel: its phase jitter (~10 deg) puts signal into Q, which would read
+                    # as noise (-2..-3 dB); the noise of |I| alone (both components alike) does not
+                    pn = 2.0 * (st[S_ACC_I2] / nacc - pd) * nacc / max(nacc - 1.0, 1.0)
                 if pn > 0:
                     cn0 = pd / (pn * T)
             else:
@@ -227,6 +254,17 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
                 if pn > 0 and pd > 0:
                     cn0 = pd / (pn * T)
             st[S_CN0] = 10.0 * math.log10(cn0) if cn0 > 1.0 else 0.0
+            # only a channel that starts weak becomes weak: one decision, WEAK_DECIDE_MS after the pull-in,
+            # on the largest estimate since (a strong channel not yet in phase lock reads low for a while);
+            # a strong one whose signal fades or vanishes later (an outage) keeps the strong lock
+            # detectors, so its loss is declared as fast as before
+            if st[S_MODE] != MODE_PULL_IN:
+                if st[S_CN0] > st[S_CN0_MAX]:
+                    st[S_CN0_MAX] = st[S_CN0]
+                if st[S_WEAK_DONE] == 0 and st[S_TOTAL_MS] >= cfg[C_PULL_IN_MS] + WEAK_DECIDE_MS:
+                    st[S_WEAK_DONE] = 1.0
+                    if cfg[C_WEAK_CN0] > 0 and st[S_CN0_MAX] < cfg[C_WEAK_CN0]:
+                        st[S_WEAK] = 1.0
             st[S_ACC_ABSI] = 0.0
             st[S_ACC_Q2] = 0.0
             st[S_ACC_I2] = 0.0
@@ -238,11 +276,12 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
         st[S_PLI_Q2] += a * (qp * qp - st[S_PLI_Q2])
         tot = st[S_PLI_I2] + st[S_PLI_Q2]
         pli = (st[S_PLI_I2] - st[S_PLI_Q2]) / tot if tot > 0 else 0.0
-        b = min(1.0, periods / 50.0)
+        weak = st[S_WEAK] > 0
+        b = min(1.0, periods / (cfg[C_WEAK_LOCK_MS] if weak else 50.0))
         st[S_LOCK_ABSI] += b * (abs(ip) - st[S_LOCK_ABSI])
         st[S_LOCK_ABSQ] += b * (abs(qp) - st[S_LOCK_ABSQ])
-        good = st[S_LOCK_ABSI] > cfg[C_LOCK_RATIO] * st[S_LOCK_ABSQ] and \
-            (st[S_CN0] >= cfg[C_LOCK_CN0_MIN] or st[S_TOTAL_MS] < 1000)
+        good = st[S_LOCK_ABSI] > (cfg[C_WEAK_LOCK_RATIO] if weak else cfg[C_LOCK_RATIO]) * st[S_LOCK_ABSQ] \
+            and (st[S_CN0] >= (cfg[C_WEAK_LOCK_CN0] if weak else cfg[C_LOCK_CN0_MIN]) or st[S_TOTAL_MS] < 1000)
         # ---- signal presence: the prompt power over a short window against its level while present.  The
         # lock filters and the C/N0 window lag a vanished strong signal by 0.15-0.4 s; the window power
         # falls to the noise floor (-C/N0 T dB) at once.  Only channels whose C/N0 makes the test safe
@@ -272,8 +311,10 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
         else:
             st[S_BAD_MS] += periods
             # a young channel (weak signal still pulling into phase lock) gets the longer grace time
-            if st[S_BAD_MS] >= cfg[C_LOST_MS] and (st[S_TOTAL_MS] >= cfg[C_LOST_GRACE_MS]
-                                                   or st[S_BAD_MS] >= cfg[C_LOST_GRACE_MS]):
+            grace = cfg[C_LOST_GRACE_MS]
+            if weak and cfg[C_WEAK_GRACE_MS] > grace:
+                grace = cfg[C_WEAK_GRACE_MS]
+            if st[S_BAD_MS] >= cfg[C_LOST_MS] and (st[S_TOTAL_MS] >= grace or st[S_BAD_MS] >= grace):
                 st[S_MODE] = MODE_LOST
             if st[S_ABSENT_MS] >= cfg[C_PRES_LOST_MS] and cfg[C_PRES_MS] > 0:
                 st[S_MODE] = MODE_LOST
@@ -317,12 +358,51 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
                         ibest = j
                     elif h > second:
                         second = h
+            # weak signals: the energy of the complex 20-ms sums of the prompt per bit-edge hypothesis (the
+            # sign changes of 1-ms prompts are too noisy below ~30 dB-Hz, and the PLL need not be in phase
+            # lock: a few Hz of frequency error cost little over 20 ms); decided after C_ESYNC_MIN_MS
+            esync = cfg[C_ESYNC_MIN_MS] > 0 and cfg[C_NH_BASE] == 0 and bit_ms == 20
+            if esync:
+                pcur = int(st[S_CODE_PERIOD] - 1)
+                st[S_RING + pcur % 20] = ip
+                st[S_RINGQ + pcur % 20] = qp
+                st[S_ESYNC_Q2] += ip * ip + qp * qp
+                if st[S_BITSYNC_MS] >= 20:
+                    ssum = 0.0
+                    qsum = 0.0
+                    for j in range(20):
+                        ssum += st[S_RING + j]
+                        qsum += st[S_RINGQ + j]
+                    st[S_ESYNC + (pcur + 1) % 20] += ssum * ssum + qsum * qsum
             if best >= 12 and best > 3 * second:
                 st[S_BIT_OFFSET] = ibest
                 st[S_MODE] = MODE_BIT_SYNC
-            elif st[S_BITSYNC_MS] > 6000:
+            elif esync and st[S_BITSYNC_MS] >= cfg[C_ESYNC_MIN_MS]:
+                eb = 0.0
+                es = 0.0
+                jb = 0
+                for j in range(20):
+                    e_ = st[S_ESYNC + j]
+                    if e_ > eb:
+                        es = eb
+                        eb = e_
+                        jb = j
+                    elif e_ > es:
+                        es = e_
+                nwin = (st[S_BITSYNC_MS] - 19.0) / 20.0
+                noise = 20.0 * st[S_ESYNC_Q2] / st[S_BITSYNC_MS]
+                # the right hypothesis gathers ~10 % more energy than its neighbours at any C/N0 (one
+                # ms of 20 lost at half the edges); the signal test rejects noise-only channels (noise
+                # alone: ratio ~1; 24 dB-Hz: ~5, the 1-ms power counting signal too)
+                if eb > 1.03 * es and eb > 3.0 * nwin * noise:
+                    st[S_BIT_OFFSET] = jb
+                    st[S_MODE] = MODE_BIT_SYNC
+            if st[S_MODE] != MODE_BIT_SYNC and st[S_BITSYNC_MS] > 6000:
                 for j in range(bit_ms):
                     hist[j] = 0
+                for j in range(20):
+                    st[S_ESYNC + j] = 0.0
+                st[S_ESYNC_Q2] = 0.0
                 st[S_BITSYNC_MS] = 0
         st[S_PREV_I] = ip
         st[S_LAST_PI] = ip
@@ -337,22 +417,26 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
         # ---- loop filters (built in): FLL-assisted PLL, carrier-aided DLL
         if cfg[C_CARRIER_EXTERNAL] == 0:
             pull = st[S_MODE] == MODE_PULL_IN
+            pll_bw = cfg[C_WEAK_PLL_BW] if (st[S_WEAK] > 0 and cfg[C_WEAK_PLL_BW] > 0) else cfg[C_PLL_BW]
             if pull or cfg[C_PLL_ORDER] == 2:
                 # 2nd-order PLL; during pull-in aided by a 1st-order FLL (freq += 4 Bn_fll T e_f).  No
                 # Doppler-rate integrator here: at low C/N0 noisy frequency discriminations would wind
                 # it up and the 3rd-order loop would then ramp away after the pull-in.
-                w0p = cfg[C_PLL_BW] / 0.53
+                w0p = pll_bw / 0.53
                 ef = freq_err if pull else 0.0
-                st[S_PLL_FREQ] += T * (w0p * w0p * carr_err + 4.0 * cfg[C_FLL_BW] * ef)
+                fll_bw = cfg[C_WEAK_FLL_BW] if st[S_WEAK] > 0 else cfg[C_FLL_BW]
+                st[S_PLL_FREQ] += T * (w0p * w0p * carr_err + 4.0 * fll_bw * ef)
                 nco = st[S_PLL_FREQ] + 1.414 * w0p * carr_err
             else:
-                w0p = cfg[C_PLL_BW] / 0.7845
+                w0p = pll_bw / 0.7845
                 st[S_PLL_RATE] += T * w0p ** 3 * carr_err
                 st[S_PLL_FREQ] += T * (st[S_PLL_RATE] + 1.1 * w0p * w0p * carr_err)
                 nco = st[S_PLL_FREQ] + 2.4 * w0p * carr_err
             st[S_CARR_FREQ] = cfg[C_IF] + nco
         if cfg[C_CODE_EXTERNAL] == 0:
             bw = cfg[C_DLL_BW_PULL] if st[S_MODE] == MODE_PULL_IN else cfg[C_DLL_BW]
+            if st[S_WEAK] > 0 and cfg[C_WEAK_DLL_BW] > 0 and st[S_MODE] != MODE_PULL_IN:
+                bw = cfg[C_WEAK_DLL_BW]
             doppler = st[S_CARR_FREQ] - cfg[C_IF]
             aid = cfg[C_CHIP_RATE] * (1.0 + doppler / cfg[C_CARRIER_HZ])
             if cfg[C_DLL_ORDER] == 2:

@@ -23,7 +23,7 @@ from .loops import compiled as LC
 
 class Channel:
     def __init__(self, prn: int, doppler_hz: float, code_phase_chips: float, sample_index: int,
-                 trk_cfg, fs: float, if_hz: float, channel_id: int = 0, signal=None):
+                 trk_cfg, fs: float, if_hz: float, channel_id: int = 0, signal=None, weak: bool = False):
         sig = self.signal = signal if signal is not None else GPS_L1CA
         self.prn = prn
         self.id = channel_id
@@ -43,6 +43,12 @@ class Channel:
         elif nh is not None:
             want = max(d for d in range(1, min(want, len(nh)) + 1) if len(nh) % d == 0)
         self.max_int_ms = want
+        wk = trk_cfg.weak
+        weak_int = int(wk.integration_ms)
+        if not dataless:
+            weak_int = max(d for d in range(1, min(weak_int, bit_ms) + 1) if bit_ms % d == 0)
+        elif nh is not None:
+            weak_int = max(d for d in range(1, min(weak_int, len(nh)) + 1) if len(nh) % d == 0)
         code = sig.code(prn)
         self.code_ext = extend_code(code, 20)
         nh_base = 0
@@ -84,6 +90,17 @@ class Channel:
         c[K.C_BIT_MS] = bit_ms
         c[K.C_NH_BASE] = nh_base
         c[K.C_NO_DATA] = 1.0 if dataless else 0.0
+        if wk.enabled:                     # weak channels (README "Weak signals"); never stricter than above
+            c[K.C_WEAK_CN0] = wk.cn0_dbhz
+            c[K.C_WEAK_INT_MS] = weak_int
+            c[K.C_WEAK_PLL_BW] = min(wk.pll_bw_hz, trk_cfg.pll_bw_hz)
+            c[K.C_WEAK_LOCK_RATIO] = min(wk.lock_ratio_min, trk_cfg.lock_ratio_min)
+            c[K.C_WEAK_LOCK_CN0] = min(wk.lock_cn0_min_dbhz, trk_cfg.lock_cn0_min_dbhz)
+            c[K.C_WEAK_LOCK_MS] = wk.lock_window_ms
+            c[K.C_ESYNC_MIN_MS] = wk.bit_sync_ms
+            c[K.C_WEAK_DLL_BW] = min(wk.dll_bw_hz, trk_cfg.dll_bw_hz)
+            c[K.C_WEAK_FLL_BW] = min(wk.fll_bw_hz, trk_cfg.fll_bw_hz)
+            c[K.C_WEAK_GRACE_MS] = wk.lost_grace_ms
         self.cfg = c
         self.vector_carrier = self.vector_code = False
         self.set_external(False, False)
@@ -100,6 +117,8 @@ class Channel:
         s[K.S_INT_MS] = 1
         s[K.S_BIT_OFFSET] = -1
         s[K.S_MODE] = K.MODE_PULL_IN
+        if weak and wk.enabled:            # known weak from acquisition: weak loops from the pull-in on
+            s[K.S_WEAK] = 1.0
         self.st = s
         self.loop.start(doppler_hz, 1e-3)
         self._out = np.zeros((1, K.N_OUT))
