@@ -167,7 +167,8 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
                      f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
                      f"{sum(r.detected for r in res)} found")
     hs = a.high_sensitivity
-    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and \
+    constant = len(block) > 0 and bool(np.all(block == block[0]))   # all-zero / DC-only: no signal to find
+    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and not constant and \
             (sensitive or (widen and sum(r.detected for r in res) < hs.min_found)):       # GPS L1 C/A
         from .acquisition_hs import second_pass
         res, line = second_pass(a, reader, start, if_hz, res, sig, known_hz, centre)

@@ -106,7 +106,9 @@ def test_presence_test_keeps_a_weak_signal():
         x = make_signal([sat], FS, 3.5, seed=int(cn0))
         ch, r = _track(x, 5, -1505.0, 700.0)
         assert not ch.lost, cn0
-        late = r[r["time_s"] > 1.5]
+        # below tracking.weak's 32 dB-Hz the channel turns weak after ~1.4 s (20-ms integration after bit
+        # sync); its lock detector re-settles over the first ~10 such epochs
+        late = r[r["time_s"] > 1.8]
         assert late["pll_lock"].mean() > 0.95, (cn0, late["pll_lock"].mean())
         _, r_off = _track(x, 5, -1505.0, 700.0, overrides=["tracking.presence.window_ms=0"])
         assert np.array_equal(r["pll_lock"], r_off["pll_lock"]), cn0

@@ -103,6 +103,11 @@ class RunFile(H5Input):
             cfg = {}
         return cfg if isinstance(cfg, dict) else {}
 
+    @property
+    def system(self) -> str:
+        """RINEX letter of the run's signal (G for gps_l1ca, whose PRNs 193..202 are QZSS J01..J10)."""
+        return str(_plain(self.f.attrs.get("system", "G")))
+
     def has(self, path: str) -> bool:
         return path in self.f
 

@@ -233,10 +233,11 @@ def if_phase_error(run_h5, truth_h5, prn, if_hz=0.0):
     """Phase error of an IF-level run against the simulator truth: per epoch (state bit_sync), the truth
     carrier phase minus the NCO phase at the epoch midpoint (cycles;
     :func:`receiver.runfile.truth.carrier_phase_error`).  Returns (t_mid, err, prompt I, Q, integration s)."""
+    from ..gnss.satid import sat_label
     from ..runfile.reader import RunFile
     from ..runfile.truth import TruthFile, carrier_phase_error
-    name = f"G{prn:02d}"
     with RunFile(run_h5) as rf:
+        name = sat_label(prn, rf.system)
         ch = rf.channel(name, ("state", "time_s", "integration_ms", "carrier_phase_cycles", "doppler_hz",
                                "prompt_i", "prompt_q"))
     with TruthFile(truth_h5) as tf:
