@@ -27,7 +27,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.stats import gamma
 
-from .acquisition import AcqResult, cross_correlation_image
+from .acquisition import AcqResult, _Spectra, cross_correlation_image
 from .gnss.signals import GPS_L1CA, sample_code
 
 N_STATS = 3         # all blocks, even blocks, odd blocks
@@ -47,26 +47,13 @@ def doppler_window(found_hz, centre_hz: float, half_hz: float, sat_doppler_hz: f
     return 0.5 * (lo + hi), 0.5 * (hi - lo)
 
 
-class _BlockSpectra:
-    """FFTs of K blocks of m ms for the distinct fractional Doppler offsets of a Doppler grid."""
+class _BlockSpectra(_Spectra):
+    """FFTs of K blocks of m ms for the distinct fractional Doppler offsets of a Doppler grid (the fast
+    search's shared spectra), summed per block parity by :meth:`powers`."""
 
     def __init__(self, samples, fs, if_hz, dopplers, m, k):
-        n1 = int(round(fs * 1e-3))
-        n = n1 * m
-        T = m * 1e-3
-        pos = (if_hz + dopplers) * T
-        shift = np.floor(pos + 1e-9).astype(np.int64)
-        self.frac = np.round(pos - shift, 6)
-        t = np.arange(n) / fs
-        blocks = samples[:n * k].reshape(k, n)
-        self.spectra = {}
-        for r in np.unique(self.frac):
-            mix = np.exp(-2j * np.pi * (r / T) * t).astype(np.complex64)
-            self.spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=-1).astype(np.complex64)
-        j = np.arange(n1)
-        self.idx = (m * j[None, :] + shift[:, None]) % n
-        self.n1, self.k, self.m = n1, k, m
-        self.dopplers = dopplers
+        super().__init__(samples, fs, if_hz, dopplers, m, k)
+        self.m, self.dopplers = m, dopplers
 
     def powers(self, cf, fs, carrier_hz, groups):
         """Per group of rows (an index array into the Doppler grid): the (even, odd) block sums of the

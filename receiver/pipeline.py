@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .acquisition import reject_cross_correlations, search, verify
+from .acquisition import _has_energy, reject_cross_correlations, search, verify
 from . import interrupt, threads
 from .errors import UserError, warn
 from .source.io import SampleReader
@@ -167,8 +167,7 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
                      f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
                      f"{sum(r.detected for r in res)} found")
     hs = a.high_sensitivity
-    constant = len(block) > 0 and bool(np.all(block == block[0]))   # all-zero / DC-only: no signal to find
-    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and not constant and \
+    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and _has_energy(block) and \
             (sensitive or (widen and sum(r.detected for r in res) < hs.min_found)):       # GPS L1 C/A
         from .acquisition_hs import second_pass
         res, line = second_pass(a, reader, start, if_hz, res, sig, known_hz, centre)
