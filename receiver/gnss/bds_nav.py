@@ -35,7 +35,7 @@ import numpy as np
 
 from .bds_ephemeris import BDS_PI, BdsEphemeris, BDT_GPS_OFFSET_S, BDT_WEEK_OFFSET
 from .ephemeris import IonoUtc
-from .lnav import SubframeEvent
+from .lnav import SubframeEvent, hard_bits
 from .time import WEEK_S
 
 PREAMBLE = (1, 1, 1, 0, 0, 0, 1, 0, 0, 1, 0)
@@ -385,11 +385,7 @@ class BdsDecoder:
         self._sub_sow: dict = {}
 
     def feed(self, bits, first_bit_index: int) -> list:
-        arr = np.asarray(bits).ravel()
-        if arr.dtype == bool or np.issubdtype(arr.dtype, np.unsignedinteger):
-            hard = (arr != 0).astype(np.uint8)
-        else:
-            hard = (arr < 0).astype(np.uint8)
+        hard = hard_bits(bits)
         if self._next is not None and first_bit_index != self._next:
             self._bits = np.zeros(0, np.uint8)        # gap: start over (sync kept only with continuity)
             self._start = first_bit_index

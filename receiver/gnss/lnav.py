@@ -83,6 +83,15 @@ def word_parity_ok(word30_bits, d29s: int, d30s: int) -> bool:
     return decode_word(word30_bits, d29s, d30s)[1]
 
 
+def hard_bits(bits) -> np.ndarray:
+    """Decoded bits (uint8 0/1) from a tracking loop's bit stream: booleans / unsigned 0-1 values as
+    they are, signed soft values (prompt sums) by sign (negative -> 1)."""
+    arr = np.asarray(bits).ravel()
+    if arr.dtype == bool or np.issubdtype(arr.dtype, np.unsignedinteger):
+        return (arr != 0).astype(np.uint8)
+    return (arr < 0).astype(np.uint8)
+
+
 def int_to_bits(value: int, n: int) -> np.ndarray:
     """Unsigned int -> n bits, MSB first."""
     value = int(value)
@@ -503,11 +512,7 @@ class LnavDecoder:
 
     # -- input ---------------------------------------------------------------------------
     def feed(self, bits, first_bit_index: int) -> list:
-        arr = np.asarray(bits).ravel()
-        if arr.dtype == bool or np.issubdtype(arr.dtype, np.unsignedinteger):
-            hard = (arr != 0).astype(np.uint8)
-        else:
-            hard = (arr < 0).astype(np.uint8)
+        hard = hard_bits(bits)
         first = int(first_bit_index)
         if self._next is not None and first != self._next:
             if first < self._next:                      # overlap: drop what we already have
