@@ -464,7 +464,14 @@ RECEIVER_SCHEMA = {
                                        "(ATAN Costas PLL, loop filter of order `order`), ekf (I/Q extended "
                                        "Kalman filter), pli_ekf (EKF with PLI-weighted observation), kf "
                                        "(Kalman-filter PLL on the ATAN discriminator), adaptive_kf (kf with "
-                                       "innovation-scaled Q and NWPR-C/N0 R)", choices=CARRIER_VARIANTS),
+                                       "innovation-scaled Q and NWPR-C/N0 R); auto: chosen per channel when it "
+                                       "opens, by the acquisition's C/N0 estimate (auto_weak below "
+                                       "tracking.weak.cn0_dbhz, auto_strong otherwise)",
+                         choices=CARRIER_VARIANTS + ("auto",)),
+            "auto_weak": P("adaptive_kf", "str", "variant auto: the loop of a channel the acquisition estimates "
+                                                 "below tracking.weak.cn0_dbhz", choices=CARRIER_VARIANTS),
+            "auto_strong": P("pll", "str", "variant auto: the loop of the other channels",
+                             choices=CARRIER_VARIANTS),
             "t_coh_ms": P(None, "int", "coherent integration of the carrier loop after bit sync (empty: "
                                        "tracking.integration_ms); limited to the data-symbol length unless "
                                        "dataless", nullable=True, choices=(1, 2, 4, 5, 10, 20)),

@@ -201,7 +201,9 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     (:func:`receiver.export.export_all`): the CLI and the batch runner do."""
     if log is None:
         log = logging.getLogger(__name__).info
-    make_carrier_loop(cfg.tracking.carrier.variant, cfg.tracking)     # validate early
+    car = cfg.tracking.carrier
+    for name in (car.auto_weak, car.auto_strong) if car.variant == "auto" else (car.variant,):
+        make_carrier_loop(name, cfg.tracking)                          # validate early
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)

@@ -91,3 +91,21 @@ def test_strong_channel_unchanged_by_weak_mode():
         ch = Channel(3, -790.0, 10.2, 0, cfg.tracking, FS, 0.0)
         out.append(ch.process(x, 0))
     assert np.array_equal(out[0], out[1])
+
+
+def test_carrier_variant_auto_picks_the_loop_by_the_acquisition_estimate():
+    """tracking.carrier.variant auto: a channel opened weak runs auto_weak (adaptive_kf), any other auto_strong
+    (pll) -- record for record the same as configuring that variant outright."""
+    from receiver.errors import UserError
+    bits = np.random.default_rng(4).choice([-1, 1], size=120)
+    sat = dict(prn=9, doppler_hz=1200.0, code_phase_chips=300.4, cn0_dbhz=30.0, bits=bits, bit_start_ms=7)
+    x = make_signal([sat], FS, 1.5, seed=9)
+    auto = load_receiver_config(None, [("tracking.carrier.variant", "auto")])
+    for weak, name in ((True, "adaptive_kf"), (False, "pll")):
+        fixed = load_receiver_config(None, [("tracking.carrier.variant", name)])
+        a = Channel(9, 1195.0, 300.0, 0, auto.tracking, FS, 0.0, weak=weak)
+        b = Channel(9, 1195.0, 300.0, 0, fixed.tracking, FS, 0.0, weak=weak)
+        assert a.loop.name == name
+        assert np.array_equal(a.process(x, 0), b.process(x, 0)), name
+    with pytest.raises(UserError):
+        load_receiver_config(None, [("tracking.carrier.variant", "auto"), ("tracking.carrier.auto_weak", "x")])

@@ -39,6 +39,15 @@ REGISTRY: dict[str, type[CarrierLoop]] = {
 }
 
 
+def channel_variant(car, weak: bool) -> str:
+    """The carrier-loop variant of one channel: tracking.carrier.variant, or with ``auto`` auto_weak for a
+    channel the acquisition estimated weak and auto_strong otherwise."""
+    name = car["variant"]
+    if name != "auto":
+        return name
+    return car["auto_weak"] if weak else car["auto_strong"]
+
+
 def make_carrier_loop(name: str, cfg) -> CarrierLoop:
     try:
         cls = REGISTRY[name]

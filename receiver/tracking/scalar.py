@@ -17,7 +17,7 @@ from .correlator import extend_code
 from .correlator import CODE_PAD
 from ..gnss.signals import GPS_L1CA
 from . import kernel as K
-from .carrier import make_carrier_loop
+from .carrier import channel_variant, make_carrier_loop
 from .loops import compiled as LC
 
 
@@ -59,7 +59,7 @@ class Channel:
             nh_base = len(self.code_ext)
             self.code_ext = np.ascontiguousarray(np.concatenate([self.code_ext, sec]), dtype=np.float32)
         self.hist = np.zeros(20, np.int64)
-        self.loop = make_carrier_loop(car.variant, trk_cfg)
+        self.loop = make_carrier_loop(channel_variant(car, weak), trk_cfg)
         # the loop's compiled twin (loops/compiled.py) runs inside the compiled epoch loop; the Python
         # object steps epoch by epoch when use_compiled_loop is False (the reference, for tests)
         self.use_compiled_loop = not self.loop.builtin and self.loop.name in LC.KINDS
