@@ -39,7 +39,9 @@ def test_config_prn_sets_are_the_signals_prns():
 
 def test_carrier_loops_are_the_carrier_registry():
     from receiver.tracking.carrier import REGISTRY
-    assert set(_choices("tracking.carrier.variant")) == set(REGISTRY)
+    assert set(_choices("tracking.carrier.variant")) == set(REGISTRY) | {"auto"}    # auto picks per channel
+    assert set(_choices("tracking.carrier.auto_weak")) == set(_choices("tracking.carrier.auto_strong")) \
+        == set(REGISTRY)
     assert all(cls.name == name for name, cls in REGISTRY.items())
 
 
