@@ -206,15 +206,22 @@ def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: 
     sp = _Spectra(samples, fs, if_hz, dopplers, coherent_ms, noncoherent)
     power = sp.power(_code_fft(sig, res.prn, fs, n1))
     pn = power / _row_floor(power, noncoherent)[:, None]
+    cols = verify_columns(res, start_index, fs, sig, window_chips)
+    thr = _threshold(pfa, 3 * cols.size, noncoherent)
+    return bool(pn[:, cols].max() >= thr * threshold)
+
+
+def verify_columns(res, start_index: int, fs: float, sig, window_chips: float) -> np.ndarray:
+    """Code-phase columns (samples of the 1-ms correlation) within +/- window_chips of the code phase of
+    detection ``res`` carried forward at the code rate to file index ``start_index``."""
+    n1 = int(round(fs * 1e-3))
     dt = (start_index - res.sample_index) / fs
     phase = (res.code_phase_chips + dt * sig.chip_rate * (1.0 + res.doppler_hz / sig.carrier_hz)) \
         % sig.code_len
     spc = fs / sig.chip_rate
     si0 = int(round(-phase * spc)) % n1
     w = int(np.ceil(window_chips * spc))
-    cols = (si0 + np.arange(-w, w + 1)) % n1
-    thr = _threshold(pfa, 3 * cols.size, noncoherent)
-    return bool(pn[:, cols].max() >= thr * threshold)
+    return (si0 + np.arange(-w, w + 1)) % n1
 
 
 def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_phase_chips: float,

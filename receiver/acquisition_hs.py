@@ -27,7 +27,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.stats import gamma
 
-from .acquisition import AcqResult, _Spectra, cross_correlation_image
+from .acquisition import AcqResult, _Spectra, cross_correlation_image, verify_columns
 from .gnss.signals import GPS_L1CA, sample_code
 
 N_STATS = 3         # all blocks, even blocks, odd blocks
@@ -228,13 +228,7 @@ def verify_hs(samples, start_index, fs, if_hz, res: AcqResult, coherent_ms, nonc
     acc = sp.powers(_code_fft(sig, res.prn, fs, n1), fs, sig.carrier_hz, [np.arange(3)])[0]
     K = noncoherent
     stats = _stats(acc, (K + 1) // 2, K // 2)
-    dt = (start_index - res.sample_index) / fs
-    phase = (res.code_phase_chips + dt * sig.chip_rate * (1.0 + res.doppler_hz / sig.carrier_hz)) \
-        % sig.code_len
-    spc = fs / sig.chip_rate
-    si0 = int(round(-phase * spc)) % n1
-    w = int(np.ceil(window_chips * spc))
-    cols = (si0 + np.arange(-w, w + 1)) % n1
+    cols = verify_columns(res, start_index, fs, sig, window_chips)
     for (pn, k) in stats:
         if pn[:, cols].max() >= _thr(pfa, 3 * cols.size, k) * threshold:
             return True
