@@ -54,6 +54,7 @@ per ms, p = 4000) whenever the input is at least 1.5 times that rate (:func:`pla
 from __future__ import annotations
 
 import math
+import threading
 from fractions import Fraction
 
 import numpy as np
@@ -325,6 +326,7 @@ class DecimatingReader:
         self._parallel = self._packed or (fmt is not None and getattr(fmt, "kind", "") == "int"
                                           and hasattr(reader, "_raw"))
         self._ahead = None                 # (start, n, future) of the read-ahead
+        self._lock = threading.Lock()
         self._last = None                  # (start, n) of the previous read
         self.read_ahead_used = self.read_ahead_dropped = 0
 
@@ -352,21 +354,20 @@ class DecimatingReader:
         sequence is computed on a background thread while the caller works on this one; a read that does
         not match it computes its samples itself.  The samples are the same either way."""
         start, n = max(int(start), self.first), int(n)
-        pf, self._ahead = self._ahead, None
-        if pf is not None and pf[0] == start and pf[1] == n:
-            out = pf[2].result()
-            self.read_ahead_used += 1
-        else:
-            if pf is not None:
+        with self._lock:                              # (bookkeeping only: reads may come from two threads)
+            pf, self._ahead = self._ahead, None
+            last, self._last = self._last, (start, n)
+            if pf is not None and not (pf[0] == start and pf[1] == n):
                 self.read_ahead_dropped += not pf[2].cancel()   # (a running one finishes, unused)
-            out = self._compute(start, n)
-        last, self._last = self._last, (start, n)
-        if (READ_AHEAD and self._parallel and last is not None and last[1] == n and start > last[0]
-                and threads() > 1):
-            nxt = start + (start - last[0])
-            if nxt < self.end:
+                pf = None
+            if (READ_AHEAD and self._parallel and last is not None and last[1] == n and start > last[0]
+                    and threads() > 1 and start + (start - last[0]) < self.end):
+                nxt = start + (start - last[0])
                 self._ahead = (nxt, n, _background().submit(self._compute, nxt, n, 1))
-        return out
+        if pf is not None:
+            self.read_ahead_used += 1
+            return pf[2].result()
+        return self._compute(start, n)
 
     def _compute(self, start: int, n: int, n_thr: int | None = None) -> np.ndarray:
         stop = min(start + n, self.end)
