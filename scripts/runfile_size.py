@@ -97,7 +97,7 @@ def run_reference(out, overrides):
     report(out, f"; run CPU {cpu:.2f} s, wall {wall:.2f} s, writer CPU {acc['cpu']:.3f} s")
 
 
-def rewrite(src, repeat, compression, overrides_note=""):
+def rewrite(src, repeat, compression):
     from receiver.runfile.record import EPOCH_DTYPE, FIX_DTYPE, OBS_DTYPE
     from receiver.runfile.writer import RunWriter
     with h5py.File(src, "r") as f:
@@ -108,12 +108,6 @@ def rewrite(src, repeat, compression, overrides_note=""):
             for c in EPOCH_DTYPE.names:
                 if c in g:
                     r[c] = g[c][:]
-            if "carrier_phase_cycles" not in g:          # newer file read with the raw datasets
-                from receiver.runfile.reader import RunFile
-                with RunFile(src) as rf:
-                    ch = rf.channel(name)
-                for c in EPOCH_DTYPE.names:
-                    r[c] = ch[c]
             chans[int(g.attrs["prn"])] = r
         fixes = np.zeros(f["navigation/time_s"].shape[0], FIX_DTYPE)
         for c in FIX_DTYPE.names:
@@ -154,7 +148,7 @@ def main(argv=None):
     ap.add_argument("--set", action="append", default=[], help="config override key=value")
     ap.add_argument("--rewrite", default=None, help="rewrite this run file's tables instead of running")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--compression", default="lzf")
+    ap.add_argument("--compression", default="gzip", help="for --rewrite (the run default: gzip)")
     a = ap.parse_args(argv)
     if a.rewrite:
         rewrite(a.rewrite, a.repeat, a.compression)
