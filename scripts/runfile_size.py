@@ -156,7 +156,8 @@ def main(argv=None):
     if not (SHARED / "gpssim_static_tokyo.bin").exists():
         print(f"reference recording not found under {SHARED}", file=sys.stderr)
         return 2
-    overrides = [tuple(s.split("=", 1)) for s in a.set]
+    import yaml
+    overrides = [(k, yaml.safe_load(v)) for k, v in (s.split("=", 1) for s in a.set)]
     if a.out:
         run_reference(a.out, overrides)
     else:
