@@ -51,7 +51,10 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
         maxshape = (None,) + data.shape[1:]
         chunk = (rows,) + data.shape[1:]
         if digits is not None:
-            kw = {"scaleoffset": int(digits)}
+            # then the run's compressor (no shuffle: the filter packs bits), which also squeezes the fill
+            # of a partly written chunk (the filter packs all its CHUNK_ROWS slots)
+            kw = {"scaleoffset": int(digits),
+                  **{k: v for k, v in COMPRESSION[compression].items() if k != "shuffle"}}
         else:
             kw = COMPRESSION[compression]
         ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
