@@ -222,7 +222,8 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         "input_if_hz": cfg.input.if_hz,
         "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
         **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
-        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz)
+        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
+        round_columns=cfg.output.round_columns)
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
