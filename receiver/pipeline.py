@@ -19,6 +19,7 @@ import numpy as np
 
 from .acquisition import _has_energy, reject_cross_correlations, search, verify
 from . import interrupt, threads
+from .stagetimes import stage
 from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
@@ -207,22 +208,17 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
-    reader = open_input(cfg)
-    out_path = default_output_path(cfg, cfg.input.path)
-    check_meaning(cfg, reader)
-    ephemerides, iono = None, None
-    if cfg.navigation.enabled and cfg.navigation.ephemeris:
-        from .gnss.rinex import read_rinex_nav
-        ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
+    with stage("open input"):
+        reader = open_input(cfg)
+        out_path = default_output_path(cfg, cfg.input.path)
+        check_meaning(cfg, reader)
+        ephemerides, iono = None, None
+        if cfg.navigation.enabled and cfg.navigation.ephemeris:
+            from .gnss.rinex import read_rinex_nav
+            ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
     fs, if_hz = reader.fs, reader.if_hz
-    writer = RunWriter(out_path, cfg.to_yaml(), {
-        "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
-        "first_sample": reader.first, "n_samples": reader.n_samples,
-        "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
-        "input_if_hz": cfg.input.if_hz,
-        "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
-        **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
-        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz)
+    with stage("write"):
+        writer = _writer(cfg, reader, out_path, fs, if_hz, reads)
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
@@ -231,7 +227,19 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         ok = True
         return summary
     finally:
-        writer.close(ok)
+        with stage("write"):
+            writer.close(ok)
+
+
+def _writer(cfg, reader, out_path, fs, if_hz, reads):
+    return RunWriter(out_path, cfg.to_yaml(), {
+        "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
+        "first_sample": reader.first, "n_samples": reader.n_samples,
+        "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
+        "input_if_hz": cfg.input.if_hz,
+        "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
+        **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz)
 
 
 def check_meaning(cfg, reader):
@@ -285,7 +293,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
             from .navigation.engine import PRESENCE_MARGIN_DB
             nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
     manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
-    manager.start(acq_start, notes)
+    with stage("acquisition"):
+        manager.start(acq_start, notes)
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
     cn0_sum: dict[int, list] = {}
     n_fixes, first_fix, fix_ecef = 0, None, []
@@ -297,21 +306,26 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     start = acq_start
     while start < reader.end:
         interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
-        block = reader.read(start, chunk + overlap)
+        with stage("read input"):
+            block = reader.read(start, chunk + overlap)
         if vector is None and handover is not None:
             vector = handover.step(start)
         if vector is not None:
-            block_recs, vfixes = vector.process(block, start)
-            writer.append_fixes(vfixes)
-            writer.append_vector_log(vector.last_diag)
+            with stage("vector tracking"):
+                block_recs, vfixes = vector.process(block, start)
+            with stage("write"):
+                writer.append_fixes(vfixes)
+                writer.append_vector_log(vector.last_diag)
         else:
             # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
-            items = list(channels.items())
-            recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
-            block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
+            with stage("tracking"):
+                items = list(channels.items())
+                recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
+                block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
         for prn, ch in list(channels.items()):
             recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
-            writer.append_channel(prn, recs)
+            with stage("write"):
+                writer.append_channel(prn, recs)
             if len(recs):
                 c = recs["cn0_dbhz"][recs["pll_lock"] > 0]
                 if len(c):
@@ -320,16 +334,19 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                     acc[1] += len(c)
             manager.note(prn, recs)
             if nav is not None:
-                nav.add_records(prn, recs, ch.bit_offset)
+                with stage("navigation"):
+                    nav.add_records(prn, recs, ch.bit_offset)
         if vector is not None and vector.reinit_needed:
             vector = handover.fall_back(vector, start + chunk)      # scalar channels, hand over again
         if nav is not None:
-            fixes, obs = nav.update(start + chunk)
-            if vector is None:
-                writer.append_fixes(fixes)
-            else:
-                fixes = vfixes          # the summary counts the fixes that were written
-            writer.append_observables(obs)
+            with stage("navigation"):
+                fixes, obs = nav.update(start + chunk)
+            with stage("write"):
+                if vector is None:
+                    writer.append_fixes(fixes)
+                else:
+                    fixes = vfixes          # the summary counts the fixes that were written
+                writer.append_observables(obs)
             if len(fixes):
                 n_fixes += len(fixes)
                 if first_fix is None:
@@ -337,7 +354,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                 fix_ecef.append(fixes["ecef"])
         # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest
         if start + chunk + overlap < reader.end:
-            manager.after_chunk(start, start + chunk)
+            with stage("re-acquisition"):
+                manager.after_chunk(start, start + chunk)
         start += chunk
         if bar is not None:
             bar.update(round(min(chunk, reader.end - start + chunk) / fs, 3))
