@@ -8,13 +8,19 @@ files and exit with 130 / 143 and one line.
 from __future__ import annotations
 
 import logging
+import os
 import sys
 
-import click
+# The receiver parallelises on its own threads (channels, acquisition PRNs: receiver/threads.py); BLAS
+# threads on top of them oversubscribe the cores (OpenBLAS spins while waiting).  Before numpy loads;
+# a value set in the environment wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from . import __version__, interrupt
-from .errors import UserError
-from .logs import setup_cli
+import click  # noqa: E402
+
+from . import __version__, interrupt  # noqa: E402
+from .errors import UserError  # noqa: E402
+from .logs import setup_cli  # noqa: E402
 
 
 class _Group(click.Group):
@@ -121,7 +127,6 @@ def run(config, input_path, output, sets, quiet, n_threads, timings):
 
 def _since_process_start() -> tuple[float, float]:
     """(wall s since this process started, CPU s it used so far); wall from /proc (Linux), else 0."""
-    import os
     import time
     cpu = time.process_time()
     try:
