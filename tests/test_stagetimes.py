@@ -27,7 +27,7 @@ def test_nested_stages_count_their_own_time():
     (wi, ci, ni), (wo, co, no) = t["inner"], t["outer"]
     assert ni == 2 and no == 1
     assert 0.09 <= ci <= 0.2 and wi >= ci + 0.045       # the sleep is wall, not CPU
-    assert 0.04 <= co <= 0.09 and 0.04 <= wo <= 0.2      # outer without inner
+    assert 0.04 <= co <= 0.09 and wo >= 0.04            # outer without inner (wall: any load)
     stagetimes.add("x", 1.0, 0.5)
     assert stagetimes.table()["x"] == (1.0, 0.5, 1)
     assert "sum of stages" in stagetimes.text()
