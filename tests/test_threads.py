@@ -121,3 +121,27 @@ def test_background_writer_keeps_the_order_and_reports_write_errors():
     w2.append_fixes(np.zeros(3))
     w2.close()
     assert f2.calls == [("fix", 3)] and f2.closed is True
+
+
+def test_read_ahead_gives_the_samples_of_plain_reads():
+    """pipeline.PrefetchingReader: chunks read ahead (conditioning state copied) equal plain sequential
+    reads, also when another read (a search elsewhere) comes in between and the read-ahead is discarded."""
+    if not TOKYO_REC.exists():
+        pytest.skip("../shared/data reference recording absent")
+    import numpy as np
+
+    from receiver.config import load_receiver_config
+    from receiver.pipeline import PrefetchingReader, open_input
+    cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml", [("input.path", str(TOKYO_REC))])
+    plain, ahead = open_input(cfg), PrefetchingReader(open_input(cfg))
+    assert ahead._ok and hasattr(ahead._r, "canceller")          # the conditioning stage is outermost
+    n, step = 70000, 60000
+    try:
+        for k in range(6):
+            s = plain.first + k * step
+            if k == 3:                       # a search elsewhere moves the filter stream of both
+                assert np.array_equal(plain.read(s + 10 ** 6, 5000), ahead.read(s + 10 ** 6, 5000))
+            assert np.array_equal(plain.read(s, n), ahead.chunk(s, n, s + step))
+    finally:
+        ahead.close()
+    assert ahead.ahead_used == 4             # chunks 1, 2, 4, 5 came from the read-ahead; 3 was read again
