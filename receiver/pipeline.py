@@ -358,7 +358,10 @@ class PrefetchingReader:
         object.__setattr__(self, "_spec", None)
         if spec is not None:
             s0, n0, reads0, fut, fork, snap = spec
-            got = fut.result()                       # (also when unused: no two reads of the stage at once)
+            try:
+                got = fut.result()                   # (also when unused: no two reads of the stage at once)
+            except Exception:                        # noqa: BLE001 - the plain read below reports it
+                got, reads0 = None, -1
             if (s0, n0, reads0) == (start, n, self.reads):
                 for k, v in fork.__dict__.items():   # the stage's state after that read
                     if snap.get(k, snap) is not v:
@@ -380,7 +383,10 @@ class PrefetchingReader:
 
     def close(self):
         if self._spec is not None:
-            self._spec[3].result()
+            try:
+                self._spec[3].result()
+            except Exception:                        # noqa: BLE001 - an unused read-ahead
+                pass
             object.__setattr__(self, "_spec", None)
         if self._pool is not None:
             self._pool.shutdown(wait=True)
