@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .correlator import correlate
+from .correlator import correlate_ws, workspace
 
 # ---- state indices
 S_NEXT_SAMPLE = 0      # first sample of the next epoch (file index)
@@ -153,6 +153,7 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     n_out = 0
     two_pi = 2.0 * math.pi
     bit_ms = int(cfg[C_BIT_MS])
+    ws = workspace()
     while n_out < max_epochs and st[S_MODE] != MODE_LOST:
         periods = int(st[S_INT_MS])
         # after bit sync, grow the integration at a bit edge (a weak channel to C_WEAK_INT_MS)
@@ -178,8 +179,8 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
             # overlay (NH) wipe-off: correlate against the NH-modulated code section
             k_nh = (int(st[S_CODE_PERIOD]) - int(st[S_BIT_OFFSET])) % bit_ms
             cp += cfg[C_NH_BASE] + k_nh * cfg[C_CODE_LEN]
-        e, p, l, p1, p2 = correlate(samples, off, n, code_ext, cp, code_step, half_el,
-                                    st[S_CARR_PHASE], carr_step)
+        e, p, l, p1, p2 = correlate_ws(samples, off, n, code_ext, cp, code_step, half_el,
+                                       st[S_CARR_PHASE], carr_step, ws)
         ip = p.real
         qp = p.imag
         ae = abs(e)
