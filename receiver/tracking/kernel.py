@@ -145,15 +145,21 @@ def _samples_needed(st, cfg, periods):
     return int(math.ceil(chips / step))
 
 
-@njit(cache=True, fastmath=True, nogil=True)
+@njit(cache=True, nogil=True)
 def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     """Run epochs while they fit in `samples` (file indices block_start...). Returns epochs written."""
+    return track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epochs, workspace())
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epochs, ws):
+    """:func:`track_block` with the correlator's workspace (``correlator.workspace()``) from the caller, for
+    callers that run one epoch per call (the compiled carrier loops, the vector loop)."""
     fs = cfg[C_FS]
     nblk = samples.shape[0]
     n_out = 0
     two_pi = 2.0 * math.pi
     bit_ms = int(cfg[C_BIT_MS])
-    ws = workspace()
     while n_out < max_epochs and st[S_MODE] != MODE_LOST:
         periods = int(st[S_INT_MS])
         # after bit sync, grow the integration at a bit edge (a weak channel to C_WEAK_INT_MS)
