@@ -41,3 +41,23 @@ def test_early_late_symmetry_on_aligned_signal():
     assert abs(e) == pytest.approx(abs(l), rel=0.02)
     assert abs(e) / abs(p) == pytest.approx(0.75, abs=0.03)      # triangle at +/- 0.25 chip
     assert abs(p1 + p2 - p) < 1e-3 * abs(p)
+
+
+def test_carrier_wipe_off_stays_coherent_over_a_20_ms_epoch():
+    """A noise-free signal matching the NCOs: the prompt of a 20-ms epoch (52000 samples, 102 correlation
+    blocks) is the sample count, real, in both halves (the blockwise float32 carrier table and the float64
+    block phasors keep the phase to ~1e-7 rad; the former 1024-entry phase table left a 1.5e-5 rad bias)."""
+    fs = 2.6e6
+    n = 52000
+    step = 1.023e6 / fs * (1 + 2e-6)
+    carr = 4321.7 / fs
+    k = np.arange(n + 10)
+    code = ca_code(5)
+    x = (code[np.floor(0.2 + (k - 5) * step).astype(int) % 1023]
+         * np.exp(2j * np.pi * (0.3 + (k - 5) * carr))).astype(np.complex64)
+    e, p, l, p1, p2 = correlate(x, 5, n, extend_code(code, 20), 0.2, step, 0.25, 0.3, carr)
+    assert abs(p) / n == pytest.approx(1.0, abs=1e-6)
+    for v in (p, p1, p2):
+        assert abs(np.angle(v)) < 1e-6
+    assert abs(p1) == pytest.approx(n // 2, rel=1e-6)
+    assert abs(e) / n == pytest.approx(0.75, abs=0.01) and abs(l) / n == pytest.approx(0.75, abs=0.01)
