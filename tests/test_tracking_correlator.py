@@ -61,3 +61,19 @@ def test_carrier_wipe_off_stays_coherent_over_a_20_ms_epoch():
         assert abs(np.angle(v)) < 1e-6
     assert abs(p1) == pytest.approx(n // 2, rel=1e-6)
     assert abs(e) / n == pytest.approx(0.75, abs=0.01) and abs(l) / n == pytest.approx(0.75, abs=0.01)
+
+
+def test_signed_index_block_sums_equal_the_unsigned_fast_path():
+    """The block sums with unsigned code indices (the fast path) and with signed ones (the fallback for a
+    code phase outside the extended code) are the same arithmetic: equal to the last bit."""
+    from receiver.tracking.correlator import _block_sums, _block_sums_signed
+    rng = np.random.default_rng(5)
+    m = 512
+    xs = (rng.normal(size=m) + 1j * rng.normal(size=m)).astype(np.complex64)
+    ph = 2 * np.pi * 1234.5 / 2.6e6 * np.arange(m)
+    rr, ri = np.cos(-ph).astype(np.float32), np.sin(-ph).astype(np.float32)
+    ext = extend_code(ca_code(9), 20)
+    cp, dcp, hel = int(37.3 * 2 ** 32), int(1.023 / 2.6 * 2 ** 32), 2 ** 30
+    a = _block_sums(xs, rr, ri, ext, np.uint64(cp), np.uint64(dcp), np.uint64(hel), m)
+    b = _block_sums_signed(xs, rr, ri, ext, cp, dcp, hel, m)
+    assert a == b and abs(a[2]) > 0

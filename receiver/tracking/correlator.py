@@ -38,6 +38,69 @@ def workspace():
 
 
 @njit(cache=True, fastmath=True, nogil=True)
+def _block_sums(xs, rr, ri, code_ext, cp, dcp, hel, m):
+    """One block's float32 sums (E, P, L; re, im) of the samples xs wiped off by the carrier table
+    rr + j ri; the code NCO cp (uint64, 32.32 fixed point) advances by dcp per sample, early / late at
+    +/- hel.  (float32 sums: mixing float32 products into float64 sums costs 2.5x; a block's rounding is
+    far below the noise.)"""
+    zero = np.float32(0.0)
+    er = zero
+    ei = zero
+    pr = zero
+    pi_ = zero
+    lr = zero
+    li = zero
+    sh = np.uint64(32)
+    for k in range(m):
+        x = xs[k]
+        c = rr[k]
+        s = ri[k]
+        yr = x.real * c - x.imag * s
+        yi = x.real * s + x.imag * c
+        ce = code_ext[(cp + hel) >> sh]
+        cq = code_ext[cp >> sh]
+        cl = code_ext[(cp - hel) >> sh]
+        er += yr * ce
+        ei += yi * ce
+        pr += yr * cq
+        pi_ += yi * cq
+        lr += yr * cl
+        li += yi * cl
+        cp += dcp
+    return er, ei, pr, pi_, lr, li
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def _block_sums_signed(xs, rr, ri, code_ext, cp, dcp, hel, m):
+    """:func:`_block_sums` with signed indices (a code phase outside code_ext wraps as a numpy index would;
+    not reached by the tracking kernel)."""
+    zero = np.float32(0.0)
+    er = zero
+    ei = zero
+    pr = zero
+    pi_ = zero
+    lr = zero
+    li = zero
+    for k in range(m):
+        x = xs[k]
+        c = rr[k]
+        s = ri[k]
+        yr = x.real * c - x.imag * s
+        yi = x.real * s + x.imag * c
+        ce = code_ext[(cp + hel) >> 32]
+        cq = code_ext[cp >> 32]
+        cl = code_ext[(cp - hel) >> 32]
+        er += yr * ce
+        ei += yi * ce
+        pr += yr * cq
+        pi_ += yi * cq
+        lr += yr * cl
+        li += yi * cl
+        cp += dcp
+    return er, ei, pr, pi_, lr, li
+
+
+@njit(cache=True, fastmath=True, nogil=True)
 def correlate_ws(samples, off, n, code_ext, code_phase, code_step, half_el, carr_phase, carr_step, ws):
     """Fast path (block-vectorised). Returns (E, P, L, P_first_half, P_second_half) as complex128.
 
@@ -79,6 +142,9 @@ def correlate_ws(samples, off, n, code_ext, code_phase, code_step, half_el, carr
             ri[g * 32 + i] = gr * fi + gi * fr
         zr, zi = zr * w32r - zi * w32i, zr * w32i + zi * w32r
     ph0 = carr_phase - math.floor(carr_phase)
+    # every code index of the epoch inside code_ext (always, for the kernel's code phases): unsigned
+    # indices, which numba does not test for negative values (3 fewer operations per lookup)
+    in_range = (cp0 - hel) >= 0 and ((cp0 + hel + (n - 1) * dcp) >> 32) < code_ext.shape[0]
     acc = np.zeros(8)        # E, P, L (re, im) and the first half of P, float64
     # two segments (first half, second half) split the blocks at the half-way sample
     for seg in range(2):
@@ -87,32 +153,13 @@ def correlate_ws(samples, off, n, code_ext, code_phase, code_step, half_el, carr
         k0 = s0
         while k0 < s1:
             m = min(BLOCK, s1 - k0)
-            # float32 sums over one block (mixing float32 products into float64 sums costs 2.5x)
-            zero = np.float32(0.0)
-            er = zero
-            ei = zero
-            pr = zero
-            pi_ = zero
-            lr = zero
-            li = zero
             xs = samples[off + k0:off + k0 + m]      # a view: contiguous loads (samples[off + k] would
             cp = cp0 + k0 * dcp                      # test off + k for a negative index and gather)
-            for k in range(m):
-                x = xs[k]
-                c = rr[k]
-                s = ri[k]
-                yr = x.real * c - x.imag * s
-                yi = x.real * s + x.imag * c
-                ce = code_ext[(cp + hel) >> 32]
-                cq = code_ext[cp >> 32]
-                cl = code_ext[(cp - hel) >> 32]
-                er += yr * ce
-                ei += yi * ce
-                pr += yr * cq
-                pi_ += yi * cq
-                lr += yr * cl
-                li += yi * cl
-                cp += dcp
+            if in_range:
+                er, ei, pr, pi_, lr, li = _block_sums(xs, rr, ri, code_ext, np.uint64(cp), np.uint64(dcp),
+                                                      np.uint64(hel), m)
+            else:
+                er, ei, pr, pi_, lr, li = _block_sums_signed(xs, rr, ri, code_ext, cp, dcp, hel, m)
             # the block's sums turned by the carrier phasor at its first sample
             a = -2.0 * math.pi * (ph0 + k0 * carr_step)
             zr = math.cos(a)
