@@ -75,3 +75,59 @@ def test_channel_r_floors_and_averaging():
     # 1-ms epochs averaged ten times into one 10-ms filter epoch
     assert rcode[3] == pytest.approx(code_var_m2(27.0, 0.001, 0.5) / 10.0)
     assert rcode[1] < rcode[3]
+
+
+def test_corrupted_replacement_ephemeris_not_used_while_locked():
+    """A replacement ephemeris that moves a vector-locked satellite's range by km (a decoding error that
+    passed parity: fig8_33 seed 1, G15 omega0 off by 2.6 mrad) is not used; once the channel is not in
+    vector lock it is; a set that agrees to the metre replaces the old one."""
+    import dataclasses
+    from receiver.gnss.geodesy import lla2ecef
+    from receiver.sim.constellation import nominal_ephemerides
+    from receiver.sim.scenario import NOMINAL_CONSTELLATION
+    from receiver.config import resolve_path
+    from receiver.tracking.vector import make_filter
+    from receiver.tracking.vector.tracker import VectorTracker
+
+    cfg = load_receiver_config(None, [("vector.lock_cn0_dbhz", 25.0)])
+    ephs, _ = nominal_ephemerides(resolve_path(NOMINAL_CONSTELLATION, "constellation file"), 2300, 345597.0)
+    good = ephs[15]
+    bad = dataclasses.replace(good, omega0=good.omega0 - 0.0026)
+    close = dataclasses.replace(good, af0=good.af0 + 1e-9)              # 0.3 m
+    offered = {}
+
+    class Nav:
+        def ephemerides(self, t):
+            return dict(offered)
+
+        def iono(self):
+            return None
+
+        def week(self):
+            return 2300
+
+    class Ch:
+        st = np.zeros(K.N_STATE)
+
+    filt = make_filter("fixed_r", cfg.vector)
+    x, _ = filt.initial(np.array(lla2ecef(35.68, 139.77, 40.0)), np.zeros(3), 0.0, 0.0, 0.0,
+                        {"pos": 10.0, "vel": 1.0, "b": 10.0, "d": 1.0, "delta": 1.0})
+    tr = VectorTracker.__new__(VectorTracker)
+    logs = []
+    ch = Ch()
+    tr.__dict__.update(cfg=cfg, v=cfg.vector, nav=Nav(), filt=filt, x=x, t_ref=345610.0, tau_state=0.0,
+                       s_ref=0.0, fs=FS, grid_next=0.0, ephs={15: good}, _rejected={}, prns=[15],
+                       channels={15: ch}, log=logs.append, week=None)
+    ch.st[K.S_CN0] = 29.0                                               # in vector lock
+    offered[15] = bad
+    tr._refresh_ephemerides(345610.0)
+    assert tr.ephs[15] is good and len(logs) == 1 and "not used" in logs[0]
+    tr._refresh_ephemerides(345610.5)
+    assert tr.ephs[15] is good and len(logs) == 1                       # decided once
+    offered[15] = close
+    tr._refresh_ephemerides(345611.0)
+    assert tr.ephs[15] is close
+    offered[15] = bad
+    ch.st[K.S_CN0] = 15.0                                               # lost: the old set may be the bad one
+    tr._refresh_ephemerides(345611.5)
+    assert tr.ephs[15] is bad
