@@ -131,3 +131,85 @@ def test_corrupted_replacement_ephemeris_not_used_while_locked():
     ch.st[K.S_CN0] = 15.0                                               # lost: the old set may be the bad one
     tr._refresh_ephemerides(345611.5)
     assert tr.ephs[15] is bad
+
+
+SCENARIO = """
+time: {gps_week: 2300, tow_s: 345597.0, duration_s: 10.0, seed: 4}
+constellation: {source: embedded, elevation_mask_deg: 5.0}
+receiver: {trajectory: static, lat_deg: 35.68, lon_deg: 139.77, height_m: 40.0}
+clock: {bias_s: 1.0e-4, freq_error_ppm: 0.1, noise: tcxo}
+cn0: {mode: constant, dbhz: 40.0, per_prn: {1: 27.0, 30: 27.0, 7: 20.0, 15: 20.0}}
+frontend: {sample_rate_hz: 2600000.0, if_hz: 0.0, format: int8_iq}
+"""
+WEAK = (1, 30)
+
+
+@pytest.fixture(scope="module")
+def weak_run(tmp_path_factory):
+    """10 s, static: six satellites at 40 dB-Hz, G01 and G30 at 27 dB-Hz (below the fast search, which
+    finds six and so skips the high-sensitivity pass), G07/G15 at 20 dB-Hz.  Assisted (the scenario's
+    ephemerides as RINEX): scalar fixes from ~2 s, vector loop (r_model cn0, 10 ms) from 4.5 s, which opens
+    channels for the satellites with an ephemeris and no channel."""
+    import os
+    from receiver.batch.tasks import write_nav_for_scenario
+    from receiver.pipeline import run
+    from receiver.sim.simulate import simulate
+    d = tmp_path_factory.mktemp("vweak")
+    sc = d / "scenario.yaml"
+    sc.write_text(SCENARIO)
+    simulate(str(sc), str(d / "weak.bin"), progress=False)
+    write_nav_for_scenario(str(sc), str(d / "weak.nav"))
+    out = d / "weak.h5"
+    cfg = load_receiver_config(None, [
+        ("input.path", str(d / "weak.bin")), ("input.start_gps_week", 2300), ("input.start_gps_tow_s", 345597.0),
+        ("navigation.ephemeris", str(d / "weak.nav")), ("vector.enabled", True), ("vector.start_s", 4.5),
+        ("vector.integration_ms", 10), ("vector.lock_cn0_dbhz", 25.0), ("vector.r_model", "cn0"),
+        ("vector.variant", "fixed_r"), ("output.path", str(out))])
+    cwd = os.getcwd()
+    try:
+        os.chdir(d)
+        run(cfg, quiet=True)
+    finally:
+        os.chdir(cwd)
+    return out, d / "weak.truth.h5"
+
+
+def test_weak_satellites_tracked_by_the_vector_loop(weak_run):
+    """The 27 dB-Hz satellites the acquisition missed are opened from the navigation solution and tracked
+    by the vector loop: code phase within a few metres of the truth, C/N0 read right, counted in the fixes,
+    weighted by their C/N0 (R larger than the strong channels'), and the fixes stay accurate."""
+    import h5py
+    from receiver.gnss.signals import C_LIGHT
+    run_h5, truth_h5 = weak_run
+    with h5py.File(run_h5) as f, h5py.File(truth_h5) as t:
+        acq = f["acquisition"]
+        first = {}
+        for p, det in zip(acq["prn"][:], acq["detected"][:]):
+            first.setdefault(int(p), bool(det))
+        assert not any(first.get(p, False) for p in WEAK)          # not acquired
+        tow0 = float(t.attrs["start_gps_tow_s"])
+        for p in WEAK:
+            c = f["channels"][f"G{p:02d}"]
+            tt = c["time_s"][:]
+            late = tt > 6.0
+            assert late.sum() > 100 and tt[0] > 4.4                # opened by the vector loop
+            s = t["satellites"][f"G{p:02d}"]
+            rho = np.interp(tt, s["time_s"][:], s["pseudorange_m"][:])
+            frac = (tow0 * 1000.0) % 1.0 + tt * 1000.0 - rho / C_LIGHT * 1000.0
+            err_m = ((c["code_phase_chips"][:] - (frac % 1.0) * 1023.0 + 511.5) % 1023 - 511.5) * 293.05
+            assert np.sqrt(np.mean(err_m[late] ** 2)) < 10.0
+            assert np.median(c["cn0_dbhz"][late]) == pytest.approx(27.0, abs=2.5)
+            # vector lock = C/N0 (M2M4 over 200 ms: ten 20-ms epochs, +/- 2 dB) above 25 dB-Hz
+            assert c["pll_lock"][late].mean() > 0.6
+        nav = f["navigation"]
+        vec = nav["mode"][:] == 1
+        tv = nav["time_s"][:]
+        # 6 strong + the weak ones in vector lock (their M2M4 estimate above 25 dB-Hz most of the time)
+        assert vec.sum() > 30 and np.mean(nav["n_sats"][:][vec & (tv > 6.0)]) > 7.2
+        truth = t["receiver"]["ecef"][0]
+        err = np.linalg.norm(nav["ecef"][:][vec] - truth, axis=1)
+        assert np.sqrt(np.mean(err ** 2)) < 5.0
+        rc = f["vector"]["r_code_m2"][:]
+        lv = f["vector"]["time_s"][:] > 6.0
+        strong = [p for p in (11, 14, 24, 29) if f"G{p:02d}" in f["channels"]]
+        assert np.nanmedian(rc[lv][:, WEAK[0] - 1]) > 3 * np.nanmedian(rc[lv][:, strong[0] - 1])

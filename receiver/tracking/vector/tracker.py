@@ -211,6 +211,14 @@ class VectorTracker:
             ch.st[K.S_BIT_OFFSET] = cn.bit_offset
             ch.hist[cn.bit_offset % 20] = 12
             continuous = True
+        else:
+            # no memory of the satellite: the data-bit edges from the predicted transmit time (bits start
+            # at whole 20 ms of GPS time; the prediction is good to far better than 0.5 ms), so the channel
+            # integrates 10-20 ms at once instead of waiting ~1 s for an energy bit sync
+            t0 = round((tx_abs - code_phase / CA_CHIP_RATE) * 1000.0)     # transmit ms of code period 0
+            ch.st[K.S_BIT_OFFSET] = (-t0) % 20
+            ch.st[K.S_MODE] = K.MODE_BIT_SYNC
+            ch.hist[int(ch.st[K.S_BIT_OFFSET])] = 12
         if cn is not None:
             self.nav.resume(prn, continuous)
         self.channels[prn] = ch
