@@ -145,8 +145,9 @@ class VectorTracker:
         r, v, b, d, dl = self.filt.nav_state(self.x)
         dt = tau - self.tau_state
         pos = r + v * dt
-        poly, atm, el = satellite_polys([self.ephs[prn] if eph is None else eph], self.t_ref, tau, 0.05, b + (d + dl) * dt,
-                                        d + dl, pos, self.nav.iono(), self.cfg.navigation)
+        eph = self.ephs[prn] if eph is None else eph
+        poly, atm, el = satellite_polys([eph], self.t_ref, tau, 0.05, b + (d + dl) * dt, d + dl, pos,
+                                        self.nav.iono(), self.cfg.navigation)
         sp, sv = poly[0, 0], poly[0, 1]
         los = sp[:3] - pos
         rng = float(np.linalg.norm(los))
