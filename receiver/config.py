@@ -564,6 +564,18 @@ RECEIVER_SCHEMA = {
         "r_code_m2": P(1500.0, "float", "code discriminator variance R (m^2; fixed_r, cv, initial value of "
                                         "the adaptive variants)", lo=1e-6),
         "r_carrier_m2s2": P(900.0, "float", "frequency discriminator variance R ((m/s)^2)", lo=1e-6),
+        "r_model": P("fixed", "str", "measurement noise R of the discriminators: fixed = r_code_m2 / "
+                                     "r_carrier_m2s2 for every channel (the papers'); cn0 = per channel from its "
+                                     "C/N0 estimate and integration time (vector.r_cn0; the adaptive variants "
+                                     "start from it)", choices=("fixed", "cn0")),
+        "r_cn0": {
+            "min_cn0_dbhz": P(22.0, "float", "r_model cn0: C/N0 used for R never below this (an estimate on "
+                                             "noise alone reads 20-30 dB-Hz)", lo=0.0),
+            "floor_code_m2": P(4.0, "float", "r_model cn0: lower limit of the code R (m^2)", lo=1e-9),
+            "floor_carrier_m2s2": P(0.05, "float", "r_model cn0: lower limit of the frequency R ((m/s)^2)",
+                                    lo=1e-9),
+            "scale": P(1.0, "float", "r_model cn0: factor on both theoretical variances", lo=1e-6),
+        },
         "motion_model": P("cv", "str", "fixed_r/adaptive_r kinematic model: cv = constant velocity (the "
                                        "papers' 8 states), ca = constant acceleration (3 more states)",
                           choices=("cv", "ca")),
