@@ -35,6 +35,7 @@ PRESENCE_MARGIN_DB = 3.0     # ... i.e. its C/N0 this far above tracking.presenc
 ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
 MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
 AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
+AID_REF_SATS = 5            # ... and from the unaided solutions of aided epochs with this many satellites
 
 
 class ChannelNav:
@@ -651,7 +652,7 @@ class NavigationEngine:
 
     def _remember(self, t_s: float, fix):
         """Keep an unaided fix's clock and height for the constraints of later aided fixes."""
-        if fix.aiding or not (np.isfinite(fix.clock_drift_mps) and np.all(np.isfinite(fix.velocity_ecef))):
+        if fix.aiding or (self.aid_hist and t_s <= self.aid_hist[-1][0]) or not (np.isfinite(fix.clock_drift_mps) and np.all(np.isfinite(fix.velocity_ecef))):
             return
         lat, lon, h = ecef2lla(fix.ecef)
         from ..gnss.geodesy import enu_matrix
@@ -699,6 +700,8 @@ class NavigationEngine:
             fix = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0)
         if self.last_fix is None or (fix is not None and n > self.aid_cfg.max_sats):
             return fix
+        if fix is not None and fix.n_sats >= AID_REF_SATS:
+            self._remember(t_s, fix)        # over-determined on its own: a reference for the prediction
         aid = self._aiding(t_s)
         if aid is None:
             return fix
@@ -776,7 +779,8 @@ class NavigationEngine:
             self.last_fix = (s, fix)
         t_s = s / self.fs
         if self.aid_cfg is not None:
-            self._remember(t_s, fix)
+            if not fix.aiding:
+                self._remember(t_s, fix)
             self.n_aided += bool(fix.aiding)
         # ekf/ckf: filtered position/velocity/clock (started at the first fix, after the clock re-basing);
         # epoch placement, x0 and the observables stay on the WLS fix
