@@ -160,7 +160,7 @@ class RunWriter:
                 a[k] = v
             self.f.create_group("channels").attrs["channel_rate_hz"] = self.channel_rate_hz
             g = self.f.create_group("navigation")
-            g.attrs["mode_mapping"] = "0=scalar,1=vector,2=coast"
+            g.attrs["mode_mapping"] = "0=scalar,1=vector,2=coast,3=aided"
             self._out.check()
         except BaseException:
             self.close(ok=False)
