@@ -7,7 +7,7 @@ configs/scenarios/static_16mhz_2bit.yaml), then reads it the way a run does (``i
 4 MS/s; 0.5-s blocks plus the 30-ms overlap of the pipeline) and prints nanoseconds per *input* sample of
 process CPU time and of wall time, for SampleReader.read alone (unpacking to complex64: what the stage did
 before it unpacked packed real formats itself) and for the whole stage (unpack + mix + filter + resample),
-with each thread count of ``--threads`` (the read-ahead is off here: it only moves work to another thread).  The file is in the page cache
+with each thread count of ``--threads``.  The file is in the page cache
 and the kernels are compiled before timing; the best of ``--repeat`` passes is printed (the machine may be
 shared: CPU time is the figure to compare).
 """
@@ -21,7 +21,6 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import numpy as np  # noqa: E402
 
-import receiver.source.decimate as D  # noqa: E402
 from receiver import threads as T  # noqa: E402
 from receiver.source.decimate import DecimatingReader, plan  # noqa: E402
 from receiver.source.io import SampleReader, bytes_per_sample  # noqa: E402
@@ -50,8 +49,6 @@ def main(argv=None):
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args(argv)
-    if hasattr(D, "READ_AHEAD"):
-        D.READ_AHEAD = False
     rng = np.random.default_rng(0)
     n_in = int(a.seconds * FS)
     with tempfile.TemporaryDirectory() as d:

@@ -29,8 +29,8 @@ compiled call (a 256-entry byte table, no complex64 intermediate); ``iq_swap`` (
 receiver's thread pool (:mod:`receiver.threads`): each output is computed by the same operations whatever
 the split, so the samples are identical for any thread count.
 
-A run reads the stream in regular chunks; with more than one thread allowed, the next chunk is computed on
-a background thread while the channels track the current one (read-ahead: the samples do not change).
+The stage keeps no state between reads (the pipeline's read-ahead, ``receiver.pipeline.PrefetchingReader``,
+relies on that to resample the next chunk on a background thread).
 
 Every output sample depends only on the J input samples around its position, so a read at any position
 reads that margin on each side and gives exactly the samples a whole-file pass would: block edges leave
@@ -54,7 +54,6 @@ per ms, p = 4000) whenever the input is at least 1.5 times that rate (:func:`pla
 from __future__ import annotations
 
 import math
-import threading
 from fractions import Fraction
 
 import numpy as np
@@ -277,19 +276,6 @@ def complex_taps(hp: np.ndarray, step) -> tuple:
     return (np.ascontiguousarray(hc.real.astype(np.float32)), np.ascontiguousarray(hc.imag.astype(np.float32)))
 
 
-READ_AHEAD = True            # compute the next chunk of a sequential read on a background thread
-_BG = None
-
-
-def _background():
-    """The one background thread of the read-ahead (created on first use)."""
-    global _BG
-    if _BG is None:
-        from concurrent.futures import ThreadPoolExecutor
-        _BG = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gnssrx-read-ahead")
-    return _BG
-
-
 class DecimatingReader:
     """A sample reader at fs_in L / M, complex baseband (``if_hz`` 0), over a :class:`SampleReader` (or
     any reader with ``fs``, ``first``, ``end``, ``read``).  Index k of this reader is time k / fs_out
@@ -325,10 +311,6 @@ class DecimatingReader:
         # formats) or is not a plain file reader
         self._parallel = self._packed or (fmt is not None and getattr(fmt, "kind", "") == "int"
                                           and hasattr(reader, "_raw"))
-        self._ahead = None                 # (start, n, future) of the read-ahead
-        self._lock = threading.Lock()
-        self._last = None                  # (start, n) of the previous read
-        self.read_ahead_used = self.read_ahead_dropped = 0
 
     def __getattr__(self, name):
         return getattr(self._reader, name)
@@ -347,27 +329,8 @@ class DecimatingReader:
         return self._hp.shape[1]
 
     def read(self, start: int, n: int) -> np.ndarray:
-        """Stream samples [start, start+n) (clipped to the span) as complex64.
-
-        Read-ahead: when this read continues a regular sequence (same length, same stride as the previous
-        one -- the pipeline's chunk loop) and more than one thread is allowed, the next read of the
-        sequence is computed on a background thread while the caller works on this one; a read that does
-        not match it computes its samples itself.  The samples are the same either way."""
-        start, n = max(int(start), self.first), int(n)
-        with self._lock:                              # (bookkeeping only: reads may come from two threads)
-            pf, self._ahead = self._ahead, None
-            last, self._last = self._last, (start, n)
-            if pf is not None and not (pf[0] == start and pf[1] == n):
-                self.read_ahead_dropped += not pf[2].cancel()   # (a running one finishes, unused)
-                pf = None
-            if (READ_AHEAD and self._parallel and last is not None and last[1] == n and start > last[0]
-                    and threads() > 1 and start + (start - last[0]) < self.end):
-                nxt = start + (start - last[0])
-                self._ahead = (nxt, n, _background().submit(self._compute, nxt, n, 1))
-        if pf is not None:
-            self.read_ahead_used += 1
-            return pf[2].result()
-        return self._compute(start, n)
+        """Stream samples [start, start+n) (clipped to the span) as complex64."""
+        return self._compute(max(int(start), self.first), int(n))
 
     def _compute(self, start: int, n: int, n_thr: int | None = None) -> np.ndarray:
         stop = min(start + n, self.end)
