@@ -246,9 +246,12 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
                 mi = st[S_ACC_ABSI] / nacc
                 pd = mi * mi
                 pn = (st[S_ACC_I2] / nacc - pd) + st[S_ACC_Q2] / nacc
-                if st[S_WEAK] > 0:
-                    # 20-ms weak channel: its phase jitter (~10 deg) puts signal into Q, which would read
-                    # as noise (-2..-3 dB); the noise of |I| alone (both components alike) does not
+                if st[S_WEAK] > 0 or pd > 10.0 * pn:
+                    # the noise from |I| alone (both components alike): the tracking phase error puts
+                    # signal into Q, which would read as noise -- a 20-ms weak channel's ~10 deg jitter
+                    # costs 2-3 dB, a TCXO's phase noise through a 15-Hz loop at 5 ms (~0.1 rad) 3-5 dB;
+                    # |I| loses only the second-order cos(phase) term.  Below 10 dB per integration |I|
+                    # folds noise (reads high): there the jitter is the noise's and I + Q is the estimate
                     pn = 2.0 * (st[S_ACC_I2] / nacc - pd) * nacc / max(nacc - 1.0, 1.0)
                 if pn > 0:
                     cn0 = pd / (pn * T)
