@@ -1,4 +1,4 @@
-"""Correlators: the numba fast path and a plain-numpy reference.
+"""Correlators: the numba fast path (block-vectorised) and a plain-numpy reference.
 
 One call correlates ``n`` samples against early/prompt/late replicas of a periodic code after carrier
 wipe-off by a numerically controlled oscillator (NCO).  The code NCO has a fractional phase, so any

@@ -101,8 +101,31 @@ def chi2_tag(P, lay, E, z, R, valid, kind):
         S[a, a] += R[ja]
         zz[a] = z[ja]
     S = 0.5 * (S + S.T)
-    y = np.linalg.solve(S, zz)
-    return float(np.dot(zz, y))
+    # z^T S^-1 z = |L^-1 z|^2 with S = L L^T (Cholesky in place, forward substitution): no LAPACK call per
+    # epoch; a non-positive pivot (S not positive definite in floating point) falls back to the solve
+    S0 = S.copy()
+    w = zz.copy()
+    tag = 0.0
+    for a in range(mv):
+        d = S[a, a]
+        for k in range(a):
+            d -= S[a, k] * S[a, k]
+        if not d > 0.0:
+            y = np.linalg.solve(S0, zz)
+            return float(np.dot(zz, y))
+        la = np.sqrt(d)
+        S[a, a] = la
+        for b in range(a + 1, mv):
+            v = S[b, a]
+            for k in range(a):
+                v -= S[b, k] * S[a, k]
+            S[b, a] = v / la
+        v = w[a]
+        for k in range(a):
+            v -= S[a, k] * w[k]
+        w[a] = v / la
+        tag += w[a] * w[a]
+    return tag
 
 
 @njit(cache=True)
