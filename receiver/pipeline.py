@@ -436,7 +436,8 @@ def _writer(cfg, reader, out_path, fs, if_hz, reads):
         "input_if_hz": cfg.input.if_hz,
         "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
         **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
-        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz)
+        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
+        round_columns=cfg.output.round_columns)
 
 
 def check_meaning(cfg, reader):
