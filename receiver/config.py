@@ -453,6 +453,10 @@ RECEIVER_SCHEMA = {
                                                  "with time constant 1 / (4 B))", lo=0.01),
             "settle_s": P(0.1, "float", "a re-acquired channel's measurements are used this long after its "
                                         "pull-in", lo=0.0),
+            "settle_predicted_s": P(0.02, "float", "the same for a hot re-acquisition whose code phase was "
+                                                   "predicted to better than 0.05 chip and found by the search "
+                                                   "within 0.5 chip of the prediction (the channel starts on the "
+                                                   "prediction: no DLL transient to wait for)", lo=0.0),
             "search_step_s": P(0.125, "float", "narrow searches run at this step through each chunk just tracked "
                                                "(a returning satellite is found within a step, not a chunk); "
                                                "0: once per chunk, at its end", lo=0.0),
@@ -550,6 +554,35 @@ RECEIVER_SCHEMA = {
                                     "(DLL/PLL transients over)", lo=0.0),
         "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                          lo=0.0),
+        "aiding": {
+            "enabled": P(True, "bool", "clock/height-aided fixes (README \"Aided fixes\"): an epoch with at most "
+                                       "max_sats satellites, or whose unaided fix is refused (max_pdop), is "
+                                       "solved with the receiver clock bias and height predicted from the "
+                                       "unaided fixes of the last second as extra measurements; 3 satellites "
+                                       "then give a fix.  Written with mode 3 (aided), n_sats = satellites used"),
+            "max_sats": P(5, "int", "aid every fix with at most this many satellites (3: only 3-satellite fixes "
+                                    "and refused weak geometries)", lo=3, hi=64),
+            "clock": P(True, "bool", "constrain the receiver clock bias (and, for the velocity, its drift)"),
+            "height": P(True, "bool", "constrain the ellipsoidal height (land vehicles; off for aircraft)"),
+            "max_age_s": P(10.0, "float", "no aiding when the latest unaided fix is older than this", lo=0.0),
+            "code_sigma_m": P(3.0, "float", "standard deviation of a weight-1 pseudorange (the best satellite's), "
+                                            "against which the constraints are weighted", lo=1e-3),
+            "rate_sigma_mps": P(0.1, "float", "the same for a pseudorange rate (the drift constraint's weight)",
+                                lo=1e-4),
+            "clock_sigma_m": P(1.0, "float", "standard deviation of the predicted clock bias right after an "
+                                             "unaided fix", lo=1e-3),
+            "clock_growth": P(0.3, "float", "its growth with the age t of the latest unaided fix: sigma = "
+                                            "hypot(clock_sigma_m, clock_growth t^1.5) (m/s^1.5; a random-walk "
+                                            "frequency; ~0.2 for a TCXO)", lo=0.0),
+            "drift_sigma_mps": P(0.2, "float", "standard deviation of the predicted clock drift", lo=1e-4),
+            "height_sigma_m": P(2.0, "float", "standard deviation of the predicted height right after an "
+                                              "unaided fix", lo=1e-3),
+            "height_rate_mps": P(0.5, "float", "its growth per second of age (vertical speed error)", lo=0.0),
+            "residual_threshold_m": P(15.0, "float", "an aided fix whose largest normalised residual "
+                                                     "(satellite or constraint, m referred to a weight-1 "
+                                                     "satellite) exceeds this drops that satellite while still "
+                                                     "over-determined, else is refused", lo=0.0),
+        },
     },
     "vector": {
         "enabled": P(False, "bool", "hand scalar channels over to a vector loop"),
@@ -661,9 +694,13 @@ RECEIVER_SCHEMA = {
         "nmea": P(False, "bool", "write NMEA 0183 GGA/RMC/GSA/GSV sentences at the fix rate (<stem>.nmea)"),
         "kml": P(False, "bool", "write a KML track of the fixes (<stem>.kml)"),
         "gpx": P(False, "bool", "write a GPX track of the fixes (<stem>.gpx)"),
-        "compression": P("lzf", "str", "compression of the growing run-file datasets (channels, navigation, "
-                                        "observables, vector): lzf (fast), gzip (level 4, smaller, slower) or "
-                                        "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
+        "compression": P("gzip", "str", "compression of the growing run-file datasets (channels, navigation, "
+                                         "observables, vector): gzip (level 4), lzf (faster, ~8 % larger) or "
+                                         "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
+        "round_columns": P(True, "bool", "store the channel columns doppler_hz, code_rate_hz and "
+                                         "code_phase_chips rounded to 1e-3 Hz, 1e-5 chip/s and 1e-7 chip "
+                                         "(HDF5 scale-offset filter; far below their noise, README \"HDF5 run "
+                                         "file\"); false: exact float64"),
         "channel_rate_hz": P(None, "float", "store the /channels records at most at this rate (the first epoch "
                                             "of every 1/rate interval; empty: every epoch).  Per-channel "
                                             "statistics (lock losses, locked epochs, mean C/N0) are computed "

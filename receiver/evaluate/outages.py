@@ -3,8 +3,9 @@
 Everything runs on the truth's time axis (``time_s``: receiver seconds since the first sample): a fix's GPS
 time (``/navigation`` ``gps_week``/``gps_tow``) is mapped onto it through the truth's ``gps_tow`` column, its
 3D error is the distance to the true position interpolated there, and it is a *coast* fix when its ``mode``
-is 2 (vector loop bridging an epoch with fewer than four measured satellites); scalar (0) and vector (1) fixes
-are *measured* fixes.  A *good* fix is a measured fix within ``good_m`` (10 m) of the truth.
+is 2 (vector loop bridging an epoch with fewer than four measured satellites); scalar (0), vector (1) and aided
+(3: scalar least squares with clock/height constraints, from 3 or more measured satellites) fixes are
+*measured* fixes.  A *good* fix is a measured fix within ``good_m`` (10 m) of the truth.
 
 Total outages
     The truth's ``/blockage`` windows of kind *total* (``blockage.total`` and ``prn: all`` outages; random
@@ -38,7 +39,8 @@ Random blockage (urban canyon)
     epochs of one fix period (``navigation.rate_hz`` from the run file's config, else the median fix
     spacing); an epoch *counts* when at least ``min_visible`` (4) satellites are visible in the truth at its
     centre, and is *available* when it holds a measured fix.  ``availability`` = available / counted epochs;
-    ``rms_3d_m`` / ``max_err_m``: 3D RMS / maximum of the measured fixes in the window.
+    ``rms_3d_m`` / ``max_err_m``: 3D RMS / maximum of the measured fixes in the window; ``aided_fraction``: the
+    share of aided fixes among them.
 """
 from __future__ import annotations
 
@@ -55,6 +57,7 @@ from ..runfile.truth import TruthFile
 from ..sim.blockage import KIND_TOTAL
 
 MODE_COAST = 2
+MODE_AIDED = 3
 GOOD_M = 10.0
 END_TOL_S = 2.0
 LOSS_GRACE_S = 0.3
@@ -74,16 +77,20 @@ OUTAGE_METRIC_KEYS = (
 
 @dataclass
 class Fixes:
-    """The fixes of a run on the truth's time axis: t (s), err (3D error, m), coast (bool); sorted by t."""
+    """The fixes of a run on the truth's time axis: t (s), err (3D error, m), coast (bool), aided (bool: mode
+    3, a scalar fix with clock/height constraints; None: none); sorted by t."""
     t: np.ndarray
     err: np.ndarray
     coast: np.ndarray
+    aided: np.ndarray | None = None
 
     def __post_init__(self):
         order = np.argsort(self.t, kind="stable")
         self.t = np.asarray(self.t, float)[order]
         self.err = np.asarray(self.err, float)[order]
         self.coast = np.asarray(self.coast, bool)[order]
+        self.aided = (np.zeros(self.t.size, bool) if self.aided is None
+                      else np.asarray(self.aided, bool)[order])
 
 
 @dataclass
@@ -195,12 +202,14 @@ def canyon_report(fx: Fixes, vis: Visibility, rate_hz: float, min_visible: int =
     has_fix = np.zeros(n_ep, bool)
     has_fix[slots[(slots >= 0) & (slots < n_ep)]] = True
     e = fx.err[meas]
+    n_aided = int(np.count_nonzero(fx.aided[meas]))
     e = e[np.isfinite(e)]
     n_counted = int(counted.sum())
     return {"window_s": (w0, w0 + n_ep * period), "epochs": n_ep, "counted": n_counted,
             "available": int((counted & has_fix).sum()),
             "availability": float((counted & has_fix).sum() / n_counted) if n_counted else math.nan,
             "fix_fraction_all": float(has_fix.mean()),
+            "aided_fraction": float(n_aided / max(int(meas.sum()), 1)),
             "visible_fraction": float(counted.mean()),
             "rms_3d_m": float(np.sqrt(np.mean(e * e))) if e.size else math.nan,
             "max_err_m": float(e.max()) if e.size else math.nan}
@@ -349,7 +358,7 @@ def read_fixes(run_h5, truth_h5):
     t = np.interp(gps, tr["gps_tow"], tr["time_s"])
     true = interp_columns(tr["gps_tow"], tr["ecef"], gps)
     err = np.linalg.norm(ecef - true, axis=1)
-    fx = Fixes(t, err, mode == MODE_COAST)
+    fx = Fixes(t, err, mode == MODE_COAST, mode == MODE_AIDED)
     if not np.isfinite(rate) and fx.t.size > 1:
         d = np.diff(fx.t)
         d = d[d > 0]
@@ -403,6 +412,7 @@ def format_report(rep: dict) -> str:
                   f"({100 * c['visible_fraction']:.1f} %)",
                   f"availability (measured fix in those epochs)  {_f(100 * c['availability'], '{:.1f}')} %",
                   f"measured fixes in all epochs                 {_f(100 * c['fix_fraction_all'], '{:.1f}')} %",
+                  f"aided (mode 3) among the measured fixes      {_f(100 * c.get('aided_fraction', 0.0), '{:.1f}')} %",
                   f"3D RMS / max of the measured fixes           {_f(c['rms_3d_m'])} / {_f(c['max_err_m'])} m"]
     lr = rep.get("loss")
     if lr is not None and has_outages(rep):

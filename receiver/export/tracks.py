@@ -44,7 +44,7 @@ def kml_text(run: RunData) -> str:
            f"<description>gnssrx {escape(__version__)} run {escape(run.name)}: {len(pts)} fixes "
            "(heights: WGS-84 ellipsoidal)</description>",
            '<Style id="track"><LineStyle><color>ff0000ff</color><width>2</width></LineStyle></Style>']
-    for mode, color in ((0, "ff00ffff"), (1, "ffff00ff"), (2, "ff808080")):
+    for mode, color in ((0, "ff00ffff"), (1, "ffff00ff"), (2, "ff808080"), (3, "ff00a5ff")):
         out.append(f'<Style id="{MODE_NAMES[mode]}"><IconStyle><color>{color}</color><scale>0.4</scale>'
                    "<Icon><href>http://maps.google.com/mapfiles/kml/shapes/placemark_circle.png</href></Icon>"
                    "</IconStyle><LabelStyle><scale>0</scale></LabelStyle></Style>")

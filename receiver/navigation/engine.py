@@ -25,7 +25,7 @@ from ..runfile.record import FIX_DTYPE, OBS_DTYPE
 from ..runfile.record import STATE_BIT_SYNC
 from ..gnss.signals import C_LIGHT, GPS_L1CA
 from ..gnss.lnav import LnavDecoder, SubframeEvent
-from .pvt import NavSolver, Observation
+from .pvt import Aiding, NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
 BIT_MS = 20
@@ -33,6 +33,9 @@ LOCK_GUARD_S = 0.1           # a measurement needs lock this long after its epoc
 LOCK_GUARD_PRESENT_S = 0.04  # the same for a channel judged by the signal-presence test (lock gone <= 35 ms)
 PRESENCE_MARGIN_DB = 3.0     # ... i.e. its C/N0 this far above tracking.presence.min_cn0_dbhz
 ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
+MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
+AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
+AID_REF_SATS = 5            # ... and from the unaided solutions of aided epochs with this many satellites
 
 
 class ChannelNav:
@@ -417,6 +420,11 @@ class NavigationEngine:
         self.last_fix = None        # (sample, Fix)
         self.epoch = 0
         self.x0 = None
+        self.aid_cfg = getattr(nav_cfg, "aiding", None)
+        if self.aid_cfg is not None and not self.aid_cfg.enabled:
+            self.aid_cfg = None
+        self.aid_hist = deque()     # (t_s, clock bias m, drift m/s, height m, up speed m/s, TDOP, VDOP) of unaided fixes
+        self.n_aided = 0
         # assisted mode: approximate GPS TOW of file sample 0 (input.start_gps_tow_s) lets transmit times
         # be resolved from bit synchronisation alone, before any subframe has been decoded
         self.approx_tow0 = approx_tow0
@@ -642,6 +650,64 @@ class NavigationEngine:
             if off is not None:
                 ch.set_assisted_offset(off)
 
+    def _remember(self, t_s: float, fix):
+        """Keep an unaided fix's clock and height for the constraints of later aided fixes."""
+        if fix.aiding or (self.aid_hist and t_s <= self.aid_hist[-1][0]) or not (np.isfinite(fix.clock_drift_mps) and np.all(np.isfinite(fix.velocity_ecef))):
+            return
+        lat, lon, h = ecef2lla(fix.ecef)
+        from ..gnss.geodesy import enu_matrix
+        v_up = float(enu_matrix(float(lat), float(lon))[2] @ np.asarray(fix.velocity_ecef, float))
+        tdop = math.sqrt(max(fix.gdop ** 2 - fix.pdop ** 2, 1e-6))
+        self.aid_hist.append((t_s, fix.clock_bias_m, fix.clock_drift_mps, float(h), v_up, tdop, fix.vdop))
+        while self.aid_hist and self.aid_hist[0][0] < t_s - AID_WINDOW_S:
+            self.aid_hist.popleft()
+
+    def _aiding(self, t_s: float) -> Aiding | None:
+        """Clock-bias (and drift) and height constraints predicted at receiver time t_s from the unaided fixes
+        of the last AID_WINDOW_S before the latest one (each extrapolated with its own drift / vertical speed,
+        weighted by 1/TDOP^2 resp. 1/VDOP^2); the standard deviations grow with the age of the latest
+        unaided fix (clock: a random-walk frequency, sigma ~ age^1.5; height: a vertical speed error).
+        None: aiding off or the latest unaided fix older than navigation.aiding.max_age_s."""
+        c = self.aid_cfg
+        if c is None or not self.aid_hist:
+            return None
+        age = t_s - self.aid_hist[-1][0]
+        if age > c.max_age_s or age < 0:
+            return None
+        h = np.array(self.aid_hist)
+        dt = t_s - h[:, 0]
+        aid = Aiding(code_sigma_m=c.code_sigma_m, residual_threshold_m=c.residual_threshold_m,
+                     rate_sigma_mps=c.rate_sigma_mps)
+        w = 1.0 / h[:, 5] ** 2
+        # the drift: the velocity of a fix from 3 Dopplers needs it (and the epoch placement a finite drift)
+        aid.drift_mps = float(np.sum(w * h[:, 2]) / np.sum(w))
+        aid.drift_sigma_mps = math.hypot(c.drift_sigma_mps, 1.5 * c.clock_growth * age ** 0.5)
+        if c.clock:
+            aid.clock_m = float(np.sum(w * (h[:, 1] + h[:, 2] * dt)) / np.sum(w))
+            aid.clock_sigma_m = math.hypot(c.clock_sigma_m, c.clock_growth * age ** 1.5)
+        if c.height:
+            w = 1.0 / h[:, 6] ** 2
+            aid.height_m = float(np.sum(w * (h[:, 3] + h[:, 4] * dt)) / np.sum(w))
+            aid.height_sigma_m = math.hypot(c.height_sigma_m, c.height_rate_mps * age)
+        return aid if aid.count() else None
+
+    def _solve(self, week, rx_tow, t_s, observations, ephs):
+        """The epoch's fix: unaided from >= 4 satellites; aided (navigation.aiding) when at most
+        aiding.max_sats satellites are measured or the unaided fix is refused (weak geometry), e.g. from 3."""
+        n = len(observations)
+        fix = None
+        if n >= 4:
+            fix = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0)
+        if self.last_fix is None or (fix is not None and n > self.aid_cfg.max_sats):
+            return fix
+        if fix is not None and fix.n_sats >= AID_REF_SATS:
+            self._remember(t_s, fix)        # over-determined on its own: a reference for the prediction
+        aid = self._aiding(t_s)
+        if aid is None:
+            return fix
+        aided = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0, aid=aid)
+        return aided if aided is not None else fix
+
     def _epoch(self, s: float):
         if self.assisted and self.approx_tow0 is not None:
             self._resolve_assisted(s)
@@ -675,7 +741,7 @@ class NavigationEngine:
             txrel = ch.smooth_value(s, m[0], m[2], slope)
             meas[prn] = ((ch.tx_offset + txrel, dop, m[2]), ch)
             unsmoothed[prn] = C_LIGHT * (txrel - m[0])
-        if len(meas) < 4:
+        if len(meas) < (3 if self.aid_cfg is not None and self.last_fix is not None else 4):
             return None, []
         if self.tow0 is None:
             if self.approx_tow0 is not None:
@@ -693,8 +759,12 @@ class NavigationEngine:
                                     system=ch.signal.system)
                         for prn, (m, ch) in sorted(meas.items()) if prn in ephs]
         fix = None
-        if len(observations) >= 4 and week is not None:
-            fix = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0)
+        if week is not None:
+            if self.aid_cfg is None:
+                if len(observations) >= 4:
+                    fix = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0)
+            else:
+                fix = self._solve(week, rx_tow, s / self.fs, observations, ephs)
         if fix is None:
             return None, []
         if self.last_fix is None and (self.approx_tow0 is None or abs(fix.clock_bias_m) > C_LIGHT):
@@ -705,14 +775,20 @@ class NavigationEngine:
             if fix is None:
                 return None, []
         self.x0 = fix.ecef
-        self.last_fix = (s, fix)
+        if self.last_fix is None or np.isfinite(fix.clock_drift_mps):    # epoch placement needs the drift
+            self.last_fix = (s, fix)
         t_s = s / self.fs
+        if self.aid_cfg is not None:
+            if not fix.aiding:
+                self._remember(t_s, fix)
+            self.n_aided += bool(fix.aiding)
         # ekf/ckf: filtered position/velocity/clock (started at the first fix, after the clock re-basing);
         # epoch placement, x0 and the observables stay on the WLS fix
         out = self.pvt_filter.step(t_s, fix, unsmoothed) if self.pvt_filter is not None else fix
         lat, lon, h = ecef2lla(out.ecef)
         row = (out.gps_week, out.gps_tow, t_s, out.ecef, out.velocity_ecef, out.clock_bias_m,
-               out.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop, 0,
+               out.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop,
+               MODE_AIDED if fix.aiding else 0,
                float(lat), float(lon), float(h))
         used = set(fix.prns)
         el = dict(zip(fix.prns, fix.elevations_deg))

@@ -71,12 +71,58 @@ class Fix:
     rx_tow: float = float("nan")
     iterations: int = 0
     isb_m: dict = field(default_factory=dict)   # system letter -> inter-system clock bias (m) vs clock_bias_m
+    aiding: tuple = ()                  # constraints used ("clock", "height"); () for an unaided fix
 
     @property
     def lla(self):
         """(lat_deg, lon_deg, h_m)."""
         lat, lon, h = ecef2lla(self.ecef)
         return float(lat), float(lon), float(h)
+
+
+@dataclass
+class Aiding:
+    """Constraints for a fix from few satellites or a weak geometry (receiver.navigation.engine builds them from
+    the recent unaided fixes): the receiver clock bias (m) and/or the ellipsoidal height (m) predicted at the
+    fix's epoch, each with its standard deviation.  They enter the least squares as pseudo-measurement rows
+    (clock: b = clock_m; height: up . x = height_m, linearised at each iteration) weighted
+    (code_sigma_m / sigma)^2 against a weight-1 satellite, whose pseudorange standard deviation is
+    code_sigma_m.  residual_threshold_m: an aided fix whose largest normalised residual (satellites and
+    constraints, metres referred to a weight-1 satellite) exceeds this drops that satellite while the fix stays
+    over-determined after the drop, and is refused otherwise (a bad range or a wrong constraint)."""
+    clock_m: float | None = None
+    clock_sigma_m: float = float("inf")
+    height_m: float | None = None
+    height_sigma_m: float = float("inf")
+    code_sigma_m: float = 3.0
+    residual_threshold_m: float = 15.0
+    drift_mps: float | None = None      # predicted clock drift (velocity of a 3-satellite fix) ...
+    drift_sigma_mps: float = 1.0
+    rate_sigma_mps: float = 0.1         # ... against a weight-1 pseudorange rate of this standard deviation
+
+    def count(self) -> int:
+        return int(self.clock_m is not None) + int(self.height_m is not None)
+
+    def kinds(self) -> tuple:
+        return tuple(k for k, v in (("clock", self.clock_m), ("height", self.height_m)) if v is not None)
+
+    def rows(self, x, b, ncols):
+        """(rows of the design matrix, residuals, weights) of the constraints at position x, clock b."""
+        hs, rs, ws = [], [], []
+        if self.clock_m is not None:
+            row = np.zeros(ncols)
+            row[3] = 1.0
+            hs.append(row)
+            rs.append(self.clock_m - b)
+            ws.append((self.code_sigma_m / self.clock_sigma_m) ** 2)
+        if self.height_m is not None:
+            lat, lon, h = ecef2lla(x)
+            row = np.zeros(ncols)
+            row[:3] = enu_matrix(lat, lon)[2]
+            hs.append(row)
+            rs.append(self.height_m - float(h))
+            ws.append((self.code_sigma_m / self.height_sigma_m) ** 2)
+        return np.array(hs), np.array(rs), np.array(ws)
 
 
 # URA index -> nominal URA (m), IS-GPS-200 20.3.3.3.1.3 (upper bounds; 15: no accuracy prediction)
@@ -188,14 +234,17 @@ class NavSolver:
             tropo = saastamoinen_m(lat, h, el)
         return iono, tropo
 
-    def _wls(self, s: _Sats, active, x, b, corrections, iono_utc, tow):
+    def _wls(self, s: _Sats, active, x, b, corrections, iono_utc, tow, aid=None):
         """Gauss-Newton WLS on the active satellites. Returns dict or None.
 
         Several systems: one clock bias b (the first system's) plus one inter-system bias column per other
-        system with active satellites (unknowns 4 + extra systems)."""
+        system with active satellites (unknowns 4 + extra systems).  aid (:class:`Aiding`): clock-bias and/or
+        height constraints, added as pseudo-measurement rows (weights relative to a weight-1 satellite) once
+        the position is known."""
         idx = np.nonzero(active)[0]
         extra = sorted(set(s.group[idx].tolist()) - {0})
-        if len(idx) < 4 + len(extra) or (extra and 0 not in s.group[idx]):
+        n_aid = aid.count() if aid is not None else 0
+        if len(idx) + n_aid < 4 + len(extra) or len(idx) < 3 or (extra and 0 not in s.group[idx]):
             return None
         e_cols = (s.group[idx][:, None] == np.array(extra, int)[None, :]).astype(float)
         isb = np.zeros(len(extra))
@@ -219,6 +268,13 @@ class NavSolver:
             w = self._weights(el if (corrections and known) else None, s.cn0[idx], iono, s.ura_m[idx])
             resid = rho_c - iono - tropo - (rng + b + e_cols @ isb)
             h = np.hstack([-los, np.ones((len(idx), 1)), e_cols])
+            if n_aid:
+                if not known:
+                    return None
+                ha, ra, wa = aid.rows(x, b, h.shape[1])
+                h = np.vstack([h, ha])
+                resid = np.concatenate([resid, ra])
+                w = np.concatenate([w, wa])
             sw = np.sqrt(w)
             a = h * sw[:, None]
             try:
@@ -241,20 +297,29 @@ class NavSolver:
             return None
         hat_diag = np.einsum("ij,jk,ik->i", a, np.linalg.inv(ata), a)
         norm_res = sw * resid / np.sqrt(np.maximum(1.0 - hat_diag, 1e-6))
-        return dict(idx=idx, x=x, b=b, isb={s.systems[g]: float(v) for g, v in zip(extra, isb)}, resid=resid, norm_res=norm_res, h=h, w=w, los=los, tau=tau,
+        ns = len(idx)
+        # h_dop: the geometry of the DOPs: the satellite rows, plus the aiding rows scaled by the square
+        # root of their weight (a constraint as good as a weight-1 satellite counts as one satellite)
+        h_dop = h if not n_aid else np.vstack([h[:ns], h[ns:] * sw[ns:, None]])
+        return dict(idx=idx, x=x, b=b, isb={s.systems[g]: float(v) for g, v in zip(extra, isb)},
+                    resid=resid[:ns], norm_res=norm_res[:ns], aid_norm_res=norm_res[ns:], h=h[:ns],
+                    h_dop=h_dop, w=w[:ns], los=los, tau=tau, redundancy=len(resid) - h.shape[1],
                     az=az, el=el, iono=iono, tropo=tropo, rho_c=rho_c, iterations=it)
 
     # -------------------------------------------------------------------------------------
-    def fix(self, week, rx_tow, observations, ephemerides, iono_utc=None, x0=None):
+    def fix(self, week, rx_tow, observations, ephemerides, iono_utc=None, x0=None, aid: Aiding | None = None):
         """Position/velocity/time fix at receiver time rx_tow (receiver clock, s of week).
 
         ephemerides: dict prn -> Ephemeris (or prn -> list of Ephemeris, the nearest healthy
         one is selected).  x0: initial ECEF position (e.g. the previous fix); without it the
-        iteration starts from the Earth's centre.  Returns a Fix or None (fewer than 4 usable
-        satellites, bad geometry or no convergence).
+        iteration starts from the Earth's centre.  aid: clock/height constraints (:class:`Aiding`; needs
+        x0): with them 3 satellites can give a fix.  Returns a Fix or None (too few usable satellites, bad
+        geometry, no convergence, or an aided fix failing its residual test).
         """
+        if aid is not None and (aid.count() == 0 or x0 is None):
+            aid = None
         s = self._prepare(rx_tow, observations, ephemerides, week)
-        if s is None or len(s) < 4:
+        if s is None or len(s) < (4 if aid is None else 3):
             return None
         n = len(s)
         active = np.ones(n, dtype=bool)
@@ -272,24 +337,37 @@ class NavSolver:
         active &= el0 >= np.radians(self.elevation_mask_deg)
         rejected = []
         while True:
-            sol = self._wls(s, active, x, b, True, iono_utc, rx_tow)
+            sol = self._wls(s, active, x, b, True, iono_utc, rx_tow, aid)
             if sol is None:
                 return None
             x, b = sol["x"], sol["b"]
             if sol["el"] is None:            # converged far below the Earth's surface: no fix
                 return None
             k = int(np.argmax(np.abs(sol["norm_res"])))
-            if np.sum(active) > 5 and abs(sol["norm_res"][k]) > self.residual_threshold_m:
+            if aid is None:
+                if np.sum(active) > 5 and abs(sol["norm_res"][k]) > self.residual_threshold_m:
+                    active[sol["idx"][k]] = False
+                    rejected.append(int(s.prn[sol["idx"][k]]))
+                    continue
+                break
+            # aided: test every row (satellites and constraints); exclude the worst satellite while the fix
+            # stays over-determined, else refuse the fix (a bad range or a wrong constraint)
+            worst = max(float(np.max(np.abs(sol["norm_res"]))),
+                        float(np.max(np.abs(sol["aid_norm_res"]), initial=0.0)))
+            if worst <= aid.residual_threshold_m:
+                break
+            if sol["redundancy"] >= 2 and np.sum(active) > 3 and \
+                    abs(sol["norm_res"][k]) >= float(np.max(np.abs(sol["aid_norm_res"]), initial=0.0)):
                 active[sol["idx"][k]] = False
                 rejected.append(int(s.prn[sol["idx"][k]]))
                 continue
-            break
+            return None
         idx = sol["idx"]
 
-        # DOPs (unweighted) in the local ENU frame
+        # DOPs (unweighted) in the local ENU frame; an aided fix's include its constraints (Aiding)
         lat, lon, _ = ecef2lla(x)
         rot = enu_matrix(lat, lon)
-        q = np.linalg.inv(sol["h"].T @ sol["h"])
+        q = np.linalg.inv(sol["h_dop"].T @ sol["h_dop"])
         q_enu = rot @ q[:3, :3] @ rot.T
         hdop = float(np.sqrt(q_enu[0, 0] + q_enu[1, 1]))
         vdop = float(np.sqrt(q_enu[2, 2]))
@@ -307,11 +385,17 @@ class NavSolver:
         v_rx = np.full(3, np.nan)
         drift = float("nan")
         v_res = np.full(len(idx), np.nan)
-        if np.sum(ok) >= 4:
+        drift_aid = aid is not None and aid.drift_mps is not None and np.sum(ok) >= 3
+        if np.sum(ok) >= 4 or drift_aid:
             hv = np.hstack([-los[ok], np.ones((np.sum(ok), 1))])
             y = rate_c[ok] - np.sum(los[ok] * vel_sat[ok], axis=1)
             sw = np.sqrt(sol["w"][ok])
-            sv, *_ = np.linalg.lstsq(hv * sw[:, None], y * sw, rcond=None)
+            ha, ya, swa = hv * sw[:, None], y * sw, None
+            if drift_aid:           # the predicted clock drift as one more row
+                swa = aid.rate_sigma_mps / aid.drift_sigma_mps
+                ha = np.vstack([ha, [0.0, 0.0, 0.0, swa]])
+                ya = np.append(ya, aid.drift_mps * swa)
+            sv, *_ = np.linalg.lstsq(ha, ya, rcond=None)
             v_rx, drift = sv[:3], float(sv[3])
             v_res[ok] = y - hv @ sv
 
@@ -327,4 +411,5 @@ class NavSolver:
             pseudorange_rates_mps=rate_c, raw_pseudoranges_m=s.rho[idx],
             iono_m=sol["iono"], tropo_m=sol["tropo"], velocity_residuals_mps=v_res,
             rejected_prns=rejected, rx_tow=float(rx_tow), iterations=sol["iterations"], isb_m=sol["isb"],
+            aiding=aid.kinds() if aid is not None else (),
             sat_pos_ecef=earth_rotation(s.pos[idx], sol["tau"]), sat_vel_ecef=vel_sat)

@@ -47,14 +47,16 @@ ACQ_REASONS = {"": 0, "threshold": 1, "width": 2, "xcorr": 3, "verify": 4}
 
 # ---- navigation and vector-loop rows (/navigation, /observables, /vector of the run file)
 # fix mode: 0 scalar least squares; 1 vector loop with >= 4 channels carrying signal; 2 coast (vector filter
-# propagated through an outage: fewer than 4 channels carry signal, n_sats = those that do)
-MODE_NAMES = {0: "scalar", 1: "vector", 2: "coast"}
+# propagated through an outage: fewer than 4 channels carry signal, n_sats = those that do); 3 aided (scalar
+# least squares with the predicted clock bias/drift and height as extra measurements, navigation.aiding;
+# n_sats = satellites measured, 3 or more)
+MODE_NAMES = {0: "scalar", 1: "vector", 2: "coast", 3: "aided"}
 
 FIX_DTYPE = np.dtype([
     ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("ecef", "f8", (3,)),
     ("velocity_ecef", "f8", (3,)), ("clock_bias_m", "f8"), ("clock_drift_mps", "f8"),
     ("n_sats", "i4"), ("pdop", "f8"), ("hdop", "f8"), ("vdop", "f8"), ("gdop", "f8"),
-    ("mode", "u1"),                 # MODE_NAMES: 0 scalar, 1 vector, 2 coast
+    ("mode", "u1"),                 # MODE_NAMES: 0 scalar, 1 vector, 2 coast, 3 aided
     ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
 ])
 

@@ -24,7 +24,9 @@ Per satellite (:class:`SatTrack`)::
   bit alignment and the navigation engine's transmit-time reference stay valid (ChannelNav.resume); the
   bit-sync histogram is seeded with the known bit offset and the pull-in is ``reacquisition.pull_in_ms``;
   its DLL runs 1st order for the first chunk (no rate wind-up on the initial code error), then as configured
-  with the old channel's rate integrator.
+  with the old channel's rate integrator.  When the dynamics bound puts the predicted code phase within
+  0.05 chip and the search finds the signal within 0.5 chip of it, the channel starts on the prediction and
+  its measurements are used ``reacquisition.settle_predicted_s`` after the pull-in (else ``settle_s``).
 
 The pipeline calls ``start`` once, then per chunk ``note(prn, recs)`` for every channel's records and
 ``after_chunk(start, next_start)``.  ``channels`` (prn -> Channel) is the dict the vector tracker shares.
@@ -348,10 +350,12 @@ class ChannelManager:
             return False
         # code phase: the prediction while its uncertainty is below the search's resolution
         cp = res.code_phase_chips
+        predicted = False
         if dr / self.chip_m < 0.05 and code_half < code_len / 4:
             diff = (cp - cp_pred + code_len / 2) % code_len - code_len / 2
             if abs(diff) < 0.5:
                 cp = cp_pred
+                predicted = True
         ch = self._open(prn, res.doppler_hz, cp, int(s))
         # continue the old channel's code-period count: the predicted transmit time fixes the integer ms
         st = ch.st
@@ -373,7 +377,9 @@ class ChannelManager:
         sat.restore_at = s + HOT_DLL_FIRST_ORDER_S * self.fs
         sat.reacquisitions += 1
         if self.nav is not None:
-            self.nav.resume(prn, continuous=bit_off >= 0, settle_s=rc.settle_s)
+            # started on the predicted code phase: no DLL transient, the shorter settle
+            self.nav.resume(prn, continuous=bit_off >= 0,
+                            settle_s=rc.settle_predicted_s if predicted else rc.settle_s)
         self._event(s, prn, "re-acquired",
                     f"after {age:.2f} s, Doppler {res.doppler_hz:.1f} Hz (predicted {dop:.1f} +/- {dop_half:.0f}), "
                     f"code {res.code_phase_chips:.2f} chips (predicted {cp_pred:.2f} +/- {code_half:.2f})")

@@ -446,12 +446,18 @@ class VectorTracker:
             return np.zeros(0, FIX_DTYPE)
         rows = []
         step = 1.0 / self.rate
+        # GPS time of every epoch at once (the same float64 operations as per epoch); the state is unpacked
+        # only at the epochs where a fix falls due (a few per block, not every epoch)
+        ib = int(self.filt.layout()[2])
+        t_all = self.t_ref + LOG[:, L.L_TAU] - LX[:, ib] / C_LIGHT
         for k in range(len(LOG)):
-            tau = float(LOG[k, L.L_TAU])
-            r, v, b, d, dl = self.filt.nav_state(LX[k])
-            t_gps = self.t_ref + tau - b / C_LIGHT
+            t_gps = float(t_all[k])
             if self.next_fix is None:
                 self.next_fix = math.ceil(t_gps * self.rate - 1e-9) / self.rate
+            if self.next_fix > t_gps + 1e-12:
+                continue
+            tau = float(LOG[k, L.L_TAU])
+            r, v, b, d, dl = self.filt.nav_state(LX[k])
             while self.next_fix <= t_gps + 1e-12:
                 back = t_gps - self.next_fix                # s of GPS time before epoch k
                 tau_f = tau - back * (1.0 + (d + dl) / C_LIGHT)
