@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
+from numba import njit
 from .estimation.stats import gamma_isf, gamma_median
 
 from .gnss.signals import GPS_L1CA, sample_code
@@ -83,11 +84,32 @@ class _Spectra:
         power = np.zeros((self.n_dopp, self.n1), np.float32)
         for r in self.fracs:
             sel = np.flatnonzero(self.frac == r)
+            idx = self.idx[sel]
+            prod = np.empty((len(sel), self.n1), np.complex64)
             for k in range(self.k):
-                prod = self.spectra[r][k][self.idx[sel]] * cf[None, :]
-                corr = sfft.ifft(prod, axis=1, workers=workers)
-                power[sel] += corr.real ** 2 + corr.imag ** 2
+                _gather(self.spectra[r][k], idx, prod)           # prod[i] = spectrum[idx[i]]
+                np.multiply(prod, cf[None, :], out=prod)         # (numpy's complex product, as before)
+                corr = sfft.ifft(prod, axis=1, workers=workers, overwrite_x=True)
+                _add_power(corr, sel, power)                     # power[sel] += |corr|^2
         return power
+
+
+@njit(cache=True, nogil=True)
+def _gather(spec, idx, out):
+    """out[i, j] = spec[idx[i, j]]: the Doppler rows (circular shifts) of one block's spectrum."""
+    for i in range(idx.shape[0]):
+        for j in range(idx.shape[1]):
+            out[i, j] = spec[idx[i, j]]
+
+
+@njit(cache=True, nogil=True)
+def _add_power(corr, rows, power):
+    """power[rows[i]] += |corr[i]|^2 (real^2 + imag^2, float32, in numpy's order)."""
+    for i in range(corr.shape[0]):
+        r = rows[i]
+        for j in range(corr.shape[1]):
+            c = corr[i, j]
+            power[r, j] += c.real * c.real + c.imag * c.imag
 
 
 def _code_fft(sig, prn, fs, n1):

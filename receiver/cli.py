@@ -8,13 +8,19 @@ files and exit with 130 / 143 and one line.
 from __future__ import annotations
 
 import logging
+import os
 import sys
 
-import click
+# The receiver parallelises on its own threads (channels, acquisition PRNs: receiver/threads.py); BLAS
+# threads on top of them oversubscribe the cores (OpenBLAS spins while waiting).  Before numpy loads;
+# a value set in the environment wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from . import __version__, interrupt
-from .errors import UserError
-from .logs import setup_cli
+import click  # noqa: E402
+
+from . import __version__, interrupt  # noqa: E402
+from .errors import UserError  # noqa: E402
+from .logs import setup_cli  # noqa: E402
 
 
 class _Group(click.Group):
@@ -94,17 +100,43 @@ def _load(config, input_path, sets, output=None):
 @click.option("--quiet", "-q", is_flag=True, help="no progress bar (the summary is still printed)")
 @click.option("--threads", "n_threads", type=click.IntRange(min=0), default=0, show_default=True,
               help="threads for tracking and acquisition (0: all cores); results do not depend on it")
-def run(config, input_path, output, sets, quiet, n_threads):
+@click.option("--timings", is_flag=True, help="print the wall and CPU time of each stage to stderr")
+def run(config, input_path, output, sets, quiet, n_threads, timings):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
-    from .pipeline import run as run_pipeline
-    from .threads import set_threads
+    from . import stagetimes
+    from .stagetimes import stage
+    stagetimes.reset()
+    stagetimes.add("start-up", *_since_process_start())
+    with stage("imports"):
+        from .pipeline import run as run_pipeline
+        from .threads import set_threads
     set_threads(n_threads)
-    cfg = _load(config, input_path, sets, output)
+    with stage("config"):
+        cfg = _load(config, input_path, sets, output)
     log = logging.getLogger("receiver.pipeline").info
     summary = run_pipeline(cfg, quiet=quiet, log=log, reads=[config])
-    from .export import export_all      # standard outputs (output.rinex, nmea, ...) from the closed run file
-    export_all(summary.output, cfg.output, log=None if quiet else log)
+    with stage("export"):
+        from .export import export_all      # standard outputs (output.rinex, nmea, ...) from the closed run file
+        export_all(summary.output, cfg.output, log=None if quiet else log)
     click.echo(summary.text())                   # --quiet silences the progress bar only
+    if timings:
+        import time
+        wall, _ = _since_process_start()
+        click.echo(stagetimes.text(wall, time.process_time()), err=True)
+
+
+def _since_process_start() -> tuple[float, float]:
+    """(wall s since this process started, CPU s it used so far); wall from /proc (Linux), else 0."""
+    import time
+    cpu = time.process_time()
+    try:
+        with open("/proc/self/stat") as fh:
+            start_ticks = int(fh.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as fh:
+            uptime = float(fh.read().split()[0])
+        return max(0.0, uptime - start_ticks / os.sysconf("SC_CLK_TCK")), cpu
+    except (OSError, ValueError, IndexError):
+        return 0.0, cpu
 
 
 @main.command()
@@ -129,17 +161,35 @@ def acquire(config, input_path, sets):
         click.echo(line)
 
 
-def _register_commands():
-    """Commands that live in their own packages (a failing import is a real error and shows)."""
-    from .batch.cli import batch, compare
-    from .export.cli import export, info, report
-    from .leo.cli import leo
-    from .sim.cli import evaluate_cmd, simulate
-    for cmd in (simulate, evaluate_cmd, leo, export, report, info, batch, compare):
+#: commands that live in their own packages: name -> (module, attribute), imported when the command is
+#: used (or listed by --help), so that ``gnssrx run`` does not pay for importing them (~0.3 s); a failing
+#: import is a real error and shows
+LAZY_COMMANDS = {
+    "simulate": ("receiver.sim.cli", "simulate"), "eval": ("receiver.sim.cli", "evaluate_cmd"),
+    "leo": ("receiver.leo.cli", "leo"), "export": ("receiver.export.cli", "export"),
+    "report": ("receiver.export.cli", "report"), "info": ("receiver.export.cli", "info"),
+    "batch": ("receiver.batch.cli", "batch"), "compare": ("receiver.batch.cli", "compare"),
+}
+
+
+def _list_commands(ctx):
+    return sorted(set(click.Group.list_commands(main, ctx)) | set(LAZY_COMMANDS))
+
+
+def _get_command(ctx, name):
+    cmd = click.Group.get_command(main, ctx, name)
+    if cmd is None and name in LAZY_COMMANDS:
+        import importlib
+        mod, attr = LAZY_COMMANDS[name]
+        cmd = getattr(importlib.import_module(mod), attr)
+        if cmd.name != name:                 # pragma: no cover - the table and the command disagree
+            raise RuntimeError(f"gnssrx: command {name!r} is registered as {cmd.name!r}")
         main.add_command(cmd)
+    return cmd
 
 
-_register_commands()
+main.list_commands = _list_commands
+main.get_command = _get_command
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

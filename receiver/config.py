@@ -597,6 +597,18 @@ RECEIVER_SCHEMA = {
         "r_code_m2": P(1500.0, "float", "code discriminator variance R (m^2; fixed_r, cv, initial value of "
                                         "the adaptive variants)", lo=1e-6),
         "r_carrier_m2s2": P(900.0, "float", "frequency discriminator variance R ((m/s)^2)", lo=1e-6),
+        "r_model": P("fixed", "str", "measurement noise R of the discriminators: fixed = r_code_m2 / "
+                                     "r_carrier_m2s2 for every channel (the papers'); cn0 = per channel from its "
+                                     "C/N0 estimate and integration time (vector.r_cn0; the adaptive variants "
+                                     "start from it)", choices=("fixed", "cn0")),
+        "r_cn0": {
+            "min_cn0_dbhz": P(22.0, "float", "r_model cn0: C/N0 used for R never below this (an estimate on "
+                                             "noise alone reads 20-30 dB-Hz)", lo=0.0),
+            "floor_code_m2": P(4.0, "float", "r_model cn0: lower limit of the code R (m^2)", lo=1e-9),
+            "floor_carrier_m2s2": P(0.05, "float", "r_model cn0: lower limit of the frequency R ((m/s)^2)",
+                                    lo=1e-9),
+            "scale": P(1.0, "float", "r_model cn0: factor on both theoretical variances", lo=1e-6),
+        },
         "motion_model": P("cv", "str", "fixed_r/adaptive_r kinematic model: cv = constant velocity (the "
                                        "papers' 8 states), ca = constant acceleration (3 more states)",
                           choices=("cv", "ca")),
@@ -682,9 +694,13 @@ RECEIVER_SCHEMA = {
         "nmea": P(False, "bool", "write NMEA 0183 GGA/RMC/GSA/GSV sentences at the fix rate (<stem>.nmea)"),
         "kml": P(False, "bool", "write a KML track of the fixes (<stem>.kml)"),
         "gpx": P(False, "bool", "write a GPX track of the fixes (<stem>.gpx)"),
-        "compression": P("lzf", "str", "compression of the growing run-file datasets (channels, navigation, "
-                                        "observables, vector): lzf (fast), gzip (level 4, smaller, slower) or "
-                                        "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
+        "compression": P("gzip", "str", "compression of the growing run-file datasets (channels, navigation, "
+                                         "observables, vector): gzip (level 4), lzf (faster, ~8 % larger) or "
+                                         "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
+        "round_columns": P(True, "bool", "store the channel columns doppler_hz, code_rate_hz and "
+                                         "code_phase_chips rounded to 1e-3 Hz, 1e-5 chip/s and 1e-7 chip "
+                                         "(HDF5 scale-offset filter; far below their noise, README \"HDF5 run "
+                                         "file\"); false: exact float64"),
         "channel_rate_hz": P(None, "float", "store the /channels records at most at this rate (the first epoch "
                                             "of every 1/rate interval; empty: every epoch).  Per-channel "
                                             "statistics (lock losses, locked epochs, mean C/N0) are computed "

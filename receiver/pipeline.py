@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import logging
 import os
+import queue
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -19,6 +21,7 @@ import numpy as np
 
 from .acquisition import _has_energy, reject_cross_correlations, search, verify
 from . import interrupt, threads
+from .stagetimes import stage
 from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
@@ -207,22 +210,19 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
-    reader = open_input(cfg)
-    out_path = default_output_path(cfg, cfg.input.path)
-    check_meaning(cfg, reader)
-    ephemerides, iono = None, None
-    if cfg.navigation.enabled and cfg.navigation.ephemeris:
-        from .gnss.rinex import read_rinex_nav
-        ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
+    with stage("open input"):
+        reader = open_input(cfg)
+        out_path = default_output_path(cfg, cfg.input.path)
+        check_meaning(cfg, reader)
+        ephemerides, iono = None, None
+        if cfg.navigation.enabled and cfg.navigation.ephemeris:
+            from .gnss.rinex import read_rinex_nav
+            ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
     fs, if_hz = reader.fs, reader.if_hz
-    writer = RunWriter(out_path, cfg.to_yaml(), {
-        "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
-        "first_sample": reader.first, "n_samples": reader.n_samples,
-        "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
-        "input_if_hz": cfg.input.if_hz,
-        "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
-        **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
-        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz)
+    with stage("write"):
+        writer = _writer(cfg, reader, out_path, fs, if_hz, reads)
+    if threads.threads() > 1:
+        writer = BackgroundWriter(writer)      # HDF5 appends overlap tracking (same file, same order)
     ok = False
     try:
         summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
@@ -231,7 +231,213 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         ok = True
         return summary
     finally:
-        writer.close(ok)
+        with stage("write"):
+            writer.close(ok)
+
+
+class BackgroundWriter:
+    """A :class:`RunWriter` whose appends (channel records, fixes, observables, vector log) run in order on
+    one background thread, so that the HDF5 writing and compression overlap the tracking of the next chunk
+    (the tracking kernels release the GIL; h5py holds it).  Fixes, observables and vector-log rows are
+    gathered into blocks of at least ``TABLE_ROWS`` rows before they are appended (fewer, larger HDF5
+    writes; the datasets hold the same rows).  Every other attribute or method first waits for the pending
+    appends, then is the wrapped writer's, so reads of the file and one-off writes keep their order.  A
+    write error on the thread (disk full: a UserError) is raised in the caller at the next call.  The
+    queue is bounded: memory does not grow when the writing lags."""
+
+    TABLE_ROWS = 2000
+    _ASYNC = ("append_channel", "append_fixes", "append_observables", "append_vector_log")
+    _TABLES = ("append_fixes", "append_observables", "append_vector_log")
+
+    def __init__(self, writer, max_pending: int = 64):
+        self._w = writer
+        self._q: queue.Queue = queue.Queue(maxsize=max_pending)
+        self._err: BaseException | None = None
+        self._tables: dict[str, list] = {}
+        self._thread = threading.Thread(target=self._work, name="gnssrx-write", daemon=True)
+        self._thread.start()
+
+    def _work(self):
+        while True:
+            item = self._q.get()
+            try:
+                if item is None:
+                    return
+                if self._err is None:
+                    name, args = item
+                    getattr(self._w, name)(*args)
+            except BaseException as exc:     # noqa: BLE001 - handed to the caller
+                self._err = exc
+            finally:
+                self._q.task_done()
+
+    def _raise(self):
+        if self._err is not None:
+            err, self._err = self._err, None
+            raise err
+
+    def _put(self, name, args):
+        self._raise()
+        if name in self._TABLES:
+            rows = args[0]
+            if rows is None or len(rows) == 0:
+                return
+            buf = self._tables.setdefault(name, [])
+            buf.append(rows)
+            if sum(len(r) for r in buf) < self.TABLE_ROWS:
+                return
+            args = (np.concatenate(self._tables.pop(name)),)
+        self._q.put((name, args))
+
+    def flush(self):
+        """Wait until every append has been written (raises a write error)."""
+        for name in list(self._tables):
+            self._q.put((name, (np.concatenate(self._tables.pop(name)),)))
+        self._q.join()
+        self._raise()
+
+    def __getattr__(self, name):
+        if name in self._ASYNC:
+            return lambda *args: self._put(name, args)
+        self.flush()
+        return getattr(self._w, name)
+
+    def close(self, ok: bool = True):
+        try:
+            if ok:
+                self.flush()
+        except BaseException:
+            ok = False
+            raise
+        finally:
+            if not ok:
+                self._tables.clear()
+                self._err = None
+                while True:                          # drop what is pending: the file is discarded
+                    try:
+                        self._q.get_nowait()
+                        self._q.task_done()
+                    except queue.Empty:
+                        break
+            self._q.put(None)
+            self._thread.join()
+            self._w.close(ok)
+
+
+class PrefetchingReader:
+    """The pipeline's view of the input: every read goes through it (counted), and :meth:`chunk` reads the
+    chunk at ``start`` while the next chunk is read ahead on a background thread, from a copy of the
+    input stage's state (the conditioning filter is causal and continues from the last read).  The
+    read-ahead is used only if no other read happened in between (the channel manager's searches read
+    elsewhere and move the filter stream), so the samples are exactly those of a plain read; otherwise it is
+    discarded and the chunk read again.  The read-ahead runs the resampling / filtering kernels (which
+    release the GIL) while the main thread does navigation and bookkeeping.  Only integer sample formats
+    (a float input counts its non-finite samples as it reads) and the known input stages are read ahead."""
+
+    def __init__(self, reader):
+        object.__setattr__(self, "_r", reader)
+        object.__setattr__(self, "reads", 0)
+        object.__setattr__(self, "_spec", None)
+        object.__setattr__(self, "_pool", None)
+        object.__setattr__(self, "_ok", _can_read_ahead(reader))
+        object.__setattr__(self, "ahead_used", 0)
+
+    def __getattr__(self, name):
+        return getattr(self._r, name)
+
+    def __setattr__(self, name, value):
+        setattr(self._r, name, value)
+
+    def read(self, start: int, n: int) -> np.ndarray:
+        object.__setattr__(self, "reads", self.reads + 1)
+        return self._r.read(start, n)
+
+    def chunk(self, start: int, n: int, next_start: int) -> np.ndarray:
+        """read(start, n), then read ahead (next_start, n)."""
+        spec, block = self._spec, None
+        object.__setattr__(self, "_spec", None)
+        if spec is not None:
+            s0, n0, reads0, fut, fork, snap = spec
+            try:
+                got = fut.result()                   # (also when unused: no two reads of the stage at once)
+            except Exception:                        # noqa: BLE001 - the plain read below reports it
+                got, reads0 = None, -1
+            if (s0, n0, reads0) == (start, n, self.reads):
+                for k, v in fork.__dict__.items():   # the stage's state after that read
+                    if snap.get(k, snap) is not v:
+                        self._r.__dict__[k] = v
+                object.__setattr__(self, "reads", self.reads + 1)
+                object.__setattr__(self, "ahead_used", self.ahead_used + 1)
+                block = got
+        if block is None:
+            block = self.read(start, n)
+        if self._ok and next_start < self._r.end:
+            if self._pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+                object.__setattr__(self, "_pool", ThreadPoolExecutor(1, thread_name_prefix="gnssrx-read"))
+            fork = _fork_stage(self._r)
+            snap = dict(self._r.__dict__)
+            object.__setattr__(self, "_spec", (next_start, n, self.reads,
+                                               self._pool.submit(fork.read, next_start, n), fork, snap))
+        return block
+
+    def close(self):
+        if self._spec is not None:
+            try:
+                self._spec[3].result()
+            except Exception:                        # noqa: BLE001 - an unused read-ahead
+                pass
+            object.__setattr__(self, "_spec", None)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            object.__setattr__(self, "_pool", None)
+
+
+def _stages(reader):
+    """The input stages from the outermost to the file reader."""
+    out = [reader]
+    while hasattr(out[-1], "__dict__") and "_reader" in out[-1].__dict__:
+        out.append(out[-1].__dict__["_reader"])
+    return out
+
+
+def _can_read_ahead(reader) -> bool:
+    from .source.conditioning import ConditionedReader
+    st = _stages(reader)
+    if not isinstance(st[-1], SampleReader) or getattr(st[-1], "_raw", None) is None or \
+            st[-1]._raw.dtype.kind == "f":
+        return False
+    # stateless stages (file reader, resampler) and the conditioning stage (state copied: _fork_stage),
+    # the latter only outermost (its state is what the read-ahead copies)
+    return all(isinstance(s, (SampleReader, DecimatingReader)) for s in st[1:]) and \
+        isinstance(st[0], (SampleReader, DecimatingReader, ConditionedReader))
+
+
+def _fork_stage(reader):
+    """A reader that reads like ``reader`` from its current state without changing it: the stateless
+    stages are shared; the conditioning stage is copied with its filter state."""
+    from .source.conditioning import ConditionedReader
+    if isinstance(reader, ConditionedReader):
+        fork = object.__new__(ConditionedReader)          # (its __getattr__ forwards: no copy.copy)
+        fork.__dict__.update(reader.__dict__)
+        c = reader.canceller
+        cc = object.__new__(type(c))
+        cc.__dict__.update({k: v.copy() if isinstance(v, np.ndarray) else v for k, v in c.__dict__.items()})
+        fork.__dict__["canceller"] = cc
+        return fork
+    return reader
+
+
+def _writer(cfg, reader, out_path, fs, if_hz, reads):
+    return RunWriter(out_path, cfg.to_yaml(), {
+        "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
+        "first_sample": reader.first, "n_samples": reader.n_samples,
+        "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
+        "input_if_hz": cfg.input.if_hz,
+        "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
+        **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
+        round_columns=cfg.output.round_columns)
 
 
 def check_meaning(cfg, reader):
@@ -270,10 +476,19 @@ def _nonfinite(reader, writer, summary):
 
 
 def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
-    from .navigation.engine import NavigationEngine
     fs, if_hz = reader.fs, reader.if_hz
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
+    reader = PrefetchingReader(reader)
+    try:
+        return _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, iono)
+    finally:
+        reader.close()
+
+
+def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, iono) -> RunSummary:
+    from .navigation.engine import NavigationEngine
+    fs, if_hz = reader.fs, reader.if_hz
     notes = []
     week_hint = cfg.input.start_gps_week
     nav = None
@@ -285,7 +500,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
             from .navigation.engine import PRESENCE_MARGIN_DB
             nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
     manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
-    manager.start(acq_start, notes)
+    with stage("acquisition"):
+        manager.start(acq_start, notes)
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
     cn0_sum: dict[int, list] = {}
     n_fixes, first_fix, fix_ecef = 0, None, []
@@ -297,21 +513,29 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
     start = acq_start
     while start < reader.end:
         interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
-        block = reader.read(start, chunk + overlap)
+        with stage("read input"):
+            if threads.threads() > 1:           # the next chunk is read ahead on a background thread
+                block = reader.chunk(start, chunk + overlap, start + chunk)
+            else:
+                block = reader.read(start, chunk + overlap)
         if vector is None and handover is not None:
             vector = handover.step(start)
         if vector is not None:
-            block_recs, vfixes = vector.process(block, start)
-            writer.append_fixes(vfixes)
-            writer.append_vector_log(vector.last_diag)
+            with stage("vector tracking"):
+                block_recs, vfixes = vector.process(block, start)
+            with stage("write"):
+                writer.append_fixes(vfixes)
+                writer.append_vector_log(vector.last_diag)
         else:
             # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
-            items = list(channels.items())
-            recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
-            block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
+            with stage("tracking"):
+                items = list(channels.items())
+                recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
+                block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
         for prn, ch in list(channels.items()):
             recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
-            writer.append_channel(prn, recs)
+            with stage("write"):
+                writer.append_channel(prn, recs)
             if len(recs):
                 c = recs["cn0_dbhz"][recs["pll_lock"] > 0]
                 if len(c):
@@ -320,16 +544,19 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                     acc[1] += len(c)
             manager.note(prn, recs)
             if nav is not None:
-                nav.add_records(prn, recs, ch.bit_offset)
+                with stage("navigation"):
+                    nav.add_records(prn, recs, ch.bit_offset)
         if vector is not None and vector.reinit_needed:
             vector = handover.fall_back(vector, start + chunk)      # scalar channels, hand over again
         if nav is not None:
-            fixes, obs = nav.update(start + chunk)
-            if vector is None:
-                writer.append_fixes(fixes)
-            else:
-                fixes = vfixes          # the summary counts the fixes that were written
-            writer.append_observables(obs)
+            with stage("navigation"):
+                fixes, obs = nav.update(start + chunk)
+            with stage("write"):
+                if vector is None:
+                    writer.append_fixes(fixes)
+                else:
+                    fixes = vfixes          # the summary counts the fixes that were written
+                writer.append_observables(obs)
             if len(fixes):
                 n_fixes += len(fixes)
                 if first_fix is None:
@@ -337,7 +564,8 @@ def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
                 fix_ecef.append(fixes["ecef"])
         # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest
         if start + chunk + overlap < reader.end:
-            manager.after_chunk(start, start + chunk)
+            with stage("re-acquisition"):
+                manager.after_chunk(start, start + chunk)
         start += chunk
         if bar is not None:
             bar.update(round(min(chunk, reader.end - start + chunk) / fs, 3))

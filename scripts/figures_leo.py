@@ -82,7 +82,7 @@ def monte_carlo(base, cfg, runs, seed, end_level, noise_hz, settings_extra=None,
     x0s = np.zeros((runs, 4))
     t_grid = np.zeros(runs)
     it = range(runs)
-    if progress:
+    if progress and sys.stderr.isatty():            # no bars in logs (off a terminal)
         from tqdm import tqdm
         it = tqdm(it, desc=f"Monte Carlo (GeoSOT level {end_level})", leave=False)
     for r in it:

@@ -143,7 +143,7 @@ def test_missing_output_directory_is_created_and_the_run_is_atomic(rec, tmp_path
     assert rc == 0, err
     assert leftovers(out.parent, "r.h5") == ["r.h5"]              # no .partial, no .lock
     with h5py.File(out) as f:
-        assert f.attrs["schema"] == "gnssrx-run-1" and f.attrs["nonfinite_samples"] == 0
+        assert f.attrs["schema"] == "gnssrx-run-2" and f.attrs["nonfinite_samples"] == 0
         assert len(f["channels"]) >= 4
     check_untouched(rec)
 

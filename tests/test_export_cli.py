@@ -70,7 +70,7 @@ def test_info_command(linked):
     res = CliRunner().invoke(main, ["info", str(linked)])
     assert res.exit_code == 0, res.output
     text = res.output
-    for want in ("schema          gnssrx-run-1", "navigation mode assisted", "channels        10",
+    for want in ("schema          gnssrx-run-2", "navigation mode assisted", "channels        10",
                  "modes         scalar", "mean position lat 35.68", "config:", "  navigation:",
                  "iono/UTC        rinex: Klobuchar alpha 1.21e-08"):
         assert want in text, want

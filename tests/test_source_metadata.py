@@ -70,3 +70,16 @@ def test_disagreeing_explicit_key_is_an_error(tmp_path):
     Path(paths["sigmf"]).write_text("{not json")
     with pytest.raises(UserError, match="not valid JSON"):
         read_sigmf(paths["if"], 1575.42e6)
+
+
+def test_recording_of_another_signal_names_it(tmp_path):
+    """A B1I recording (SigMF centre 1561.098 MHz) run with the default GPS signal: one line naming the
+    signal whose carrier the band holds; the simulator's input section names its signal, so it runs."""
+    paths = simulate(ROOT / "configs" / "scenarios" / "bds_b1i_short.yaml", tmp_path / "b.bin",
+                     [("time.duration_s", 0.05)], progress=False)
+    assert Path(paths["yaml"]).read_text().count("signal: bds_b1i") == 1
+    cfg = load_receiver_config(None, [("input.path", paths["if"]), ("output.path", str(tmp_path / "c.h5"))])
+    with pytest.raises(UserError, match=r"1561\.098000 MHz.*set signal: bds_b1i"):
+        run(cfg, quiet=True, log=lambda *x: None)
+    assert not (tmp_path / "c.h5").exists()
+    assert load_receiver_config(paths["yaml"], []).signal == "bds_b1i"

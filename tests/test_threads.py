@@ -73,3 +73,75 @@ def test_cli_threads_option_rejects_a_negative_count(tmp_path):
                                   "-o", str(tmp_path / "x.h5")])
     assert r.exit_code == 2 and "--threads" in r.output
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_background_writer_keeps_the_order_and_reports_write_errors():
+    import numpy as np
+
+    from receiver.errors import UserError
+    from receiver.pipeline import BackgroundWriter
+
+    class Fake:
+        def __init__(self):
+            self.calls, self.closed, self.fail = [], None, False
+
+        def append_channel(self, prn, recs):
+            if self.fail:
+                raise UserError("disk full")
+            self.calls.append(("ch", prn, len(recs)))
+
+        def append_fixes(self, rows):
+            self.calls.append(("fix", len(rows)))
+
+        def append_observables(self, rows):
+            self.calls.append(("obs", len(rows)))
+
+        def set_attrs(self, group, attrs):
+            self.calls.append(("attrs", group))
+
+        def close(self, ok=True):
+            self.closed = ok
+
+    f = Fake()
+    w = BackgroundWriter(f)
+    for k in range(3):
+        w.append_channel(5, np.zeros(10))
+        w.append_fixes(np.zeros(5))            # gathered: fewer than TABLE_ROWS rows
+    w.append_observables(np.zeros(BackgroundWriter.TABLE_ROWS))   # a full block goes at once
+    w.set_attrs("/", {})                       # a synchronous call waits for the appends
+    assert f.calls == [("ch", 5, 10)] * 3 + [("obs", BackgroundWriter.TABLE_ROWS), ("fix", 15), ("attrs", "/")]
+    f.fail = True
+    w.append_channel(5, np.zeros(1))
+    with pytest.raises(UserError, match="disk full"):
+        w.flush()
+    w.close(ok=False)
+    assert f.closed is False
+    f2 = Fake()
+    w2 = BackgroundWriter(f2)
+    w2.append_fixes(np.zeros(3))
+    w2.close()
+    assert f2.calls == [("fix", 3)] and f2.closed is True
+
+
+def test_read_ahead_gives_the_samples_of_plain_reads():
+    """pipeline.PrefetchingReader: chunks read ahead (conditioning state copied) equal plain sequential
+    reads, also when another read (a search elsewhere) comes in between and the read-ahead is discarded."""
+    if not TOKYO_REC.exists():
+        pytest.skip("../shared/data reference recording absent")
+    import numpy as np
+
+    from receiver.config import load_receiver_config
+    from receiver.pipeline import PrefetchingReader, open_input
+    cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml", [("input.path", str(TOKYO_REC))])
+    plain, ahead = open_input(cfg), PrefetchingReader(open_input(cfg))
+    assert ahead._ok and hasattr(ahead._r, "canceller")          # the conditioning stage is outermost
+    n, step = 70000, 60000
+    try:
+        for k in range(6):
+            s = plain.first + k * step
+            if k == 3:                       # a search elsewhere moves the filter stream of both
+                assert np.array_equal(plain.read(s + 10 ** 6, 5000), ahead.read(s + 10 ** 6, 5000))
+            assert np.array_equal(plain.read(s, n), ahead.chunk(s, n, s + step))
+    finally:
+        ahead.close()
+    assert ahead.ahead_used == 4             # chunks 1, 2, 4, 5 came from the read-ahead; 3 was read again

@@ -23,17 +23,64 @@ from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_LOST, STATE_NAMES
 COMPRESSION = {"none": {}, "lzf": {"compression": "lzf", "shuffle": True},
                "gzip": {"compression": "gzip", "compression_opts": 4, "shuffle": True}}
 
+#: rows per HDF5 chunk of the growing datasets; the writer flushes whole chunks (FLUSH_ROWS is a multiple),
+#: so no chunk is compressed twice.  16384 rows: 22 % fewer chunks' overhead than 4096, better compression.
+CHUNK_ROWS = 16384
 
-def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none"):
+#: /channels columns stored rounded to 10**-digits of their unit by the HDF5 scale-offset filter (the
+#: dataset stays float64; every HDF5 reader undoes the filter).  The rounding step is far below each
+#: column's noise (README "HDF5 run file"; tests/test_runfile_storage.py checks it on the reference run):
+#: doppler_hz 1e-3 Hz, code_rate_hz 1e-5 chip/s, code_phase_chips 1e-7 chip.  A chunk holding a NaN or
+#: Inf is stored unrounded (the filter declines it), so non-finite values survive.
+ROUNDED_DIGITS = {"doppler_hz": 3, "code_rate_hz": 5, "code_phase_chips": 7}
+
+#: the run-file layout version (root attribute ``schema``): 2 = rounded columns above, 16384-row chunks;
+#: 1 = every column exact.  Readers read both alike.
+SCHEMA = "gnssrx-run-2"
+
+
+def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none", digits=None,
+            rows: int = CHUNK_ROWS):
+    if digits is not None and not np.isfinite(data).all():
+        # the scale-offset filter would turn NaN/Inf into numbers: this column of this group is stored
+        # exactly from now on (the rows already written stay rounded; ``resolution`` still bounds them)
+        digits = None
+        if name in group and group[name].scaleoffset is not None:
+            _unround(group, name, compression, rows)
     if name not in group:
         maxshape = (None,) + data.shape[1:]
-        chunk = (4096,) + data.shape[1:]
-        group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **COMPRESSION[compression])
+        chunk = (rows,) + data.shape[1:]
+        if digits is not None:
+            # then the run's compressor (no shuffle: the filter packs bits), which also squeezes the fill
+            # of a partly written chunk (the filter packs all its CHUNK_ROWS slots)
+            kw = {"scaleoffset": int(digits),
+                  **{k: v for k, v in COMPRESSION[compression].items() if k != "shuffle"}}
+        else:
+            kw = COMPRESSION[compression]
+        ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
+        if digits is not None:
+            ds.attrs["resolution"] = 10.0 ** -int(digits)
     else:
         ds = group[name]
         n = ds.shape[0]
         ds.resize(n + len(data), axis=0)
         ds[n:] = data
+
+
+def _unround(group: h5py.Group, name: str, compression: str, rows: int):
+    """Replace the scale-offset dataset group[name] by an unfiltered (compressed) copy, block by block."""
+    old = group[name]
+    res = old.attrs.get("resolution")
+    tmp = name + ".rounded"
+    group.move(name, tmp)
+    old = group[tmp]
+    new = group.create_dataset(name, shape=old.shape, dtype=old.dtype, maxshape=old.maxshape,
+                               chunks=old.chunks, **COMPRESSION[compression])
+    for a in range(0, old.shape[0], rows):
+        new[a:a + rows] = old[a:a + rows]
+    if res is not None:
+        new.attrs["resolution"] = res
+    del group[tmp]
 
 
 class ChannelStats:
@@ -81,17 +128,22 @@ class ChannelStats:
 
 
 class RunWriter:
-    FLUSH_ROWS = 20000
+    FLUSH_ROWS = CHUNK_ROWS
 
     def __init__(self, path, config_yaml: str, attrs: dict | None = None, reads=(), compression: str = "none",
-                 channel_rate_hz: float | None = None):
+                 channel_rate_hz: float | None = None, round_columns: bool = True):
         """Checks the output path first (safeio.check_output: directory, name length, not one of `reads`,
         not locked by another run), then opens ``<path>.partial``.  ``compression`` (none, lzf, gzip; both
         with the shuffle filter) applies to the growing datasets (channels, navigation, observables).
         ``channel_rate_hz``: store channel records at most at this rate (the first epoch of every
         1/rate interval of ``time_s``); None or 0: every epoch.  The per-channel statistics
-        (:class:`ChannelStats`) always see every epoch."""
+        (:class:`ChannelStats`) always see every epoch.  ``round_columns``: store the
+        :data:`ROUNDED_DIGITS` channel columns rounded (scale-offset filter); False: exact.
+        Channel records and table rows (fixes, observables, vector log) are buffered and written in whole
+        chunks (few large HDF5 writes; the file is only renamed into place at the end anyway)."""
         self._buffers: dict[int, list] = {}
+        self._tables: dict[str, list] = {}
+        self.round_columns = bool(round_columns)
         self.system = str((attrs or {}).get("system", "G"))     # RINEX letter of the signal: group names
         self.compression = compression
         self.channel_rate_hz = float(channel_rate_hz or 0.0)
@@ -103,7 +155,7 @@ class RunWriter:
             a["gnssrx_version"] = __version__
             a["config"] = config_yaml
             a["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-            a["schema"] = "gnssrx-run-1"
+            a["schema"] = SCHEMA if self.round_columns else "gnssrx-run-1"
             for k, v in (attrs or {}).items():
                 a[k] = v
             self.f.create_group("channels").attrs["channel_rate_hz"] = self.channel_rate_hz
@@ -131,7 +183,7 @@ class RunWriter:
         }
         g.attrs["reason_codes"] = ",".join(f"{v}={k or 'detected'}" for k, v in ACQ_REASONS.items())
         for k, v in rows.items():
-            _append(g, k, v)
+            _append(g, k, v, rows=256)               # a few rows per search: small chunks
         for k, v in (attrs or {}).items():
             g.attrs[k] = v
 
@@ -160,8 +212,9 @@ class RunWriter:
         if "prn" not in g.attrs:
             g.attrs["prn"] = prn
             g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+        rounded = ROUNDED_DIGITS if self.round_columns else {}
         for name in EPOCH_DTYPE.names:
-            _append(g, name, np.ascontiguousarray(records[name]), self.compression)
+            _append(g, name, np.ascontiguousarray(records[name]), self.compression, rounded.get(name))
         self._out.check()
 
     def _write_stats(self):
@@ -175,9 +228,20 @@ class RunWriter:
 
     # ------------------------------------------------------------------ navigation
     def _append_table(self, group: str, rows: np.ndarray):
-        """Append structured rows to /group, one dataset per field."""
+        """Append structured rows to /group, one dataset per field (buffered: written FLUSH_ROWS at a time
+        and at :meth:`close`)."""
         if rows is None or len(rows) == 0:
             return
+        buf = self._tables.setdefault(group, [])
+        buf.append(np.array(rows, copy=True))
+        if sum(len(b) for b in buf) >= self.FLUSH_ROWS:
+            self._flush_table(group)
+
+    def _flush_table(self, group: str):
+        buf = self._tables.pop(group, None)
+        if not buf:
+            return
+        rows = np.concatenate(buf)
         g = self.f.require_group(group)
         for name in rows.dtype.names:
             _append(g, name, np.ascontiguousarray(rows[name]), self.compression)
@@ -241,6 +305,8 @@ class RunWriter:
         try:
             for prn in list(self._buffers):
                 self._flush_channel(prn)
+            for group in list(self._tables):
+                self._flush_table(group)
             self._write_stats()
             self._out.check()
         except BaseException:

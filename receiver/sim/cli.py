@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 
 import click
 
@@ -23,7 +24,7 @@ def simulate(scenario, out, sets, quiet):
     from .simulate import simulate as run_sim
     if out is None:
         out = os.path.splitext(os.path.basename(scenario))[0] + ".bin"
-    paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet)
+    paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet and sys.stderr.isatty())   # no bar off a terminal
     if not quiet:
         from ..runfile.truth import TruthFile
         with TruthFile(paths["truth"]) as tf:

@@ -612,6 +612,8 @@ class _Simulator:
         frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt, **packed,
                           "sample_rate_hz": self.fs, "if_hz": self.if_hz, "start_gps_week": self.week,
                           "start_gps_tow_s": self.t_ref}}
+        if self.signal.name != "gps_l1ca":            # the run config's default signal is GPS L1 C/A
+            frag = {"signal": self.signal.name, **frag}
         write_sigmf(tmp["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
                     description="gnssrx simulator output; truth: " + os.path.basename(paths["truth"]),
                     bit_order=fe.bit_order, encoding=fe.encoding, version=__version__, meta=tmp["sigmf"])

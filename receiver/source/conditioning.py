@@ -147,7 +147,7 @@ def refine_tone_frequency(x: np.ndarray, fs: float, f0: float, block: int) -> fl
     return f
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def cancel(x, out, steps, rot, amp, mu, blank_level):
     """Subtract the tracked tones from ``x`` into ``out`` (complex64); the state arrays are updated.
 

@@ -18,6 +18,20 @@ sample rate, so this stage brings the samples down first (``input.decimate``):
    power outside +/-0.45 fs_out is lost (GPS C/A at 4 MS/s: ~5 %, 0.2 dB); measured against processing a
    16.368 MS/s 2-bit file at full rate: 0.5 dB of C/N0.
 
+Real input (the common high-rate case: MAX2769-style 2-bit real IF) takes a cheaper route to the same
+output: the mixer is moved behind the filter.  ``sum_j h[j] x[n-j] e^{-j w (n-j)} = e^{-j w n} sum_j
+(h[j] e^{j w j}) x[n-j]``: the taps become complex (each polyphase row times the mixer's phase ramp over
+its J taps, computed once), the real samples are never mixed, and the mixer's phase is applied once per
+*output* (from the same 64-bit phase accumulator, two 4096-entry tables: phase error below 2 pi / 2^24).
+Packed real formats are unpacked straight from the file's bytes into a float32 scratch inside the same
+compiled call (a 256-entry byte table, no complex64 intermediate); ``iq_swap`` (spectral inversion,
+(-1)^n) becomes a mixer offset of fs_in / 2.  Reads are split into pieces of ``PIECE`` outputs run on the
+receiver's thread pool (:mod:`receiver.threads`): each output is computed by the same operations whatever
+the split, so the samples are identical for any thread count.
+
+A run reads the stream in regular chunks; with more than one thread allowed, the next chunk is computed on
+a background thread while the channels track the current one (read-ahead: the samples do not change).
+
 Every output sample depends only on the J input samples around its position, so a read at any position
 reads that margin on each side and gives exactly the samples a whole-file pass would: block edges leave
 no trace and memory is bounded by the block (processed in pieces of ``PIECE`` outputs).
@@ -40,16 +54,20 @@ per ms, p = 4000) whenever the input is at least 1.5 times that rate (:func:`pla
 from __future__ import annotations
 
 import math
+import threading
 from fractions import Fraction
 
 import numpy as np
 from numba import njit
 
 from ..errors import UserError
+from ..threads import map_ordered, threads
 
 PIECE = 1 << 16              # outputs per compiled call (bounded scratch memory)
 LUT_BITS = 12
 _LUT = np.exp(-2j * np.pi * np.arange(1 << LUT_BITS) / (1 << LUT_BITS)).astype(np.complex64)
+# fine table: the next 12 bits of the phase accumulator (bin centres: truncation error mean zero)
+_LUT_FINE = np.exp(-2j * np.pi * (np.arange(1 << LUT_BITS) + 0.5) / (1 << (2 * LUT_BITS))).astype(np.complex64)
 AUTO_CHIPS = 3.9             # auto: output rate >= this many chip rates, rounded up to whole MS/s
 AUTO_MIN_RATIO = 1.5         # ... when the input is at least this much faster (else no stage)
 MAX_L = 4096                 # largest interpolation factor of a rational resampling
@@ -171,6 +189,107 @@ def _resample(x, lo, step, lut, shift, hp, c, l, m, k0, real, out):
     return out
 
 
+@njit(cache=True, nogil=True, fastmath=True)
+def _filter_real(x, lo, step, lut, lut_fine, hr, hi, c, l, m, k0, out):
+    """Real input x (x[0] is file index lo): out[i] = e^{-j w nmax} sum_j (hr + j hi)[r, j] x[nmax - J + 1 + j]
+    for stream index k = k0 + i (top = k m + c, nmax = top // l, r = top - nmax l); the complex taps carry
+    the mixer's phase over the window (module docstring), e^{-j w nmax} comes from the phase accumulator
+    nmax * step (top 12 bits: ``lut``, next 12: ``lut_fine``)."""
+    J = hr.shape[1]
+    ov = out.view(np.float32)
+    top = k0 * m + c
+    nmax = top // l
+    r = top - nmax * l
+    q, rr = m // l, m % l
+    s1 = np.uint64(64 - LUT_BITS)
+    s2 = np.uint64(64 - 2 * LUT_BITS)
+    mask = np.uint64((1 << LUT_BITS) - 1)
+    for i in range(out.size):
+        b = nmax - lo - J + 1
+        h1 = hr[r]
+        h2 = hi[r]
+        xx = x[b:b + J]
+        ar = np.float32(0.0)
+        ai = np.float32(0.0)
+        for j in range(J):
+            ar += h1[j] * xx[j]
+            ai += h2[j] * xx[j]
+        ph = np.uint64(nmax) * step
+        cs = lut[ph >> s1] * lut_fine[(ph >> s2) & mask]
+        ov[2 * i] = ar * cs.real - ai * cs.imag
+        ov[2 * i + 1] = ar * cs.imag + ai * cs.real
+        nmax += q
+        r += rr
+        if r >= l:
+            r -= l
+            nmax += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _unpack_real(raw, table, first_field, x, off, n):
+    """x[off:off+n] = the n fields of the bytes ``raw`` from field ``first_field`` of raw[0] on
+    (``table``: (256, fields per byte) values)."""
+    k = table.shape[1]
+    i = 0
+    fi = first_field
+    bi = 0
+    while fi < k and i < n:                        # the first, partial byte
+        x[off + i] = table[raw[0], fi]
+        fi += 1
+        i += 1
+    bi = 1
+    while i + k <= n:                              # whole bytes
+        row = table[raw[bi]]
+        for t in range(k):
+            x[off + i + t] = row[t]
+        i += k
+        bi += 1
+    fi = 0
+    while i < n:                                   # the last, partial byte
+        x[off + i] = table[raw[bi], fi]
+        fi += 1
+        i += 1
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _resample_packed_real(raw, table, first_field, a, e, lo, hi_, step, lut, lut_fine, hr, hi, c, l, m, k0,
+                          out):
+    """Unpack file samples [a, e) of a packed real format (``raw`` from the byte holding sample a;
+    zeros for the rest of [lo, hi_)) into a float32 scratch and filter it (:func:`_filter_real`)."""
+    x = np.empty(hi_ - lo, np.float32)
+    for i in range(0, a - lo):
+        x[i] = 0.0
+    for i in range(e - lo, hi_ - lo):
+        x[i] = 0.0
+    if e > a:
+        _unpack_real(raw, table, first_field, x, a - lo, e - a)
+    return _filter_real(x, lo, step, lut, lut_fine, hr, hi, c, l, m, k0, out)
+
+
+def complex_taps(hp: np.ndarray, step) -> tuple:
+    """(real, imaginary) float32 taps: polyphase row r, tap j times e^{-j w (j - (J - 1))}, w the mixer's
+    angular step per input sample (``step`` / 2^64 cycles)."""
+    J = hp.shape[1]
+    w = 2 * np.pi * (int(step) / 2.0 ** 64)
+    rot = np.exp(-1j * w * (np.arange(J) - (J - 1)))
+    hc = hp.astype(np.float64) * rot[None, :]
+    return (np.ascontiguousarray(hc.real.astype(np.float32)), np.ascontiguousarray(hc.imag.astype(np.float32)))
+
+
+READ_AHEAD = True            # compute the next chunk of a sequential read on a background thread
+_BG = None
+
+
+def _background():
+    """The one background thread of the read-ahead (created on first use)."""
+    global _BG
+    if _BG is None:
+        from concurrent.futures import ThreadPoolExecutor
+        _BG = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gnssrx-read-ahead")
+    return _BG
+
+
 class DecimatingReader:
     """A sample reader at fs_in L / M, complex baseband (``if_hz`` 0), over a :class:`SampleReader` (or
     any reader with ``fs``, ``first``, ``end``, ``read``).  Index k of this reader is time k / fs_out
@@ -184,7 +303,6 @@ class DecimatingReader:
         self.input_fs, self.input_if_hz = float(reader.fs), float(if_hz)
         self.fs = self.input_fs * self.l / self.m
         self.if_hz = 0.0
-        self._hp, self._c = design(self.input_fs, self.l, self.m, chip_rate)
         self.first = -(-reader.first * self.l // self.m)
         self.end = -(-reader.end * self.l // self.m)
         frac = (if_hz / self.input_fs) % 1.0
@@ -192,6 +310,25 @@ class DecimatingReader:
         self._shift = np.uint64(64 - LUT_BITS)
         fmt = getattr(reader, "format", None)
         self._real = bool(fmt is not None and not fmt.complex)
+        # packed real SampleReader: unpacked inside the compiled call from the memory-mapped bytes, the
+        # spectral inversion (iq_swap: (-1)^n) folded into the mixer as fs_in / 2
+        self._packed = bool(self._real and getattr(fmt, "kind", "") == "packed"
+                            and hasattr(reader, "_raw") and hasattr(reader, "_table"))
+        real_step = self._step
+        if self._packed and getattr(reader, "iq_swap", False):
+            real_step = np.uint64((int(self._step) + (1 << 63)) % (1 << 64))
+        self._real_step = real_step
+        self._hp, self._c = design(self.input_fs, self.l, self.m, chip_rate)
+        if self._real:
+            self._hr, self._hi = complex_taps(self._hp, real_step)
+        # pieces may run on the thread pool unless the wrapped reader keeps state (NaN counting of float
+        # formats) or is not a plain file reader
+        self._parallel = self._packed or (fmt is not None and getattr(fmt, "kind", "") == "int"
+                                          and hasattr(reader, "_raw"))
+        self._ahead = None                 # (start, n, future) of the read-ahead
+        self._lock = threading.Lock()
+        self._last = None                  # (start, n) of the previous read
+        self.read_ahead_used = self.read_ahead_dropped = 0
 
     def __getattr__(self, name):
         return getattr(self._reader, name)
@@ -210,15 +347,44 @@ class DecimatingReader:
         return self._hp.shape[1]
 
     def read(self, start: int, n: int) -> np.ndarray:
-        """Stream samples [start, start+n) (clipped to the span) as complex64."""
-        start = max(int(start), self.first)
-        stop = min(start + int(n), self.end)
+        """Stream samples [start, start+n) (clipped to the span) as complex64.
+
+        Read-ahead: when this read continues a regular sequence (same length, same stride as the previous
+        one -- the pipeline's chunk loop) and more than one thread is allowed, the next read of the
+        sequence is computed on a background thread while the caller works on this one; a read that does
+        not match it computes its samples itself.  The samples are the same either way."""
+        start, n = max(int(start), self.first), int(n)
+        with self._lock:                              # (bookkeeping only: reads may come from two threads)
+            pf, self._ahead = self._ahead, None
+            last, self._last = self._last, (start, n)
+            if pf is not None and not (pf[0] == start and pf[1] == n):
+                self.read_ahead_dropped += not pf[2].cancel()   # (a running one finishes, unused)
+                pf = None
+            if (READ_AHEAD and self._parallel and last is not None and last[1] == n and start > last[0]
+                    and threads() > 1 and start + (start - last[0]) < self.end):
+                nxt = start + (start - last[0])
+                self._ahead = (nxt, n, _background().submit(self._compute, nxt, n, 1))
+        if pf is not None:
+            self.read_ahead_used += 1
+            return pf[2].result()
+        return self._compute(start, n)
+
+    def _compute(self, start: int, n: int, n_thr: int | None = None) -> np.ndarray:
+        stop = min(start + n, self.end)
         if stop <= start:
             return np.zeros(0, np.complex64)
         out = np.empty(stop - start, np.complex64)
-        for k0 in range(start, stop, PIECE):
-            k1 = min(k0 + PIECE, stop)
-            self._piece(k0, out[k0 - start:k1 - start])
+        if n_thr is None:
+            n_thr = threads() if self._parallel else 1
+        piece = PIECE
+        if n_thr > 1:                                     # at least one piece per thread
+            piece = max(4096, min(PIECE, -(-(stop - start) // n_thr)))
+        spans = [(k0, min(k0 + piece, stop)) for k0 in range(start, stop, piece)]
+        if n_thr > 1 and len(spans) > 1:
+            map_ordered(lambda s: self._piece(s[0], out[s[0] - start:s[1] - start]), spans)
+        else:
+            for k0, k1 in spans:
+                self._piece(k0, out[k0 - start:k1 - start])
         return out
 
     def _piece(self, k0: int, out: np.ndarray):
@@ -226,7 +392,21 @@ class DecimatingReader:
         lo = (k0 * m + c) // l - J + 1                    # input span [lo, hi)
         hi = ((k0 + out.size - 1) * m + c) // l + 1
         a = max(lo, self._reader.first)                   # the wrapped reader clips to its span: zero-pad
+        if self._packed:
+            r = self._reader
+            e = max(a, min(hi, r.end))
+            k = r._table.shape[1]                         # fields per byte
+            b0 = a // k
+            raw = np.asarray(r._raw[b0:-(-e // k)]) if e > a else np.zeros(1, np.uint8)
+            _resample_packed_real(raw, r._table, a - b0 * k, a, e, lo, hi, self._real_step, _LUT, _LUT_FINE,
+                                  self._hr, self._hi, c, l, m, k0, out)
+            return
         raw = self._reader.read(a, hi - a)
+        if self._real:
+            x = np.zeros(hi - lo, np.float32)
+            x[a - lo:a - lo + raw.size] = raw.real
+            _filter_real(x, lo, self._step, _LUT, _LUT_FINE, self._hr, self._hi, c, l, m, k0, out)
+            return
         if a != lo or raw.size != hi - lo:
             x = np.zeros(hi - lo, np.complex64)
             x[a - lo:a - lo + raw.size] = raw

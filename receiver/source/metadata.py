@@ -258,4 +258,18 @@ def apply_metadata(inp, defaults: dict, carrier_hz: float) -> dict:
             continue
         raise UserError(f"config key 'input.{key}' = {cur!r} disagrees with {src[key]} "
                         f"({value!r}); remove the key or fix the metadata")
+    if "if_hz" in meta and abs(float(inp.if_hz)) > float(inp.sample_rate_hz) / 2:
+        _off_band(meta["if_hz"], float(inp.sample_rate_hz), carrier_hz, src["if_hz"])
     return meta
+
+
+def _off_band(if_hz: float, fs: float, carrier_hz: float, src: str):
+    """The metadata's centre frequency puts the configured signal's carrier outside the recorded band:
+    most often the recording holds another signal (the config's ``signal`` left at gps_l1ca)."""
+    from ..gnss.registry import SIGNALS
+    centre = carrier_hz - if_hz
+    fits = [n for n, s in SIGNALS.items() if abs(s.carrier_hz - centre) <= fs / 2 and s.carrier_hz != carrier_hz]
+    hint = f"set signal: {fits[0]} (its carrier is inside the band)" if fits else "check the metadata"
+    raise UserError(f"{src} centres the recording at {centre * 1e-6:.6f} MHz: the signal's carrier "
+                    f"{carrier_hz * 1e-6:.6f} MHz is {if_hz * 1e-6:+.3f} MHz away, outside the recorded "
+                    f"+/-{fs * 0.5e-6:.3f} MHz; {hint}")

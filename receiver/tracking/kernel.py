@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .correlator import correlate
+from .correlator import correlate_ws, workspace
 
 # ---- state indices
 S_NEXT_SAMPLE = 0      # first sample of the next epoch (file index)
@@ -145,9 +145,16 @@ def _samples_needed(st, cfg, periods):
     return int(math.ceil(chips / step))
 
 
-@njit(cache=True, fastmath=True, nogil=True)
+@njit(cache=True, nogil=True)
 def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
     """Run epochs while they fit in `samples` (file indices block_start...). Returns epochs written."""
+    return track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epochs, workspace())
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epochs, ws):
+    """:func:`track_block` with the correlator's workspace (``correlator.workspace()``) from the caller, for
+    callers that run one epoch per call (the compiled carrier loops, the vector loop)."""
     fs = cfg[C_FS]
     nblk = samples.shape[0]
     n_out = 0
@@ -178,8 +185,8 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
             # overlay (NH) wipe-off: correlate against the NH-modulated code section
             k_nh = (int(st[S_CODE_PERIOD]) - int(st[S_BIT_OFFSET])) % bit_ms
             cp += cfg[C_NH_BASE] + k_nh * cfg[C_CODE_LEN]
-        e, p, l, p1, p2 = correlate(samples, off, n, code_ext, cp, code_step, half_el,
-                                    st[S_CARR_PHASE], carr_step)
+        e, p, l, p1, p2 = correlate_ws(samples, off, n, code_ext, cp, code_step, half_el,
+                                       st[S_CARR_PHASE], carr_step, ws)
         ip = p.real
         qp = p.imag
         ae = abs(e)
@@ -239,9 +246,12 @@ def track_block(samples, block_start, st, cfg, code_ext, hist, out, max_epochs):
                 mi = st[S_ACC_ABSI] / nacc
                 pd = mi * mi
                 pn = (st[S_ACC_I2] / nacc - pd) + st[S_ACC_Q2] / nacc
-                if st[S_WEAK] > 0:
-                    # 20-ms weak channel: its phase jitter (~10 deg) puts signal into Q, which would read
-                    # as noise (-2..-3 dB); the noise of |I| alone (both components alike) does not
+                if st[S_WEAK] > 0 or pd > 10.0 * pn:
+                    # the noise from |I| alone (both components alike): the tracking phase error puts
+                    # signal into Q, which would read as noise -- a 20-ms weak channel's ~10 deg jitter
+                    # costs 2-3 dB, a TCXO's phase noise through a 15-Hz loop at 5 ms (~0.1 rad) 3-5 dB;
+                    # |I| loses only the second-order cos(phase) term.  Below 10 dB per integration |I|
+                    # folds noise (reads high): there the jitter is the noise's and I + Q is the estimate
                     pn = 2.0 * (st[S_ACC_I2] / nacc - pd) * nacc / max(nacc - 1.0, 1.0)
                 if pn > 0:
                     cn0 = pd / (pn * T)

@@ -20,6 +20,7 @@ from numba import njit
 
 from ...gnss.signals import C_LIGHT
 from .. import kernel as K
+from ..correlator import workspace
 from .ekf import ekf_step
 from .kfpll import kf_prior_hph, kf_step
 
@@ -358,8 +359,9 @@ def run_epochs(samples, block_start, st, cfg, code_ext, hist, out, max_epochs, l
     Returns (epochs written, pending): pending = 1 when the state became non-finite after the last epoch
     written: the caller repairs it (kernel.repair_state) and then calls apply_epoch on that row."""
     n_out = 0
+    ws = workspace()
     while n_out < max_epochs:
-        n = K.track_block(samples, block_start, st, cfg, code_ext, hist, out[n_out:n_out + 1], 1)
+        n = K.track_block_ws(samples, block_start, st, cfg, code_ext, hist, out[n_out:n_out + 1], 1, ws)
         if n == 0:
             break
         n_out += 1

@@ -59,27 +59,58 @@ def kf_step_numpy(s, P, phi, H, Q, d, R, lam, first):
     s[:] = phi @ s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _abat(A, B, out):
+    """out = A B A^T for small square matrices, in plain loops (a BLAS call per 3x3 product costs more
+    than the whole epoch's correlation of a 1-ms epoch; the sums' order differs from numpy's at the
+    float-rounding level)."""
+    n = A.shape[0]
+    AB = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += A[i, k] * B[k, j]
+            AB[i, j] = acc
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += AB[i, k] * A[j, k]
+            out[i, j] = acc
+
+
+@njit(cache=True, nogil=True)
 def kf_prior_hph(P, phi, Q, H):
     """H (phi P phi^T + Q) H^T (the unscaled prediction seen by the measurement; adaptive_kf)."""
     n = P.shape[0]
-    Pm = phi @ P @ phi.T + Q
+    Pm = np.empty((n, n))
+    _abat(phi, P, Pm)
     acc = 0.0
     for i in range(n):
         for j in range(n):
-            acc += H[i] * Pm[i, j] * H[j]
+            acc += H[i] * (Pm[i, j] + Q[i, j]) * H[j]
     return acc
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def kf_step(s, P, phi, H, Q, d, R, lam, first):
-    """Compiled :func:`kf_step_numpy`."""
+    """Compiled :func:`kf_step_numpy` (plain loops, no BLAS calls)."""
     n = s.shape[0]
+    Pm = np.empty((n, n))
     if first:
-        Pm = P.copy()
+        Pm[:, :] = P
     else:
-        Pm = phi @ P @ phi.T + lam * Q
-    Ph = Pm @ H
+        _abat(phi, P, Pm)
+        for i in range(n):
+            for j in range(n):
+                Pm[i, j] += lam * Q[i, j]
+    Ph = np.empty(n)
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += Pm[i, j] * H[j]
+        Ph[i] = acc
     S = R
     for i in range(n):
         S += H[i] * Ph[i]
@@ -90,11 +121,17 @@ def kf_step(s, P, phi, H, Q, d, R, lam, first):
     for i in range(n):
         for j in range(n):
             IKH[i, j] -= Kg[i] * H[j]
-    Pn = IKH @ Pm @ IKH.T
+    Pn = np.empty((n, n))
+    _abat(IKH, Pm, Pn)
     for i in range(n):
         for j in range(n):
             P[i, j] = Pn[i, j] + R * Kg[i] * Kg[j]
-    sn = phi @ s
+    sn = np.empty(n)
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += phi[i, j] * s[j]
+        sn[i] = acc
     for i in range(n):
         s[i] = sn[i]
 

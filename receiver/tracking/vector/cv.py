@@ -28,4 +28,5 @@ class CV(KinematicFilter):
         return np.diag(np.asarray(q, dtype=float))
 
     def describe(self):
-        return f"cv VDFLL: sigma_v^2 {self.vcfg.cv.q_velocity:g} (m/s)^2 per epoch"
+        r = ", R from each channel's C/N0" if self.vcfg.r_model == "cn0" else ""
+        return f"cv VDFLL: sigma_v^2 {self.vcfg.cv.q_velocity:g} (m/s)^2 per epoch{r}"

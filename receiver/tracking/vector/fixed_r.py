@@ -15,5 +15,7 @@ class FixedR(KinematicFilter):
     name = "fixed_r"
 
     def describe(self):
-        return (f"fixed_r VLL: R code {self.r_code:g} m^2, carrier {self.r_carr:g} (m/s)^2, "
+        r = ("R from each channel's C/N0" if self.vcfg.r_model == "cn0" else
+             f"R code {self.r_code:g} m^2, carrier {self.r_carr:g} (m/s)^2")
+        return (f"fixed_r VLL: {r}, "
                 f"{self.q_text()}, clock {self.vcfg.clock_class}")

@@ -30,9 +30,29 @@ FORMS = {"none": FORM_NONE, "paper": FORM_PAPER, "innovation": FORM_INNOVATION, 
 
 @njit(cache=True)
 def kf_predict(x, P, F, Q):
-    """x <- F x, P <- F P F^T + Q (in place)."""
-    x[:] = F @ x
-    P[:, :] = F @ P @ F.T + Q
+    """x <- F x, P <- F P F^T + Q (in place), in plain loops (BLAS calls for these small matrices cost more
+    than the arithmetic; the sums' order differs from numpy's at the float-rounding level)."""
+    n = x.shape[0]
+    xn = np.empty(n)
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += F[i, k] * x[k]
+        xn[i] = acc
+    x[:] = xn
+    FP = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += F[i, k] * P[k, j]
+            FP[i, j] = acc
+    for i in range(n):
+        for j in range(n):
+            acc = Q[i, j]
+            for k in range(n):
+                acc += FP[i, k] * F[j, k]
+            P[i, j] = acc
 
 
 @njit(cache=True)

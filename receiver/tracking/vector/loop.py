@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from .. import kernel as K
+from ..correlator import workspace
 from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ
 from .discriminators import code_disc_m, freq_disc_hz
 from .kalman import adapt_r, kf_predict, kf_update
@@ -128,6 +129,7 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
     sv = np.zeros(4)
     e = np.zeros(3)
     cap = REC.shape[1]
+    ws = workspace()                  # the correlator's scratch, once per chunk (one epoch per call below)
     k = 0
     while k < max_epochs:
         s_end = grid_next
@@ -153,8 +155,8 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
                 nlock += 1
             while ST[j, K.S_NEXT_SAMPLE] < s_end and NREC[j] < cap:
                 r0 = NREC[j]
-                got = K.track_block(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
-                                    REC[j, r0:r0 + 1], 1)
+                got = K.track_block_ws(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
+                                       REC[j, r0:r0 + 1], 1, ws)
                 if got == 0:
                     break
                 NREC[j] = r0 + 1

@@ -39,11 +39,15 @@ from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
 from ..scalar import Channel, to_records
 from . import loop as L
 from .geometry import satellite_polys
+from .kalman import FORM_NONE
+from .noise import channel_r
 
 LAMBDA = C_LIGHT / L1_HZ
 NEVER_LOST_MS = 1e15
 MODE_VECTOR = 1               # FIX_DTYPE mode values (receiver.output)
 MODE_COAST = 2
+EPH_JUMP_M = 30.0             # a replacement ephemeris moving a locked satellite's range more than this is
+                              # not used (_refresh_ephemerides)
 PROMOTE_LOCKED_S = 1.0        # a scalar channel joins the vector loop after this long in lock
 
 
@@ -73,6 +77,7 @@ class VectorTracker:
         self.info: dict[int, dict] = {}     # prn -> {A, Rc, Rf, window...}
         self.pending_since: dict[int, float] = {}
         self.ephs: dict = {}                # prn -> Ephemeris
+        self._rejected: dict = {}           # prn -> a replacement Ephemeris not taken (_refresh_ephemerides)
         self.week = None
         self.rate = float(cfg.navigation.rate_hz)
         self.next_fix = None
@@ -101,8 +106,29 @@ class VectorTracker:
         return self.t_ref + tau - b / C_LIGHT
 
     def _refresh_ephemerides(self, t_gps):
+        """The navigation engine's ephemerides; a replacement set that moves a satellite's predicted range
+        by more than EPH_JUMP_M while its vector channel is in vector lock is not taken (see below)."""
         nav = self.nav
-        self.ephs.update(nav.ephemerides(t_gps))
+        tau = (self.grid_next - self.s_ref) / self.fs if hasattr(self, "grid_next") else self.tau_state
+        for prn, e in nav.ephemerides(t_gps).items():
+            old = self.ephs.get(prn)
+            if old is None or e is old or e == old or self._rejected.get(prn) is e:
+                self.ephs[prn] = old if self._rejected.get(prn) is e else e
+                continue
+            jump = self._predict_prn(prn, tau, e)[0] - self._predict_prn(prn, tau, old)[0]
+            ch = self.channels.get(prn)
+            locked = prn in self.prns and ch is not None and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
+            if abs(jump) > EPH_JUMP_M and locked:
+                # the channel follows the signal with the set in use (its innovations are small): the new
+                # one disagrees with the signal - a decoding error that passed parity (low C/N0, words
+                # assembled across frames) - and would steer the channel off it
+                self._rejected[prn] = e
+                self.log(f"vector: G{prn:02d} new ephemeris (IODE {e.iode}) moves the predicted range by "
+                         f"{jump:+.0f} m while the channel is locked with the one in use (IODE {old.iode}): "
+                         f"not used")
+                continue
+            self._rejected.pop(prn, None)
+            self.ephs[prn] = e
         w = nav.week()
         if w is not None:
             self.week = int(w)
@@ -113,13 +139,15 @@ class VectorTracker:
         locked = ch.st[K.S_LOCK] > 0 and ch.st[K.S_MODE] in (K.MODE_TRACK, K.MODE_BIT_SYNC)
         return bool(locked)
 
-    def _predict_prn(self, prn, tau):
-        """(pseudorange m, pseudorange rate m/s, LOS unit vector, elevation rad) of a satellite at tau."""
+    def _predict_prn(self, prn, tau, eph=None):
+        """(pseudorange m, pseudorange rate m/s, LOS unit vector, elevation rad) of a satellite at tau (with
+        the ephemeris in use, or eph)."""
         r, v, b, d, dl = self.filt.nav_state(self.x)
         dt = tau - self.tau_state
         pos = r + v * dt
-        poly, atm, el = satellite_polys([self.ephs[prn]], self.t_ref, tau, 0.05, b + (d + dl) * dt,
-                                        d + dl, pos, self.nav.iono(), self.cfg.navigation)
+        eph = self.ephs[prn] if eph is None else eph
+        poly, atm, el = satellite_polys([eph], self.t_ref, tau, 0.05, b + (d + dl) * dt, d + dl, pos,
+                                        self.nav.iono(), self.cfg.navigation)
         sp, sv = poly[0, 0], poly[0, 1]
         los = sp[:3] - pos
         rng = float(np.linalg.norm(los))
@@ -184,6 +212,14 @@ class VectorTracker:
             ch.st[K.S_BIT_OFFSET] = cn.bit_offset
             ch.hist[cn.bit_offset % 20] = 12
             continuous = True
+        else:
+            # no memory of the satellite: the data-bit edges from the predicted transmit time (bits start
+            # at whole 20 ms of GPS time; the prediction is good to far better than 0.5 ms), so the channel
+            # integrates 10-20 ms at once instead of waiting ~1 s for an energy bit sync
+            t0 = round((tx_abs - code_phase / CA_CHIP_RATE) * 1000.0)     # transmit ms of code period 0
+            ch.st[K.S_BIT_OFFSET] = (-t0) % 20
+            ch.st[K.S_MODE] = K.MODE_BIT_SYNC
+            ch.hist[int(ch.st[K.S_BIT_OFFSET])] = 12
         if cn is not None:
             self.nav.resume(prn, continuous)
         self.channels[prn] = ch
@@ -223,6 +259,18 @@ class VectorTracker:
         self.ACTIVE = np.ones(m, np.int64)
         self._arr_prns = list(prns)
         self._arrays_dirty = False
+
+    def _cn0_r(self):
+        """vector.r_model cn0: each channel's R from its C/N0 estimate and integration (noise.py); an
+        adaptive variant's channel keeps its own estimate once its window is filled."""
+        m = len(self.prns)
+        r_code, r_rate = channel_r(self.ST[:, K.S_CN0], self.ST[:, K.S_INT_MS], self.T_ms,
+                                   self.CF[:, K.C_EL_SPACING], self.v.r_cn0)
+        own = np.zeros(m, bool)
+        if self.filt.adaptive_form != FORM_NONE:
+            own = self.WN >= min(self.filt.window, 100)
+        self.RC[~own] = r_code[~own]
+        self.RF[~own] = r_rate[~own]
 
     def _save_arrays(self):
         """Keep the adaptive-R state of the channels of the current arrays (before a rebuild)."""
@@ -314,6 +362,8 @@ class VectorTracker:
         prm[L.P_MARGIN] = (self.T_ms + 1.0) * 1e-3 * fs
         prm[L.P_CHI2] = self.filt.chi2_threshold
         prm[L.P_CN0_MASK] = -1e9 if self.v.cn0_mask_dbhz is None else float(self.v.cn0_mask_dbhz)
+        if self.v.r_model == "cn0":         # below min_cn0_dbhz a channel has no weight to give
+            prm[L.P_CN0_MASK] = max(prm[L.P_CN0_MASK], float(self.v.r_cn0.min_cn0_dbhz))
         prm[L.P_LOCK_CN0] = float(self.v.lock_cn0_dbhz)
         prm[L.P_FORM] = self.filt.adaptive_form
         prm[L.P_FLOOR_C] = self.filt.floor_code
@@ -321,6 +371,8 @@ class VectorTracker:
         prm[L.P_MIN_FILL] = min(self.filt.window, 100)
         prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
         prm[L.P_COAST_MASK] = 1.0 if self.v.coast_mask else 0.0
+        if m and self.v.r_model == "cn0":
+            self._cn0_r()
         if m:
             nep, self.grid_next = L.run_chunk(
                 block, start, prm, self.grid_next, max_ep, self.ST, self.CF, self.CODE, self.HIST, REC,
@@ -394,12 +446,18 @@ class VectorTracker:
             return np.zeros(0, FIX_DTYPE)
         rows = []
         step = 1.0 / self.rate
+        # GPS time of every epoch at once (the same float64 operations as per epoch); the state is unpacked
+        # only at the epochs where a fix falls due (a few per block, not every epoch)
+        ib = int(self.filt.layout()[2])
+        t_all = self.t_ref + LOG[:, L.L_TAU] - LX[:, ib] / C_LIGHT
         for k in range(len(LOG)):
-            tau = float(LOG[k, L.L_TAU])
-            r, v, b, d, dl = self.filt.nav_state(LX[k])
-            t_gps = self.t_ref + tau - b / C_LIGHT
+            t_gps = float(t_all[k])
             if self.next_fix is None:
                 self.next_fix = math.ceil(t_gps * self.rate - 1e-9) / self.rate
+            if self.next_fix > t_gps + 1e-12:
+                continue
+            tau = float(LOG[k, L.L_TAU])
+            r, v, b, d, dl = self.filt.nav_state(LX[k])
             while self.next_fix <= t_gps + 1e-12:
                 back = t_gps - self.next_fix                # s of GPS time before epoch k
                 tau_f = tau - back * (1.0 + (d + dl) / C_LIGHT)
