@@ -18,17 +18,23 @@ from ...gnss.ephemeris import earth_rotation, sat_state
 from ...gnss.signals import C_LIGHT
 
 
-def transmit_state(ephs, t_gps, rx_pos, delay_m=None, iterations=3):
+def transmit_state(ephs, t_gps, rx_pos, delay_m=None, iterations=3, start=None):
     """Satellite positions (rotated into the reception frame) and c*dt_sv for receptions at GPS times.
 
     ephs: list of n Ephemeris; t_gps: (n,) true GPS reception times; rx_pos (3,) or (n, 3).
+    ``start``: (travel (n,) s, cclk (n,) m) of a nearby solution to iterate from (each light-time
+    iteration shrinks the error by ~v_sat / c, so one iteration from a solution 1 us off is exact).
     Returns (pos (n, 3), cclk (n,), travel (n,) s).
     """
     t_gps = np.asarray(t_gps, dtype=float)
     rx = np.broadcast_to(np.asarray(rx_pos, dtype=float), (len(ephs), 3))
     delay = np.zeros(len(ephs)) if delay_m is None else np.asarray(delay_m, dtype=float)
-    travel = np.full(len(ephs), 0.075)
-    clk = np.zeros(len(ephs))
+    if start is None:
+        travel = np.full(len(ephs), 0.075)
+        clk = np.zeros(len(ephs))
+    else:
+        travel = np.array(start[0], dtype=float)
+        clk = np.asarray(start[1], dtype=float) / C_LIGHT
     for _ in range(iterations):
         pos, _, clk, _ = sat_state(ephs, t_gps - travel + clk)
         rot = earth_rotation(pos, travel)
@@ -67,9 +73,11 @@ def satellite_polys(ephs, t_ref, tau_a, h, b_m, drift_mps, rx_pos, iono_utc, nav
     t_gps = t_ref + nodes - (b_m + drift_mps * (nodes - tau_a)) / C_LIGHT
     eph3 = list(ephs) * 3
     tg = np.repeat(t_gps, m)
-    pos, _, _ = transmit_state(eph3, tg, rx_pos)
+    # the positions for the atmosphere (elevations) need no converged light time (one iteration: mm);
+    # the fit's then start from that solution (off by the delay / c, < 1 us: one iteration is exact)
+    pos, cclk, travel = transmit_state(eph3, tg, rx_pos, iterations=1)
     delay, _, el = atmosphere_m(rx_pos, pos[m:2 * m], float(t_gps[1]), iono_utc, nav_cfg)
-    pos, cclk, _ = transmit_state(eph3, tg, rx_pos, np.tile(delay, 3))
+    pos, cclk, _ = transmit_state(eph3, tg, rx_pos, np.tile(delay, 3), iterations=1, start=(travel, cclk))
     y = np.concatenate([pos, cclk[:, None]], axis=1).reshape(3, m, 4)
     poly[:, 0] = y[0]
     poly[:, 1] = (-3.0 * y[0] + 4.0 * y[1] - y[2]) / (2.0 * h)
