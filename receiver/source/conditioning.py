@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from scipy.ndimage import median_filter
 from ..estimation.stats import gamma_isf, gamma_median
 
 # equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
@@ -84,7 +83,9 @@ def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e
     spec = np.fft.fftshift(np.mean(np.abs(np.fft.fft(seg * w[None, :], axis=1)) ** 2, axis=0))
     freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
     fb = min(floor_bins, nfft // 4) | 1
-    med = median_filter(spec, size=fb, mode="wrap")
+    h = fb // 2                                        # running median over fb bins, wrapping around
+    med = np.median(np.lib.stride_tricks.sliding_window_view(np.concatenate([spec[-h:], spec, spec[:h]]), fb),
+                    axis=1)
     floor = med / gamma_median(k)
     floor = np.maximum(floor, 1e-30)
     thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
