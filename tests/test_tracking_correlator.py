@@ -65,8 +65,8 @@ def test_carrier_wipe_off_stays_coherent_over_a_20_ms_epoch():
 
 def test_signed_index_block_sums_equal_the_unsigned_fast_path():
     """The block sums with unsigned code indices (the fast path) and with signed ones (the fallback for a
-    code phase outside the extended code) are the same arithmetic: equal to the last bit."""
-    from receiver.tracking.correlator import _block_sums, _block_sums_signed
+    code phase outside the extended code; the same function compiled for int64) are the same arithmetic: equal to the last bit."""
+    from receiver.tracking.correlator import _block_sums
     rng = np.random.default_rng(5)
     m = 512
     xs = (rng.normal(size=m) + 1j * rng.normal(size=m)).astype(np.complex64)
@@ -74,6 +74,6 @@ def test_signed_index_block_sums_equal_the_unsigned_fast_path():
     rr, ri = np.cos(-ph).astype(np.float32), np.sin(-ph).astype(np.float32)
     ext = extend_code(ca_code(9), 20)
     cp, dcp, hel = int(37.3 * 2 ** 32), int(1.023 / 2.6 * 2 ** 32), 2 ** 30
-    a = _block_sums(xs, rr, ri, ext, np.uint64(cp), np.uint64(dcp), np.uint64(hel), m)
-    b = _block_sums_signed(xs, rr, ri, ext, cp, dcp, hel, m)
+    a = _block_sums(xs, rr, ri, ext, np.uint64(cp), np.uint64(dcp), np.uint64(hel), np.uint64(32), m)
+    b = _block_sums(xs, rr, ri, ext, np.int64(cp), np.int64(dcp), np.int64(hel), np.int64(32), m)
     assert a == b and abs(a[2]) > 0

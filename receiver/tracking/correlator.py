@@ -38,11 +38,13 @@ def workspace():
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _block_sums(xs, rr, ri, code_ext, cp, dcp, hel, m):
+def _block_sums(xs, rr, ri, code_ext, cp, dcp, hel, sh, m):
     """One block's float32 sums (E, P, L; re, im) of the samples xs wiped off by the carrier table
-    rr + j ri; the code NCO cp (uint64, 32.32 fixed point) advances by dcp per sample, early / late at
-    +/- hel.  (float32 sums: mixing float32 products into float64 sums costs 2.5x; a block's rounding is
-    far below the noise.)"""
+    rr + j ri; the code NCO cp (32.32 fixed point) advances by dcp per sample, early / late at +/- hel; the
+    chip index is cp >> sh (sh = 32).  Compiled twice: with uint64 cp/dcp/hel/sh (indices numba need not
+    test for negative values: 3 fewer operations per lookup; the kernel's case) and with int64 (a code
+    phase outside code_ext wraps as a numpy index would).  (float32 sums: mixing float32 products into
+    float64 sums costs 2.5x; a block's rounding is far below the noise.)"""
     zero = np.float32(0.0)
     er = zero
     ei = zero
@@ -50,7 +52,6 @@ def _block_sums(xs, rr, ri, code_ext, cp, dcp, hel, m):
     pi_ = zero
     lr = zero
     li = zero
-    sh = np.uint64(32)
     for k in range(m):
         x = xs[k]
         c = rr[k]
@@ -60,36 +61,6 @@ def _block_sums(xs, rr, ri, code_ext, cp, dcp, hel, m):
         ce = code_ext[(cp + hel) >> sh]
         cq = code_ext[cp >> sh]
         cl = code_ext[(cp - hel) >> sh]
-        er += yr * ce
-        ei += yi * ce
-        pr += yr * cq
-        pi_ += yi * cq
-        lr += yr * cl
-        li += yi * cl
-        cp += dcp
-    return er, ei, pr, pi_, lr, li
-
-
-@njit(cache=True, fastmath=True, nogil=True)
-def _block_sums_signed(xs, rr, ri, code_ext, cp, dcp, hel, m):
-    """:func:`_block_sums` with signed indices (a code phase outside code_ext wraps as a numpy index would;
-    not reached by the tracking kernel)."""
-    zero = np.float32(0.0)
-    er = zero
-    ei = zero
-    pr = zero
-    pi_ = zero
-    lr = zero
-    li = zero
-    for k in range(m):
-        x = xs[k]
-        c = rr[k]
-        s = ri[k]
-        yr = x.real * c - x.imag * s
-        yi = x.real * s + x.imag * c
-        ce = code_ext[(cp + hel) >> 32]
-        cq = code_ext[cp >> 32]
-        cl = code_ext[(cp - hel) >> 32]
         er += yr * ce
         ei += yi * ce
         pr += yr * cq
@@ -157,9 +128,9 @@ def correlate_ws(samples, off, n, code_ext, code_phase, code_step, half_el, carr
             cp = cp0 + k0 * dcp                      # test off + k for a negative index and gather)
             if in_range:
                 er, ei, pr, pi_, lr, li = _block_sums(xs, rr, ri, code_ext, np.uint64(cp), np.uint64(dcp),
-                                                      np.uint64(hel), m)
+                                                      np.uint64(hel), np.uint64(32), m)
             else:
-                er, ei, pr, pi_, lr, li = _block_sums_signed(xs, rr, ri, code_ext, cp, dcp, hel, m)
+                er, ei, pr, pi_, lr, li = _block_sums(xs, rr, ri, code_ext, cp, dcp, hel, np.int64(32), m)
             # the block's sums turned by the carrier phasor at its first sample
             a = -2.0 * math.pi * (ph0 + k0 * carr_step)
             zr = math.cos(a)
