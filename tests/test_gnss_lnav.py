@@ -414,3 +414,24 @@ def test_assembly_never_mixes_issues_of_data():
     for e in ephs_out:                                # whatever is decoded is one consistent set
         ref = new if e.iode == new.iode else eph
         _assert_eph_close(e, ref)
+
+
+def test_far_replacement_ephemeris_needs_a_second_reception():
+    """A set with the current issue of data that moves the satellite by kilometres (a miscorrected word at
+    low C/N0: Omega0 off 2.6 mrad, ~70 km) replaces the current one only when received twice; a genuine
+    update (new issue of data, metres) replaces it at once."""
+    ephs, iono = _need_brdc()
+    eph = ephs[3][0]
+    bad = replace(eph, omega0=eph.omega0 + 2.6e-3)
+    upd = replace(eph, iode=(eph.iode + 1) % 256, iodc=(eph.iodc + 1) % 1024, crs=eph.crs + 10.0)
+    t0 = 518400.0 - 600
+    bits = np.concatenate([encode_frames(eph, iono, t0, 2190, 2), encode_frames(bad, iono, t0 + 60, 2190, 1)])
+    dec, _ = _decode(bits, prn=3)
+    _assert_eph_close(dec.ephemeris, eph)                     # held after one reception
+    assert dec.ephemerides_held == 1
+    dec, _ = _decode(np.concatenate([bits, encode_frames(bad, iono, t0 + 90, 2190, 1)]), prn=3)
+    _assert_eph_close(dec.ephemeris, bad)                     # the same set twice: used
+    dec, events = _decode(np.concatenate([encode_frames(eph, iono, t0, 2190, 2),
+                                          encode_frames(upd, iono, t0 + 60, 2190, 1)]), prn=3)
+    _assert_eph_close(dec.ephemeris, upd)
+    assert dec.ephemerides_held == 0

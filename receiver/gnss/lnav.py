@@ -12,7 +12,7 @@ Bit conventions
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -483,7 +483,15 @@ class LnavDecoder:
     (:func:`correct_word`), and subframes 1-3 are assembled word by word: the good words of a subframe
     with bad ones are kept and completed by the same subframe of later frames carrying the same issue
     of data (IODC / IODE), so an ephemeris is decoded even when no frame arrives without an error.
+
+    A new ephemeris that puts the satellite more than ``JUMP_M`` away from the current one (position plus
+    c x clock, at the new subframe 1's time) replaces it only when a second reception decodes the same set
+    (``ephemerides_held`` counts the held ones): single-bit correction "corrects" any odd-weight error
+    pattern, so at low C/N0 a corrupted set can pass parity with the current issue of data (seen at
+    27-29 dB-Hz: Omega0 off 2.6 mrad, positions off 73-9866 km); a genuine update moves it by metres.
     """
+
+    JUMP_M = 300.0              # a replacement ephemeris further than this from the current one needs a repeat
 
     MAX_MISSES = 3              # consecutive bad TLM/HOW before frame sync is dropped
     KEEP_BITS = 1200            # buffer kept while searching
@@ -509,6 +517,8 @@ class LnavDecoder:
         self._sub = {}                  # sfid -> (words, tow, bit_index) of last good subframe 1..3
         self._partial = {}              # sfid -> (issue of data, words with None) of an incomplete 1..3
         self.words_corrected = 0
+        self.ephemerides_held = 0
+        self._held: Ephemeris | None = None   # a far replacement waiting for a second reception
 
     # -- input ---------------------------------------------------------------------------
     def feed(self, bits, first_bit_index: int) -> list:
@@ -745,5 +755,18 @@ class LnavDecoder:
             code_on_l2=int(vals["code_on_l2"]), l2p_flag=int(vals["l2p_flag"]),
             aodo=int(round(vals["aodo"])), tx_time=tow1)
         if eph != self.ephemeris:
+            if self.ephemeris is not None and not self._near(self.ephemeris, eph, tow1):
+                if self._held is None or replace(self._held, tx_time=tow1) != eph:
+                    self._held = eph                    # wait for a second reception of the same set
+                    self.ephemerides_held += 1
+                    return
+            self._held = None
             self.ephemeris = eph
             events.append(EphemerisEvent(bit_index, eph))
+
+    def _near(self, old: Ephemeris, new: Ephemeris, t: float) -> bool:
+        from .ephemeris import sat_state
+        from .signals import C_LIGHT
+        p0, _, c0, _ = sat_state(old, t)
+        p1, _, c1, _ = sat_state(new, t)
+        return float(np.linalg.norm(p1 - p0)) + C_LIGHT * abs(float(c1 - c0)) <= self.JUMP_M
