@@ -1,4 +1,6 @@
 """WGS-84 coordinate conversions (ECEF, geodetic, local ENU, azimuth/elevation)."""
+import math
+
 import numpy as np
 
 WGS84_A = 6378137.0
@@ -20,6 +22,8 @@ def lla2ecef(lat_deg, lon_deg, h_m):
 def ecef2lla(xyz):
     """ECEF (m, ...x3) to (lat_deg, lon_deg, h_m), iterative (mm-level in 5 iterations)."""
     xyz = np.asarray(xyz, dtype=float)
+    if xyz.shape == (3,):
+        return _ecef2lla_point(float(xyz[0]), float(xyz[1]), float(xyz[2]))
     x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     p = np.hypot(x, y)
     lon = np.arctan2(y, x)
@@ -31,6 +35,21 @@ def ecef2lla(xyz):
                      np.abs(z) - n * (1 - WGS84_E2))
         lat = np.arctan2(z, p * (1.0 - WGS84_E2 * n / (n + h)))
     return np.degrees(lat), np.degrees(lon), h
+
+
+def _ecef2lla_point(x: float, y: float, z: float):
+    """:func:`ecef2lla` of one point with the math module (the same iteration; numpy's per-call overhead on
+    scalars made one conversion cost ~0.2 ms, and the navigation converts every fix and satellite)."""
+    p = math.hypot(x, y)
+    lon = math.atan2(y, x)
+    lat = math.atan2(z, p * (1.0 - WGS84_E2))
+    h = 0.0
+    for _ in range(8):
+        n = WGS84_A / math.sqrt(1.0 - WGS84_E2 * math.sin(lat) ** 2)
+        c = math.cos(lat)
+        h = p / max(c, 1e-12) - n if abs(c) > 1e-9 else abs(z) - n * (1 - WGS84_E2)
+        lat = math.atan2(z, p * (1.0 - WGS84_E2 * n / (n + h)))
+    return np.float64(math.degrees(lat)), np.float64(math.degrees(lon)), np.float64(h)
 
 
 def enu_matrix(lat_deg, lon_deg):
