@@ -567,9 +567,11 @@ class NavigationEngine:
             self.next_s += self.fs * step
             return
         s_fix, fix = self.last_fix
-        # next round GPS time after the current epoch, mapped to a sample with the estimated drift
+        # the round GPS time after the one nearest the current epoch (0.5-1.5 steps ahead: an epoch that
+        # lands a little before its round time -- a first fix anywhere, a clock running slow -- is not
+        # followed by a second fix a few microseconds later), mapped to a sample with the estimated drift
         t_now = fix.gps_tow + (self.next_s - s_fix) / self.fs * (1 - fix.clock_drift_mps / C_LIGHT)
-        t_next = (math.floor(t_now * self.rate + 1e-6) + 1) / self.rate
+        t_next = (math.floor(t_now * self.rate + 0.5) + 1) / self.rate
         scale = self.fs / (1 - fix.clock_drift_mps / C_LIGHT)
         self.next_s = s_fix + (t_next - fix.gps_tow) * scale
 
