@@ -18,6 +18,7 @@ from ..gnss.geodesy import azel, ecef2lla, enu_matrix
 from ..gnss.signals import C_LIGHT, LAMBDA_L1
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import earth_rotation, sat_state, select
+from ..gnss.ephemeris_jit import sat_states
 from ..gnss.time import normalize_week_tow, wrap_week_seconds
 
 
@@ -198,7 +199,10 @@ class NavSolver:
         obs = [r[0] for r in rows]
         ephs = [r[1] for r in rows]
         tx = np.array([o.tx_tow for o in obs], float)
-        pos, vel, clk, drift = sat_state(ephs, tx)
+        if any(hasattr(type(e), "state") for e in ephs):      # BeiDou ephemerides among them
+            pos, vel, clk, drift = sat_state(ephs, tx)
+        else:                                                   # GPS/QZSS LNAV: the compiled path
+            pos, vel, clk, drift = sat_states(ephs, tx)
         rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
         return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
                      [o.cn0_dbhz for o in obs], [o.doppler_hz * o.wavelength_m / LAMBDA_L1 for o in obs],
