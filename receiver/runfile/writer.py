@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import zlib
 
 import h5py
 import numpy as np
@@ -39,6 +40,29 @@ ROUNDED_DIGITS = {"doppler_hz": 3, "code_rate_hz": 5, "code_phase_chips": 7}
 SCHEMA = "gnssrx-run-2"
 
 
+def _gzip_chunk(block: np.ndarray, rows: int) -> bytes:
+    """One HDF5 chunk of ``rows`` rows through the shuffle + deflate filters of COMPRESSION["gzip"], as
+    HDF5 would store it: the rows padded to a whole chunk with the fill value 0, the bytes of the
+    elements regrouped by significance (shuffle; a no-op for 1-byte elements), zlib-compressed at the
+    same level.  zlib releases the GIL while it compresses, so on the BackgroundWriter thread the
+    compression overlaps the main thread (h5py's own filter pipeline runs with the GIL held)."""
+    if len(block) < rows:
+        pad = np.zeros((rows,) + block.shape[1:], block.dtype)
+        pad[:len(block)] = block
+        block = pad
+    size = block.dtype.itemsize
+    raw = np.ascontiguousarray(block).view(np.uint8).reshape(-1, size)
+    if size > 1:
+        raw = np.ascontiguousarray(raw.T)
+    return zlib.compress(raw, COMPRESSION["gzip"]["compression_opts"])
+
+
+def _direct(ds: h5py.Dataset) -> bool:
+    """The dataset's filters are exactly shuffle + deflate at our level (written by :func:`_gzip_chunk`)."""
+    return ds.compression == "gzip" and ds.shuffle and ds.scaleoffset is None and not ds.fletcher32 and \
+        ds.compression_opts == COMPRESSION["gzip"]["compression_opts"]
+
+
 def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none", digits=None,
             rows: int = CHUNK_ROWS):
     if digits is not None and not np.isfinite(data).all():
@@ -57,13 +81,24 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
                   **{k: v for k, v in COMPRESSION[compression].items() if k != "shuffle"}}
         else:
             kw = COMPRESSION[compression]
-        ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
-        if digits is not None:
-            ds.attrs["resolution"] = 10.0 ** -int(digits)
+        if digits is None and compression == "gzip":      # written below, chunk by chunk
+            ds = group.create_dataset(name, shape=(0,) + data.shape[1:], dtype=data.dtype, maxshape=maxshape,
+                                      chunks=chunk, **kw)
+        else:
+            ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
+            if digits is not None:
+                ds.attrs["resolution"] = 10.0 ** -int(digits)
+            return
     else:
         ds = group[name]
-        n = ds.shape[0]
-        ds.resize(n + len(data), axis=0)
+    n = ds.shape[0]
+    ds.resize(n + len(data), axis=0)
+    if compression == "gzip" and n % rows == 0 and ds.chunks[0] == rows and _direct(ds):
+        # whole chunks compressed here (the same bytes in the file as through h5py's filters)
+        tail = (0,) * (data.ndim - 1)
+        for a in range(0, len(data), rows):
+            ds.id.write_direct_chunk((n + a,) + tail, _gzip_chunk(data[a:a + rows], rows))
+    else:
         ds[n:] = data
 
 
@@ -203,11 +238,11 @@ class RunWriter:
         if sum(len(b) for b in buf) >= self.FLUSH_ROWS:
             self._flush_channel(prn)
 
-    def _flush_channel(self, prn: int):
-        buf = self._buffers.pop(prn, None)
-        if not buf:
+    def _flush_channel(self, prn: int, final: bool = False):
+        """Write the buffered records of prn: whole chunks (the rest stays buffered), all of them if final."""
+        records = self._take(self._buffers, prn, final)
+        if records is None:
             return
-        records = np.concatenate(buf)
         g = self.f["channels"].require_group(sat_label(prn, self.system))
         if "prn" not in g.attrs:
             g.attrs["prn"] = prn
@@ -216,6 +251,19 @@ class RunWriter:
         for name in EPOCH_DTYPE.names:
             _append(g, name, np.ascontiguousarray(records[name]), self.compression, rounded.get(name))
         self._out.check()
+
+    def _take(self, buffers: dict, key, final: bool):
+        """The buffered rows of ``key`` to write now: a whole number of chunks (CHUNK_ROWS), the rest kept
+        for later (every chunk is then written once, compressed whole: _append's direct path), or all of
+        them when ``final``.  None: nothing to write."""
+        buf = buffers.pop(key, None)
+        if not buf:
+            return None
+        rows = np.concatenate(buf) if len(buf) > 1 else buf[0]
+        n = len(rows) if final else len(rows) // CHUNK_ROWS * CHUNK_ROWS
+        if n < len(rows):
+            buffers[key] = [rows[n:]]
+        return rows[:n] if n else None
 
     def _write_stats(self):
         for prn, st in self._stats.items():
@@ -237,11 +285,10 @@ class RunWriter:
         if sum(len(b) for b in buf) >= self.FLUSH_ROWS:
             self._flush_table(group)
 
-    def _flush_table(self, group: str):
-        buf = self._tables.pop(group, None)
-        if not buf:
+    def _flush_table(self, group: str, final: bool = False):
+        rows = self._take(self._tables, group, final)
+        if rows is None:
             return
-        rows = np.concatenate(buf)
         g = self.f.require_group(group)
         for name in rows.dtype.names:
             _append(g, name, np.ascontiguousarray(rows[name]), self.compression)
@@ -304,9 +351,9 @@ class RunWriter:
             return
         try:
             for prn in list(self._buffers):
-                self._flush_channel(prn)
+                self._flush_channel(prn, final=True)
             for group in list(self._tables):
-                self._flush_table(group)
+                self._flush_table(group, final=True)
             self._write_stats()
             self._out.check()
         except BaseException:
