@@ -26,6 +26,7 @@ from ..runfile.record import FIX_DTYPE, OBS_DTYPE
 from ..runfile.record import STATE_BIT_SYNC
 from ..gnss.signals import C_LIGHT, GPS_L1CA
 from ..gnss.lnav import LnavDecoder, SubframeEvent
+from .bits_jit import bit_segments
 from .pvt import Aiding, NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
@@ -188,28 +189,16 @@ class ChannelNav:
             return
         r = recs[sync]
         bit_ms = self.bit_ms
-        bits_idx = (r["code_period"] - bit_offset) // bit_ms
         nc_from = self.noncoherent_from
-        nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
         # per bit index: the prompt sums over its two 10-ms halves (their sum decides a phase-locked bit,
-        # both enter the differential detection) and the integration time (vectorised), then the bits in
-        # order (a few per chunk), continuing the bit left incomplete by the last chunk.  An epoch's halves
-        # (prompt1/2) go to the half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
-        starts = np.flatnonzero(np.r_[True, bits_idx[1:] != bits_idx[:-1]])
-        o = (r["code_period"] - bit_offset) % bit_ms                 # epoch start within its bit (ms)
-        late1 = o >= bit_ms // 2
-        late2 = 2 * o + r["integration_ms"] >= bit_ms
-        p1 = r["prompt1_i"].astype(np.float64) + 1j * r["prompt1_q"].astype(np.float64)
-        p2 = r["prompt2_i"].astype(np.float64) + 1j * r["prompt2_q"].astype(np.float64)
-        ha = np.where(late1, 0.0, p1) + np.where(late2, 0.0, p2)
-        hb = (p1 + p2) - ha
-
-        def csum(x):
-            return (np.add.reduceat(x.real, starts) + 1j * np.add.reduceat(x.imag, starts)).tolist()
-
-        seg = zip(bits_idx[starts].tolist(), csum(ha), csum(hb),
-                  np.add.reduceat(r["integration_ms"].astype(np.int64), starts).tolist(),
-                  (np.add.reduceat(nc.astype(np.int64), starts) > 0).tolist())
+        # both enter the differential detection) and the integration time (compiled, the sums bit-identical
+        # to numpy's reduceat: receiver.navigation.bits_jit), then the bits in order (a few per chunk),
+        # continuing the bit left incomplete by the last chunk.  An epoch's halves (prompt1/2) go to the
+        # half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
+        seg_bit, ar, ai, br, bi, seg_ms, ncs = bit_segments(
+            r["code_period"], r["integration_ms"], r["sample_index"], r["prompt1_i"], r["prompt1_q"],
+            r["prompt2_i"], r["prompt2_q"], int(bit_offset), int(bit_ms), -1 if nc_from is None else int(nc_from))
+        seg = zip(seg_bit.tolist(), (ar + 1j * ai).tolist(), (br + 1j * bi).tolist(), seg_ms.tolist(), ncs.tolist())
         out_bits, first = [], None
         for b, a, bb, ms, n in seg:
             if self.cur_bit is None or b != self.cur_bit:
