@@ -64,14 +64,22 @@ def _direct(ds: h5py.Dataset) -> bool:
 
 
 def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none", digits=None,
-            rows: int = CHUNK_ROWS):
+            rows: int = CHUNK_ROWS, cache: dict | None = None):
+    """Append ``data`` to group[name] (created on the first call).  ``cache``: a dict the caller keeps per
+    group, name -> dataset, for the datasets written by whole compressed chunks (saves the h5py look-ups of
+    every later append; those writes bypass HDF5's chunk cache).  The other datasets are opened per call:
+    closing one flushes its chunk cache through the filters (what the scale-offset columns rely on)."""
+    hit = cache.get(name) if cache is not None else None
     if digits is not None and not np.isfinite(data).all():
         # the scale-offset filter would turn NaN/Inf into numbers: this column of this group is stored
         # exactly from now on (the rows already written stay rounded; ``resolution`` still bounds them)
         digits = None
         if name in group and group[name].scaleoffset is not None:
             _unround(group, name, compression, rows)
-    if name not in group:
+            hit = None
+    if hit is not None:
+        ds, direct = hit, True
+    elif name not in group:
         maxshape = (None,) + data.shape[1:]
         chunk = (rows,) + data.shape[1:]
         if digits is not None:
@@ -84,6 +92,7 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
         if digits is None and compression == "gzip":      # written below, chunk by chunk
             ds = group.create_dataset(name, shape=(0,) + data.shape[1:], dtype=data.dtype, maxshape=maxshape,
                                       chunks=chunk, **kw)
+            direct = True
         else:
             ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
             if digits is not None:
@@ -91,9 +100,12 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
             return
     else:
         ds = group[name]
+        direct = compression == "gzip" and ds.chunks[0] == rows and _direct(ds)
+    if cache is not None and direct:
+        cache[name] = ds
     n = ds.shape[0]
     ds.resize(n + len(data), axis=0)
-    if compression == "gzip" and n % rows == 0 and ds.chunks[0] == rows and _direct(ds):
+    if direct and n % rows == 0:
         # whole chunks compressed here (the same bytes in the file as through h5py's filters)
         tail = (0,) * (data.ndim - 1)
         for a in range(0, len(data), rows):
@@ -178,6 +190,7 @@ class RunWriter:
         chunks (few large HDF5 writes; the file is only renamed into place at the end anyway)."""
         self._buffers: dict[int, list] = {}
         self._tables: dict[str, list] = {}
+        self._groups: dict = {}     # prn or table group -> (h5py group, _append's dataset cache)
         self.round_columns = bool(round_columns)
         self.system = str((attrs or {}).get("system", "G"))     # RINEX letter of the signal: group names
         self.compression = compression
@@ -243,13 +256,17 @@ class RunWriter:
         records = self._take(self._buffers, prn, final)
         if records is None:
             return
-        g = self.f["channels"].require_group(sat_label(prn, self.system))
-        if "prn" not in g.attrs:
-            g.attrs["prn"] = prn
-            g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+        g, cache = self._groups.get(prn, (None, None))
+        if g is None:
+            g = self.f["channels"].require_group(sat_label(prn, self.system))
+            if "prn" not in g.attrs:
+                g.attrs["prn"] = prn
+                g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+            cache = {}
+            self._groups[prn] = (g, cache)
         rounded = ROUNDED_DIGITS if self.round_columns else {}
         for name in EPOCH_DTYPE.names:
-            _append(g, name, np.ascontiguousarray(records[name]), self.compression, rounded.get(name))
+            _append(g, name, np.ascontiguousarray(records[name]), self.compression, rounded.get(name), cache=cache)
         self._out.check()
 
     def _take(self, buffers: dict, key, final: bool):
@@ -289,9 +306,12 @@ class RunWriter:
         rows = self._take(self._tables, group, final)
         if rows is None:
             return
-        g = self.f.require_group(group)
+        g, cache = self._groups.get(group, (None, None))
+        if g is None:
+            g, cache = self.f.require_group(group), {}
+            self._groups[group] = (g, cache)
         for name in rows.dtype.names:
-            _append(g, name, np.ascontiguousarray(rows[name]), self.compression)
+            _append(g, name, np.ascontiguousarray(rows[name]), self.compression, cache=cache)
         self._out.check()
 
     def append_fixes(self, fixes: np.ndarray):
