@@ -64,11 +64,12 @@ def _direct(ds: h5py.Dataset) -> bool:
 
 
 def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none", digits=None,
-            rows: int = CHUNK_ROWS, cache: dict | None = None):
+            rows: int = CHUNK_ROWS, cache: dict | None = None, chunks: list | None = None):
     """Append ``data`` to group[name] (created on the first call).  ``cache``: a dict the caller keeps per
     group, name -> dataset, for the datasets written by whole compressed chunks (saves the h5py look-ups of
     every later append; those writes bypass HDF5's chunk cache).  The other datasets are opened per call:
-    closing one flushes its chunk cache through the filters (what the scale-offset columns rely on)."""
+    closing one flushes its chunk cache through the filters (what the scale-offset columns rely on).
+    ``chunks``: ``data``'s chunks already compressed by :func:`_gzip_chunk` (used on the direct path)."""
     hit = cache.get(name) if cache is not None else None
     if digits is not None and not np.isfinite(data).all():
         # the scale-offset filter would turn NaN/Inf into numbers: this column of this group is stored
@@ -108,8 +109,9 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
     if direct and n % rows == 0:
         # whole chunks compressed here (the same bytes in the file as through h5py's filters)
         tail = (0,) * (data.ndim - 1)
-        for a in range(0, len(data), rows):
-            ds.id.write_direct_chunk((n + a,) + tail, _gzip_chunk(data[a:a + rows], rows))
+        for i, a in enumerate(range(0, len(data), rows)):
+            z = chunks[i] if chunks is not None else _gzip_chunk(data[a:a + rows], rows)
+            ds.id.write_direct_chunk((n + a,) + tail, z)
     else:
         ds[n:] = data
 
@@ -265,9 +267,32 @@ class RunWriter:
             cache = {}
             self._groups[prn] = (g, cache)
         rounded = ROUNDED_DIGITS if self.round_columns else {}
-        for name in EPOCH_DTYPE.names:
-            _append(g, name, np.ascontiguousarray(records[name]), self.compression, rounded.get(name), cache=cache)
+        cols = [(name, np.ascontiguousarray(records[name]), rounded.get(name)) for name in EPOCH_DTYPE.names]
+        pre = self._precompress(g, cache, cols)
+        for name, col, digits in cols:
+            _append(g, name, col, self.compression, digits, cache=cache, chunks=pre.get(name))
         self._out.check()
+
+    def _precompress(self, g, cache: dict, cols) -> dict:
+        """name -> the compressed chunks of the columns that go the direct way (gzip, not rounded, a new
+        dataset or one whose rows end on a chunk boundary), compressed on the receiver's thread pool (zlib
+        releases the GIL: the columns of a flush, e.g. the last partial chunks at close, use every core).
+        The chunks are the ones _append would compute, so the file does not depend on it."""
+        if self.compression != "gzip":
+            return {}
+        todo = []
+        for name, col, digits in cols:
+            if digits is not None:
+                continue
+            ds = cache.get(name)
+            if (ds is not None and ds.shape[0] % CHUNK_ROWS == 0) or (ds is None and name not in g):
+                todo.append((name, col))
+        if not todo:
+            return {}
+        from ..threads import map_ordered
+        done = map_ordered(lambda nc: [_gzip_chunk(nc[1][a:a + CHUNK_ROWS], CHUNK_ROWS)
+                                       for a in range(0, len(nc[1]), CHUNK_ROWS)], todo)
+        return {name: z for (name, _), z in zip(todo, done)}
 
     def _take(self, buffers: dict, key, final: bool):
         """The buffered rows of ``key`` to write now: a whole number of chunks (CHUNK_ROWS), the rest kept
