@@ -488,7 +488,12 @@ class NavigationEngine:
         return out
 
     def ephemeris(self, prn: int, t):
-        return self.ephemerides(t).get(prn)
+        """ephemerides(t).get(prn), selecting for prn only."""
+        if self.assisted:
+            from ..gnss.ephemeris import select
+            return select(self.rinex_ephs.get(prn), t)
+        ch = self.channels.get(prn)
+        return ch.decoder.ephemeris if ch is not None else None
 
     def _ephemerides(self, t):
         """The ephemerides of the satellites with navigation memory (the fixes' candidates)."""
