@@ -352,7 +352,7 @@ class ChannelNav:
         z = C_LIGHT * (t - txrel) + self.wavelength * phase
         h = self.hatch
         if h is None or not self.locked:
-            h = self.hatch = {"z0": z, "t0": t, "S": np.zeros(5), "n": 0}
+            h = self.hatch = {"z0": z, "t0": t, "S": [0.0] * 5, "n": 0}     # (Python floats: 5 scalars)
         zr, tr = z - h["z0"], t - h["t0"]
         S = h["S"]
         if h["n"] >= 20:
@@ -361,13 +361,14 @@ class ChannelNav:
             # slip: restart.  The threshold is 20 m, or 6 x the RMS of the code against the fit when that is
             # larger (weak channels: a 0.5-Hz DLL at 27 dB-Hz wanders +/- 10 m; restarting on such an
             # excursion would put the raw code back into the smoothed range)
-            if abs(res) > max(20.0, 6.0 * np.sqrt(h.get("r2", 0.0))):
+            if abs(res) > max(20.0, 6.0 * math.sqrt(h.get("r2", 0.0))):
                 self.hatch = None
                 self.smooth_update(s, txrel, phase, window_epochs)
                 return
             h["r2"] = h.get("r2", res * res) + (res * res - h.get("r2", res * res)) / min(h["n"], window_epochs)
-        S *= 1.0 - 1.0 / window_epochs
-        S += (1.0, tr, tr * tr, zr, tr * zr)
+        f = 1.0 - 1.0 / window_epochs             # (each sum scaled, then the new term added: as numpy did)
+        S[0], S[1], S[2], S[3], S[4] = S[0] * f + 1.0, S[1] * f + tr, S[2] * f + tr * tr, S[3] * f + zr, \
+            S[4] * f + tr * zr
         h["n"] += 1
 
     def slope_info(self):
