@@ -16,6 +16,7 @@ Time keeping
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections import deque
 
 import numpy as np
@@ -25,6 +26,7 @@ from ..runfile.record import FIX_DTYPE, OBS_DTYPE
 from ..runfile.record import STATE_BIT_SYNC
 from ..gnss.signals import C_LIGHT, GPS_L1CA
 from ..gnss.lnav import LnavDecoder, SubframeEvent
+from .bits_jit import bit_segments
 from .pvt import Aiding, NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
@@ -36,6 +38,15 @@ ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bi
 MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
 AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
 AID_REF_SATS = 5            # ... and from the unaided solutions of aided epochs with this many satellites
+
+
+def _columns(recs) -> tuple:
+    """(recs, sample_index, code_period, code_phase_chips, code_rate_hz, doppler_hz, carrier_phase_cycles,
+    pll_lock, cn0_dbhz) of channel records, the columns as Python lists (exact: int64 -> int, float64 ->
+    float, float32 -> the same value as a float)."""
+    return (recs,) + tuple(recs[k].tolist() for k in (
+        "sample_index", "code_period", "code_phase_chips", "code_rate_hz", "doppler_hz", "carrier_phase_cycles",
+        "pll_lock", "cn0_dbhz"))
 
 
 class ChannelNav:
@@ -69,6 +80,7 @@ class ChannelNav:
         self.tow_ref = None
         self.polarity = 0
         self.recent = deque()       # recent records (for interpolation at navigation epochs)
+        self._cols = {}             # id(records) -> _columns(records) of those in recent
         self.last_sample = -1
         self.lock_start_s = None
         self.locked = False
@@ -101,6 +113,7 @@ class ChannelNav:
         self.locked = False
         self.hatch = None
         self.recent.clear()
+        self._cols = {}
 
     def resume(self, continuous: bool, settle_s: float | None = None):
         """A new channel tracks this satellite.  continuous: it continues the old channel's code-period
@@ -108,6 +121,7 @@ class ChannelNav:
         self.active = True
         self.tracks += 1
         self.recent.clear()
+        self._cols = {}
         self.last_sample = -1
         self.track_start_s = None
         self.lock_start_s = None
@@ -156,6 +170,7 @@ class ChannelNav:
         self.recent.append(recs)
         while len(self.recent) > 3:
             self.recent.popleft()
+        self._cols = {id(r): self._cols.get(id(r)) or _columns(r) for r in self.recent}
         self.last_sample = int(recs["sample_index"][-1])
         if self.track_start_s is None:
             st = np.flatnonzero(recs["state"] != 0)          # first epoch after the FLL pull-in
@@ -174,28 +189,16 @@ class ChannelNav:
             return
         r = recs[sync]
         bit_ms = self.bit_ms
-        bits_idx = (r["code_period"] - bit_offset) // bit_ms
         nc_from = self.noncoherent_from
-        nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
         # per bit index: the prompt sums over its two 10-ms halves (their sum decides a phase-locked bit,
-        # both enter the differential detection) and the integration time (vectorised), then the bits in
-        # order (a few per chunk), continuing the bit left incomplete by the last chunk.  An epoch's halves
-        # (prompt1/2) go to the half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
-        starts = np.flatnonzero(np.r_[True, bits_idx[1:] != bits_idx[:-1]])
-        o = (r["code_period"] - bit_offset) % bit_ms                 # epoch start within its bit (ms)
-        late1 = o >= bit_ms // 2
-        late2 = 2 * o + r["integration_ms"] >= bit_ms
-        p1 = r["prompt1_i"].astype(np.float64) + 1j * r["prompt1_q"].astype(np.float64)
-        p2 = r["prompt2_i"].astype(np.float64) + 1j * r["prompt2_q"].astype(np.float64)
-        ha = np.where(late1, 0.0, p1) + np.where(late2, 0.0, p2)
-        hb = (p1 + p2) - ha
-
-        def csum(x):
-            return (np.add.reduceat(x.real, starts) + 1j * np.add.reduceat(x.imag, starts)).tolist()
-
-        seg = zip(bits_idx[starts].tolist(), csum(ha), csum(hb),
-                  np.add.reduceat(r["integration_ms"].astype(np.int64), starts).tolist(),
-                  (np.add.reduceat(nc.astype(np.int64), starts) > 0).tolist())
+        # both enter the differential detection) and the integration time (compiled, the sums bit-identical
+        # to numpy's reduceat: receiver.navigation.bits_jit), then the bits in order (a few per chunk),
+        # continuing the bit left incomplete by the last chunk.  An epoch's halves (prompt1/2) go to the
+        # half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
+        seg_bit, ar, ai, br, bi, seg_ms, ncs = bit_segments(
+            r["code_period"], r["integration_ms"], r["sample_index"], r["prompt1_i"], r["prompt1_q"],
+            r["prompt2_i"], r["prompt2_q"], int(bit_offset), int(bit_ms), -1 if nc_from is None else int(nc_from))
+        seg = zip(seg_bit.tolist(), (ar + 1j * ai).tolist(), (br + 1j * bi).tolist(), seg_ms.tolist(), ncs.tolist())
         out_bits, first = [], None
         for b, a, bb, ms, n in seg:
             if self.cur_bit is None or b != self.cur_bit:
@@ -275,24 +278,31 @@ class ChannelNav:
             settle_s = self.settle_s
         return self.track_start_s is not None and s / self.fs - self.track_start_s >= settle_s
 
+    def _columns(self, recs):
+        """The columns measure/locked_at read, as Python lists (cached for the records added by :meth:`add`:
+        a binary search and list reads instead of numpy calls on scalars, ~10x cheaper per epoch)."""
+        hit = self._cols.get(id(recs))
+        if hit is not None and hit[0] is recs:
+            return hit
+        return _columns(recs)
+
     def measure(self, s: float):
         """(relative transmit time s, NCO Doppler Hz, carrier phase cycles) at fractional sample s.
 
         The relative transmit time counts from the start of code period 0 of this channel; it needs no
         frame sync, so pseudoranges can be carrier-smoothed from the start of tracking."""
         for recs in reversed(self.recent):
-            si = recs["sample_index"]
+            c = self._columns(recs)
+            si = c[1]
             if len(si) == 0 or si[0] > s:
                 continue
-            k = int(np.searchsorted(si, s, side="right")) - 1
+            k = bisect_right(si, s) - 1
             if k >= len(si) - 1 and s - si[-1] > 0.03 * self.fs:
                 return None
-            r = recs[k]
-            dt = (s - float(r["sample_index"])) / self.fs
-            txrel = (int(r["code_period"]) * 1e-3 + float(r["code_phase_chips"]) / self.chip_rate
-                     + dt * float(r["code_rate_hz"]) / self.chip_rate)
-            dop = float(r["doppler_hz"])
-            phase = float(r["carrier_phase_cycles"]) + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
+            dt = (s - float(si[k])) / self.fs
+            txrel = (c[2][k] * 1e-3 + c[3][k] / self.chip_rate + dt * c[4][k] / self.chip_rate)
+            dop = c[5][k]
+            phase = c[6][k] + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
             if self.polarity < 0:
                 phase += 0.5
             return txrel, dop, phase
@@ -307,19 +317,21 @@ class ChannelNav:
         for t in (s, s + guard_s * self.fs):
             found = None
             for recs in reversed(self.recent):
-                si = recs["sample_index"]
+                c = self._columns(recs)
+                si = c[1]
                 if len(si) == 0 or si[0] > t:
                     continue
-                k = int(np.searchsorted(si, t, side="right")) - 1
-                found = recs[max(k, 0)]
+                found = (c, max(bisect_right(si, t) - 1, 0))
                 break
             if found is None:
                 if t == s:
                     return False
                 continue
-            if not found["pll_lock"]:
+            c, k = found
+            if not c[7][k]:
                 return False
-            if t == s and presence_cn0 is not None and found["cn0_dbhz"] >= presence_cn0 and \
+            # (the C/N0 column is float32: compared in float32, as numpy compares a float32 with a float)
+            if t == s and presence_cn0 is not None and c[8][k] >= float(np.float32(presence_cn0)) and \
                     guard_s > LOCK_GUARD_PRESENT_S:
                 return self.locked_at(s, LOCK_GUARD_PRESENT_S)
         return True
@@ -340,7 +352,7 @@ class ChannelNav:
         z = C_LIGHT * (t - txrel) + self.wavelength * phase
         h = self.hatch
         if h is None or not self.locked:
-            h = self.hatch = {"z0": z, "t0": t, "S": np.zeros(5), "n": 0}
+            h = self.hatch = {"z0": z, "t0": t, "S": [0.0] * 5, "n": 0}     # (Python floats: 5 scalars)
         zr, tr = z - h["z0"], t - h["t0"]
         S = h["S"]
         if h["n"] >= 20:
@@ -349,13 +361,14 @@ class ChannelNav:
             # slip: restart.  The threshold is 20 m, or 6 x the RMS of the code against the fit when that is
             # larger (weak channels: a 0.5-Hz DLL at 27 dB-Hz wanders +/- 10 m; restarting on such an
             # excursion would put the raw code back into the smoothed range)
-            if abs(res) > max(20.0, 6.0 * np.sqrt(h.get("r2", 0.0))):
+            if abs(res) > max(20.0, 6.0 * math.sqrt(h.get("r2", 0.0))):
                 self.hatch = None
                 self.smooth_update(s, txrel, phase, window_epochs)
                 return
             h["r2"] = h.get("r2", res * res) + (res * res - h.get("r2", res * res)) / min(h["n"], window_epochs)
-        S *= 1.0 - 1.0 / window_epochs
-        S += (1.0, tr, tr * tr, zr, tr * zr)
+        f = 1.0 - 1.0 / window_epochs             # (each sum scaled, then the new term added: as numpy did)
+        S[0], S[1], S[2], S[3], S[4] = S[0] * f + 1.0, S[1] * f + tr, S[2] * f + tr * tr, S[3] * f + zr, \
+            S[4] * f + tr * zr
         h["n"] += 1
 
     def slope_info(self):
@@ -476,7 +489,12 @@ class NavigationEngine:
         return out
 
     def ephemeris(self, prn: int, t):
-        return self.ephemerides(t).get(prn)
+        """ephemerides(t).get(prn), selecting for prn only."""
+        if self.assisted:
+            from ..gnss.ephemeris import select
+            return select(self.rinex_ephs.get(prn), t)
+        ch = self.channels.get(prn)
+        return ch.decoder.ephemeris if ch is not None else None
 
     def _ephemerides(self, t):
         """The ephemerides of the satellites with navigation memory (the fixes' candidates)."""
