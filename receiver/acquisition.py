@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft as sfft
 from numba import njit
 from .estimation.stats import gamma_isf, gamma_median
 
@@ -72,15 +71,14 @@ class _Spectra:
         self.spectra = {}
         for r in self.fracs:
             mix = np.exp(-2j * np.pi * (r / T) * t).astype(np.complex64)
-            self.spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=threads())       # (K, n)
+            self.spectra[r] = np.fft.fft(blocks * mix[None, :], axis=1)       # (K, n)
         j = np.arange(n1)
         # bin index of decimated line j for Doppler d: (m * j + shift_d) mod n
         self.idx = (m * j[None, :] + shift[:, None]) % n                               # (n_dopp, n1)
         self.n1, self.k, self.n_dopp = n1, k, len(dopplers)
 
-    def power(self, cf, workers=None):
+    def power(self, cf):
         """Non-coherently summed correlation power (n_dopp, n1) for the conjugate code spectrum cf."""
-        workers = threads() if workers is None else workers
         power = np.zeros((self.n_dopp, self.n1), np.float32)
         for r in self.fracs:
             sel = np.flatnonzero(self.frac == r)
@@ -89,7 +87,7 @@ class _Spectra:
             for k in range(self.k):
                 _gather(self.spectra[r][k], idx, prod)           # prod[i] = spectrum[idx[i]]
                 np.multiply(prod, cf[None, :], out=prod)         # (numpy's complex product, as before)
-                corr = sfft.ifft(prod, axis=1, workers=workers, overwrite_x=True)
+                corr = np.fft.ifft(prod, axis=1, out=prod)
                 _add_power(corr, sel, power)                     # power[sel] += |corr|^2
         return power
 
@@ -112,9 +110,21 @@ def _add_power(corr, rows, power):
             power[r, j] += c.real * c.real + c.imag * c.imag
 
 
+@njit(cache=True, nogil=True)
+def _code_wipe(x, code, phase, ratio):
+    """x * sample_code(code, ratio * fs, fs, len(x), phase): the same chip index (floor of phase + i ratio,
+    modulo the code length) and the same products as numpy's."""
+    out = np.empty(x.shape[0], x.dtype)
+    n_code = code.shape[0]
+    for i in range(x.shape[0]):
+        c = code[np.int64(np.floor(phase + i * ratio)) % n_code]
+        out[i] = x[i] * c
+    return out
+
+
 def _code_fft(sig, prn, fs, n1):
     code = sample_code(sig.code(prn), sig.chip_rate, fs, n1).astype(np.complex64)
-    return np.conj(sfft.fft(code)).astype(np.complex64)
+    return np.conj(np.fft.fft(code)).astype(np.complex64)
 
 
 def _row_floor(power, k):
@@ -174,12 +184,12 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     n_cells = len(dopplers) * n1
     thr = _threshold(pfa, n_cells, noncoherent)
     spc = fs / sig.chip_rate
-    # the PRNs are independent: on several threads each searches its own PRNs with a 1-thread FFT (the
-    # same numbers as one thread searching them all)
+    # the PRNs are independent: on several threads each searches its own PRNs (the same numbers as one
+    # thread searching them all; numpy's FFTs release the GIL)
     parallel = threads() > 1 and len(prns) > 1
 
     def one(prn):
-        power = sp.power(_code_fft(sig, prn, fs, n1), workers=1 if parallel else None)
+        power = sp.power(_code_fft(sig, prn, fs, n1))
         pn = power / _row_floor(power, noncoherent)[:, None]
         row_max = pn.max(axis=1)
         order = np.argsort(-row_max)
@@ -257,10 +267,10 @@ def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_
     total = min(n * n_blocks, len(samples))
     n_blocks = max(1, total // n)
     sig = signal if signal is not None else GPS_L1CA
-    # the code Doppler matters over 200 ms (1.8 chips/s at 2.8 kHz): follow it
-    code = sample_code(sig.code(prn), sig.chip_rate * (1.0 + coarse_hz / sig.carrier_hz), fs,
-                       n * n_blocks, code_phase_chips)
-    y = (samples[:n * n_blocks] * code).reshape(n_blocks, n)
+    # the code Doppler matters over 200 ms (1.8 chips/s at 2.8 kHz): follow it (the samples times
+    # sample_code(code, chip rate with Doppler, fs, ...), in one compiled pass)
+    y = _code_wipe(samples[:n * n_blocks], sig.code(prn), float(code_phase_chips),
+                   sig.chip_rate * (1.0 + coarse_hz / sig.carrier_hz) / fs).reshape(n_blocks, n)
     nfft = 1 << int(np.ceil(np.log2(n * 8)))
     # Power of the nfft-point zero-padded spectrum of each block after the carrier wipe-off at the coarse
     # Doppler, summed over the blocks.  Only the lines within +/- 1.5 bins of the coarse Doppler (and one
