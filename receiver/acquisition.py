@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from .estimation.stats import gamma_isf, gamma_median
+from .estimation.stats import gamma_isf, gamma_median, median_last_axis
 
 from .gnss.signals import GPS_L1CA, sample_code
 from .runfile.record import ACQ_REASONS
@@ -130,7 +130,7 @@ def _code_fft(sig, prn, fs, n1):
 def _row_floor(power, k):
     """Robust noise floor of each Doppler row: median / median of Gamma(K, 1/K).  A tone or a strong
     signal raising whole rows (all code phases) raises their floor with them."""
-    med = np.median(power, axis=1) if power.shape[1] < 20000 else np.median(power[:, ::4], axis=1)
+    med = median_last_axis(power) if power.shape[1] < 20000 else median_last_axis(power[:, ::4])
     return np.maximum(med / _gamma_median(k), 1e-30)
 
 

@@ -27,6 +27,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.stats import gamma
 
+from .estimation.stats import median_last_axis
 from .acquisition import AcqResult, _Spectra, cross_correlation_image, verify_columns
 from .gnss.signals import GPS_L1CA, sample_code
 
@@ -80,7 +81,7 @@ class _BlockSpectra(_Spectra):
 
 
 def _floor(p, k):
-    med = np.median(p, axis=-1) if p.shape[-1] < 20000 else np.median(p[..., ::4], axis=-1)
+    med = median_last_axis(p) if p.shape[-1] < 20000 else median_last_axis(p[..., ::4])
     return np.maximum(med / float(gamma.median(k, scale=1.0 / k)), 1e-30)
 
 

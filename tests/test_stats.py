@@ -27,3 +27,19 @@ def test_other_shapes_and_upper_probabilities_use_scipy():
     assert gamma_isf(1e-3, 2.5) == float(gammainccinv(2.5, 1e-3) / 2.5)
     assert gamma_median(7.5) == float(gammaincinv(7.5, 0.5) / 7.5)
     assert gamma_isf(0.9, 10) == float(gammainccinv(10, 0.9) / 10)
+
+
+def test_median_last_axis_equals_numpy():
+    from receiver.estimation.stats import median_last_axis
+    rng = np.random.default_rng(7)
+    cases = [rng.exponential(size=(161, 2600)).astype(np.float32),          # an acquisition grid
+             rng.integers(0, 4, size=(5, 64)).astype(np.float32),           # ties
+             rng.standard_normal((2, 3, 101)),                              # odd length, float64, 3-D
+             np.lib.stride_tricks.sliding_window_view(rng.exponential(size=300), 31),   # strided view
+             np.array([[1.0, np.nan, 3.0, 4.0]], np.float32), np.ones((3, 1))]
+    for n in range(2, 40):
+        cases.append(rng.exponential(size=(3, n)).astype(np.float32))
+    for a in cases:
+        ref, got = np.median(a, axis=-1), median_last_axis(a)
+        assert got.dtype == ref.dtype and got.shape == ref.shape
+        np.testing.assert_array_equal(got, ref)

@@ -1,4 +1,5 @@
-"""Gamma(K, 1/K) quantiles for the detection thresholds (acquisition, re-acquisition, tone detection).
+"""Gamma(K, 1/K) quantiles for the detection thresholds (acquisition, re-acquisition, tone detection), and
+the row medians of the noise floors.
 
 The values of ``scipy.stats.gamma.isf(q, k, scale=1/k)`` and ``gamma.median(k, scale=1/k)`` without
 importing scipy.special (~0.1 s CPU at start-up; scipy.stats ~0.5 s).  The shapes used here are whole
@@ -12,6 +13,8 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+
+import numpy as np
 
 
 def _log_q_terms(k: int, x: float) -> tuple[float, float]:
@@ -76,3 +79,19 @@ def gamma_median(k: float) -> float:
         return float(_isf_integer(0.5, ki) * (1.0 / k))
     from scipy.special import gammaincinv
     return float(gammaincinv(k, 0.5) * (1.0 / k))
+
+
+def median_last_axis(a: np.ndarray) -> np.ndarray:
+    """np.median(a, axis=-1), the same values: one partition at n // 2 (numpy's vectorised selection for
+    a single kth, ~6x faster than the two-kth partition np.median does), the lower middle value as the
+    largest of the part below it, their mean as numpy forms it."""
+    n = a.shape[-1]
+    if n < 2 or not np.isfinite(a).all():
+        return np.median(a, axis=-1)
+    k = n // 2
+    part = np.partition(a, k, axis=-1)
+    hi = part[..., k]
+    if n % 2:
+        return np.mean(hi[..., None], axis=-1)
+    lo = part[..., :k].max(axis=-1)
+    return np.mean(np.stack([lo, hi], axis=-1), axis=-1)
