@@ -25,9 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.stats import gamma
 
-from .estimation.stats import median_last_axis
+from .estimation.stats import gamma_isf, gamma_median, median_last_axis
 from .acquisition import AcqResult, _Spectra, cross_correlation_image, verify_columns
 from .gnss.signals import GPS_L1CA, sample_code
 
@@ -82,7 +81,7 @@ class _BlockSpectra(_Spectra):
 
 def _floor(p, k):
     med = median_last_axis(p) if p.shape[-1] < 20000 else median_last_axis(p[..., ::4])
-    return np.maximum(med / float(gamma.median(k, scale=1.0 / k)), 1e-30)
+    return np.maximum(med / gamma_median(k), 1e-30)
 
 
 def _stats(acc, k_even, k_odd):
@@ -94,7 +93,7 @@ def _stats(acc, k_even, k_odd):
 
 
 def _thr(pfa, n_cells, k):
-    return float(gamma.isf(pfa / (N_STATS * n_cells), k, scale=1.0 / k))
+    return gamma_isf(pfa / (N_STATS * n_cells), k)
 
 
 def _code_fft(sig, prn, fs, n1):
