@@ -294,6 +294,12 @@ class BackgroundWriter:
             args = (np.concatenate(self._tables.pop(name)),)
         self._q.put((name, args))
 
+    def write_acquisition(self, results, attrs=None):
+        """Queued like the appends (a search no longer waits for the pending writes), from copies of the
+        results taken now."""
+        import copy
+        self._put("write_acquisition", ([copy.copy(r) for r in results], dict(attrs or {})))
+
     def flush(self):
         """Wait until every append has been written (raises a write error)."""
         for name in list(self._tables):
