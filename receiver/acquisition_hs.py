@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.stats import gamma
 
+from .estimation.stats import gamma_isf, gamma_median, median_last_axis
 from .acquisition import AcqResult, _Spectra, cross_correlation_image, verify_columns
 from .gnss.signals import GPS_L1CA, sample_code
 
@@ -80,8 +80,8 @@ class _BlockSpectra(_Spectra):
 
 
 def _floor(p, k):
-    med = np.median(p, axis=-1) if p.shape[-1] < 20000 else np.median(p[..., ::4], axis=-1)
-    return np.maximum(med / float(gamma.median(k, scale=1.0 / k)), 1e-30)
+    med = median_last_axis(p) if p.shape[-1] < 20000 else median_last_axis(p[..., ::4])
+    return np.maximum(med / gamma_median(k), 1e-30)
 
 
 def _stats(acc, k_even, k_odd):
@@ -93,7 +93,7 @@ def _stats(acc, k_even, k_odd):
 
 
 def _thr(pfa, n_cells, k):
-    return float(gamma.isf(pfa / (N_STATS * n_cells), k, scale=1.0 / k))
+    return gamma_isf(pfa / (N_STATS * n_cells), k)
 
 
 def _code_fft(sig, prn, fs, n1):

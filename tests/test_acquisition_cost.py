@@ -107,3 +107,23 @@ def test_cold_search_window_before_a_fix_covers_every_satellite(tokyo_run):
             assert abs(dops[j] - centre) < half - 300.0, (t, j, dops[j], centre, half)
             checked += 1
     assert checked > 80
+
+
+@pytest.mark.parametrize("fs, block_ms, n_blocks, bin_hz", [(2.6e6, 10, 20, 125.0), (4e6, 10, 20, 125.0),
+                                                            (16.368e6, 7, 3, 125.0), (2.6e6, 10, 4, 500.0),
+                                                            (2.6e6, 1, 40, 125.0)])
+def test_segmented_line_powers_equal_the_direct_dft(fs, block_ms, n_blocks, bin_hz):
+    """The fine Doppler's line powers by segment moments (Taylor series within a segment) equal the direct
+    DFT at the lines to rounding."""
+    from receiver.acquisition import _line_powers, _line_powers_direct
+    rng = np.random.default_rng(11)
+    n = int(round(block_ms * 1e-3 * fs))
+    nfft = 1 << int(np.ceil(np.log2(n * 8)))
+    kmax = int(np.floor(1.5 * bin_hz * nfft / fs))
+    ks = np.arange(-kmax - 1, kmax + 2)
+    t = np.arange(n * n_blocks) / fs
+    y = (0.3 * np.exp(2j * np.pi * 1077.3 * t) + rng.standard_normal(t.size)
+         + 1j * rng.standard_normal(t.size)).astype(np.complex64).reshape(n_blocks, n)
+    ref = _line_powers_direct(y, 1000.0 / fs, ks, nfft)
+    got = _line_powers(y, 1000.0 / fs, ks, nfft)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * ref.max())

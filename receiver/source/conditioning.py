@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from ..estimation.stats import gamma_isf, gamma_median
+from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
 
 # equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
 _ENBW_BH = 2.0044
@@ -84,8 +84,8 @@ def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e
     freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
     fb = min(floor_bins, nfft // 4) | 1
     h = fb // 2                                        # running median over fb bins, wrapping around
-    med = np.median(np.lib.stride_tricks.sliding_window_view(np.concatenate([spec[-h:], spec, spec[:h]]), fb),
-                    axis=1)
+    med = median_last_axis(np.lib.stride_tricks.sliding_window_view(np.concatenate([spec[-h:], spec, spec[:h]]),
+                                                                     fb))
     floor = med / gamma_median(k)
     floor = np.maximum(floor, 1e-30)
     thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
