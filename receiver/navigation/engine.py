@@ -38,6 +38,25 @@ ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bi
 MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
 AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
 AID_REF_SATS = 5            # ... and from the unaided solutions of aided epochs with this many satellites
+FIRST_EPH_RANGE_M = 200.0   # a satellite's first decoded ephemeris whose range disagrees with the current fix by
+FIRST_EPH_FIX_AGE_S = 30.0  # more than this (fix at most this old) is used only after a second reception
+
+
+def first_ephemeris_range_error(eph, tx_tow: float, rx_gps_tow: float, rx_ecef) -> float:
+    """Measured minus predicted range (m) of a satellite: the range measured from its transmit time (satellite
+    clock, s of week) and the receiver's true GPS time, against the geometric range from the ephemeris to the
+    receiver position (Earth rotation during the travel time applied).  Atmosphere and receiver noise leave
+    tens of metres; a corrupted ephemeris (a miscorrected LNAV word) kilometres."""
+    from ..gnss.ephemeris import earth_rotation, sat_state
+    from ..gnss.time import wrap_week_seconds
+    pos, _, clk, _ = sat_state(eph, tx_tow)
+    rx = np.asarray(rx_ecef, float)
+    measured = C_LIGHT * (float(wrap_week_seconds(rx_gps_tow - tx_tow)) + float(clk))
+    tau = 0.075
+    for _ in range(2):
+        rho = float(np.linalg.norm(earth_rotation(np.asarray(pos, float), tau) - rx))
+        tau = rho / C_LIGHT
+    return measured - rho
 
 
 def _columns(recs) -> tuple:
@@ -146,6 +165,7 @@ class ChannelNav:
             self.decoder.ephemeris, self.decoder.iono_utc, self.decoder.week = \
                 old.ephemeris, old.iono_utc, old.week
             self.decoder.parity_failures = old.parity_failures
+            self.decoder.first_check = getattr(old, "first_check", None)
 
     def set_assisted_offset(self, tx_offset: float):
         """Transmit-time offset found by the assisted ambiguity search (until frame sync confirms)."""
@@ -438,14 +458,39 @@ class NavigationEngine:
             self.aid_cfg = None
         self.aid_hist = deque()     # (t_s, clock bias m, drift m/s, height m, up speed m/s, TDOP, VDOP) of unaided fixes
         self.n_aided = 0
+        self.first_eph_checks = []  # (prn, receiver time s, range error m) of first ephemerides checked
         # assisted mode: approximate GPS TOW of file sample 0 (input.start_gps_tow_s) lets transmit times
         # be resolved from bit synchronisation alone, before any subframe has been decoded
         self.approx_tow0 = approx_tow0
 
     def channel(self, prn: int) -> ChannelNav:
         if prn not in self.channels:
-            self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
+            ch = self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
+            ch.decoder.first_check = lambda eph, tow, bit_index, ch=ch: self._first_ephemeris_ok(
+                ch, eph, tow, bit_index)
         return self.channels[prn]
+
+    def _first_ephemeris_ok(self, ch: ChannelNav, eph, tow: float, bit_index: int):
+        """A satellite's first decoded ephemeris against the current fix (LnavDecoder.first_check): False when
+        the range it predicts for the channel's latest measurement differs from the measured one by more than
+        FIRST_EPH_RANGE_M (the decoder then waits for a second reception of the same set); None (no opinion)
+        without a fix of at most FIRST_EPH_FIX_AGE_S or a measurement."""
+        if self.last_fix is None or ch.bit_offset < 0 or ch.last_sample < 0:
+            return None
+        s = float(ch.last_sample)
+        m = ch.measure(s)
+        s_fix, fix = self.last_fix
+        dt = (s - s_fix) / self.fs
+        if m is None or not 0.0 <= dt <= FIRST_EPH_FIX_AGE_S:
+            return None
+        rx = np.asarray(fix.ecef, float)
+        v = np.asarray(fix.velocity_ecef, float)
+        if np.all(np.isfinite(v)):
+            rx = rx + v * dt
+        tx = tow - (ch.bit_offset + ch.bit_ms * bit_index) * 1e-3 + m[0]
+        err = first_ephemeris_range_error(eph, tx, self.gps_time(s), rx)
+        self.first_eph_checks.append((ch.prn, s / self.fs, err))
+        return abs(err) <= FIRST_EPH_RANGE_M
 
     def add_records(self, prn: int, recs, bit_offset: int):
         self.channel(prn).add(recs, bit_offset)
