@@ -68,3 +68,11 @@ def test_parameter_cache_follows_the_objects():
     np.testing.assert_array_equal(a[[0, 2]], b[[0, 2]])
     assert np.linalg.norm(a[1] - b[1]) > 1e3
     np.testing.assert_allclose(b, sat_state(ephs2, 7300.0)[0], rtol=0, atol=1e-6)
+
+
+def test_constants_are_those_of_the_signals_module():
+    """The compiled module keeps its constants as literals (numba's cache does not track imported
+    globals): they must be receiver.gnss.signals'."""
+    from receiver.gnss import ephemeris_jit, signals
+    assert (ephemeris_jit.OMEGA_E, ephemeris_jit.MU_GPS, ephemeris_jit.F_REL) == \
+        (signals.OMEGA_E, signals.MU_GPS, signals.F_REL)

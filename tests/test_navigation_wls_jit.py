@@ -58,3 +58,11 @@ def test_multi_system_and_odd_models_use_numpy():
     solver = NavSolver(SimpleNamespace(weighting="elevation", troposphere="saastamoinen", ionosphere="klobuchar"))
     assert not solver._compiled_ok([1], IONO)                      # an inter-system bias column
     assert not solver._compiled_ok([], IonoUtc(alpha=(1e-8,) * 3, beta=(1e5,) * 3))
+
+
+def test_constants_are_those_of_the_gnss_modules():
+    """wls_jit keeps its constants as literals (numba's cache does not track imported globals)."""
+    from receiver.gnss import atmosphere, signals
+    from receiver.navigation import wls_jit
+    assert (wls_jit.C_LIGHT, wls_jit.OMEGA_E, wls_jit.GPS_PI) == \
+        (signals.C_LIGHT, signals.OMEGA_E, atmosphere.GPS_PI)

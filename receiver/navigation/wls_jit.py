@@ -16,8 +16,10 @@ import math
 import numpy as np
 from numba import njit
 
-from ..gnss.signals import C_LIGHT, OMEGA_E
-
+# literals (numba freezes globals into the cached code; tests/test_navigation_wls_jit.py checks them against
+# receiver.gnss.signals / atmosphere)
+C_LIGHT = 299792458.0
+OMEGA_E = 7.2921151467e-5
 GPS_PI = 3.1415926535898
 WEIGHTING = {"elevation": 0, "cn0": 1, "none": 2, "rtklib": 3}
 
