@@ -111,6 +111,22 @@ def _add_power(corr, rows, power):
 
 
 @njit(cache=True, nogil=True)
+def _add_power_shifted(corr, rows, shifts, acc):
+    """acc[rows[i], j] += |corr[i, (j - shifts[i]) mod n1]|^2 (real^2 + imag^2 in float32, as numpy forms
+    it): the high-sensitivity pass's power of one block, each row moved back by its code drift."""
+    n1 = corr.shape[1]
+    for i in range(corr.shape[0]):
+        r = rows[i]
+        s = shifts[i] % n1
+        for j in range(n1):
+            jj = j - s
+            if jj < 0:
+                jj += n1
+            c = corr[i, jj]
+            acc[r, j] += c.real * c.real + c.imag * c.imag
+
+
+@njit(cache=True, nogil=True)
 def _code_wipe(x, code, phase, ratio):
     """x * sample_code(code, ratio * fs, fs, len(x), phase): the same chip index (floor of phase + i ratio,
     modulo the code length) and the same products as numpy's."""
