@@ -613,7 +613,9 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
         # every satellite decoded during the run (navigation memory, not only the channels still tracking)
         writer.write_ephemerides(nav.decoded_ephemerides())
-        writer.write_iono_utc(nav.broadcast_iono(), "rinex" if iono is not None else
+        # the RINEX header's set (its GPS-UTC terms even without ION ALPHA / BETA), else the decoded one
+        writer.write_iono_utc(iono if iono is not None else nav.broadcast_iono(),
+                              "rinex" if iono is not None else
                               ("d1/d2" if get_signal(cfg.signal).system == "C" else "lnav"))
         if nav.iono_fallback is not None:               # /navigation/iono_params 2: this set
             from .gnss.atmosphere import FALLBACK_KLOBUCHAR_SOURCE

@@ -108,3 +108,16 @@ def test_vector_fix_rows_carry_iono_params():
     row = np.zeros(1, FIX_DTYPE)
     row[0] = tr._fix_row(1.0, np.array([-3959617.0, 3350136.0, 3699531.0]), np.zeros(3), 0.0, 0.0, 6, 345600.0)
     assert row["iono_params"][0] == IONO_FALLBACK and row["mode"][0] == 1
+
+
+def test_rinex_header_set_is_broadcast_unless_it_has_no_klobuchar_terms(brdc):  # noqa: F811
+    """Assisted mode: the RINEX header's ION ALPHA / BETA are the broadcast set from the start; a header with
+    GPS-UTC terms only (alpha, beta read as zeros) leaves the fallback set in use."""
+    from receiver.gnss.ephemeris import IonoUtc
+    _, header = brdc
+    nav = load_receiver_config(None, []).navigation
+    eng = NavigationEngine(nav, FS, 0.0, 0, ephemerides={}, iono_utc=header)
+    assert eng.iono() is header and eng.iono_params() == IONO_BROADCAST
+    utc_only = IonoUtc(a0=header.a0, a1=header.a1, dt_ls=18)
+    eng = NavigationEngine(nav, FS, 0.0, 0, ephemerides={}, iono_utc=utc_only)
+    assert eng.iono() is eng.iono_fallback and eng.iono_params() == IONO_FALLBACK

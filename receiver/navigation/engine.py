@@ -503,9 +503,10 @@ class NavigationEngine:
                 if ch.decoder.ephemeris is not None}
 
     def broadcast_iono(self):
-        """The broadcast Klobuchar / GPS-UTC set: the RINEX header's (assisted mode), else the first decoded
+        """The broadcast Klobuchar / GPS-UTC set: the RINEX header's (assisted mode; not when the header has
+        GPS-UTC terms but no ION ALPHA / BETA: the reader leaves alpha and beta zero), else the first decoded
         by any channel; None while none is known."""
-        if self.iono_utc is not None:
+        if self.iono_utc is not None and (any(self.iono_utc.alpha) or any(self.iono_utc.beta)):
             return self.iono_utc
         for ch in self.channels.values():
             if ch.decoder.iono_utc is not None:
