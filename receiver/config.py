@@ -514,6 +514,11 @@ RECEIVER_SCHEMA = {
         "ephemeris": P(None, "str", "RINEX 2/3 GPS navigation file for assisted mode", nullable=True),
         "troposphere": P("saastamoinen", "str", "troposphere model", choices=("saastamoinen", "none")),
         "ionosphere": P("klobuchar", "str", "ionosphere model", choices=("klobuchar", "none")),
+        "klobuchar_fallback": P(True, "bool", "while no broadcast Klobuchar set is known (LNAV subframe 4 page 18 "
+                                              "comes every 12.5 min; none in the RINEX header), correct with a "
+                                              "built-in set (GPS broadcast of 2022-01-01, brdc0010.22n; "
+                                              "receiver/gnss/atmosphere.py) instead of not at all; "
+                                              "/navigation/iono_params says which set each fix used"),
         "elevation_mask_deg": P(5.0, "float", "elevation mask", lo=-90.0, hi=90.0),
         "weighting": P("elevation", "str", "WLS weights: sin^2(el), C/N0, none, or rtklib (RTKLIB's default "
                                                "single-point error model, to compare with rnx2rtkp)",

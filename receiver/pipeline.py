@@ -29,7 +29,7 @@ from .source.decimate import DecimatingReader, plan
 from .config import RECEIVER_SCHEMA
 from .runfile.provenance import provenance
 from .runfile.writer import RunWriter
-from .runfile.record import EPOCH_DTYPE
+from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
 from .gnss.satid import sat_label
 from .tracking.carrier import make_carrier_loop
@@ -57,7 +57,22 @@ class RunSummary:
     reacquisitions: int = 0
     nonfinite_samples: int = 0         # NaN/Inf input samples replaced by zeros
     system: str = "G"                  # RINEX letter of the signal (labels: G05, J01, C12)
+    # fixes per FIX_DTYPE iono_params code, and the first fix (s after the first sample) with broadcast ones
+    iono_counts: dict = field(default_factory=dict)
+    iono_broadcast_from_s: float | None = None
     notes: list = field(default_factory=list)   # input conditioning / acquisition lines
+
+    def iono_text(self) -> str:
+        """Which Klobuchar parameters the fixes used (FIX_DTYPE iono_params)."""
+        n = self.iono_counts
+        before = [w for k, w in ((IONO_FALLBACK, "fallback set"), (IONO_NONE, "no correction")) if n.get(k)]
+        if n.get(IONO_BROADCAST):
+            if not before:
+                return "broadcast parameters (every fix)"
+            return f"broadcast parameters from {self.iono_broadcast_from_s:.1f} s, {' / '.join(before)} before"
+        if n.get(IONO_FALLBACK):
+            return "fallback set (no broadcast parameters known; navigation.klobuchar_fallback)"
+        return "no correction (navigation.ionosphere none, or no parameters known)"
 
     @property
     def realtime_factor(self) -> float:
@@ -81,6 +96,8 @@ class RunSummary:
                       "scatter (1 sd)  E {:.2f} N {:.2f} U {:.2f} m".format(*self.scatter_m)]
         else:
             lines.append("fixes           none")
+        if self.n_fixes and self.iono_counts:
+            lines.append(f"ionosphere      {self.iono_text()}")
         if self.nonfinite_samples:
             lines.append(f"input           {self.nonfinite_samples} non-finite samples replaced by zeros")
         return "\n".join(lines + self.notes)
@@ -516,6 +533,7 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
     cn0_sum: dict[int, list] = {}
     n_fixes, first_fix, fix_ecef = 0, None, []
+    iono_counts, iono_from = {}, None
     chunk = int(CHUNK_S * fs)
     overlap = int(OVERLAP_S * fs)
     vector = None
@@ -572,6 +590,12 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
                 n_fixes += len(fixes)
                 if first_fix is None:
                     first_fix = float(fixes["time_s"][0]) - reader.first / fs
+                codes, counts = np.unique(fixes["iono_params"], return_counts=True)
+                for c, k in zip(codes.tolist(), counts.tolist()):
+                    iono_counts[c] = iono_counts.get(c, 0) + k
+                bc = np.flatnonzero(fixes["iono_params"] == IONO_BROADCAST)
+                if iono_from is None and len(bc):
+                    iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
                 fix_ecef.append(fixes["ecef"])
         # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest
         if start + chunk + overlap < reader.end:
@@ -588,6 +612,7 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
     s.tracked = sorted(s.mean_cn0)
     s.n_fixes = n_fixes
     s.first_fix_s = first_fix
+    s.iono_counts, s.iono_broadcast_from_s = iono_counts, iono_from
     s.reacquisitions = sum(v["reacquisitions"] for v in manager.summary().values())
     if hasattr(reader, "resample"):               # the decimating input stage
         s.notes.append(reader.describe())
@@ -599,8 +624,15 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
         s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
         # every satellite decoded during the run (navigation memory, not only the channels still tracking)
         writer.write_ephemerides(nav.decoded_ephemerides())
-        writer.write_iono_utc(nav.iono(), "rinex" if iono is not None else
+        # the RINEX header's set (its GPS-UTC terms even without ION ALPHA / BETA), else the decoded one
+        writer.write_iono_utc(iono if iono is not None else nav.broadcast_iono(),
+                              "rinex" if iono is not None else
                               ("d1/d2" if get_signal(cfg.signal).system == "C" else "lnav"))
+        if nav.iono_fallback is not None:               # /navigation/iono_params 2: this set
+            from .gnss.atmosphere import FALLBACK_KLOBUCHAR_SOURCE
+            writer.set_attrs("navigation", {"iono_fallback_alpha": np.asarray(nav.iono_fallback.alpha, float),
+                                            "iono_fallback_beta": np.asarray(nav.iono_fallback.beta, float),
+                                            "iono_fallback_source": FALLBACK_KLOBUCHAR_SOURCE})
     if fix_ecef:
         from .gnss.geodesy import ecef2enu, ecef2lla
         e = np.concatenate(fix_ecef)

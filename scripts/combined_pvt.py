@@ -131,13 +131,14 @@ def write_mixed(a, rg, merged_obs, merged_fix, ephs, iono):
     from receiver.export.rinex_obs import write_rinex_obs
     from receiver.gnss.geodesy import ecef2lla
     from receiver.gnss.rinex import write_rinex_nav
-    from receiver.runfile.record import FIX_DTYPE
+    from receiver.runfile.record import FIX_DTYPE, IONO_BROADCAST, IONO_NONE
     os.makedirs(a.rinex, exist_ok=True)
     fx = np.zeros(len(merged_fix), FIX_DTYPE)
+    iono_params = IONO_BROADCAST if iono is not None and rg.cfg("navigation.ionosphere", "klobuchar") == "klobuchar" else IONO_NONE
     for i, (f, t_s) in enumerate(merged_fix):
         lat, lon, h = ecef2lla(f.ecef)
         fx[i] = (f.gps_week, f.gps_tow, t_s, f.ecef, f.velocity_ecef, f.clock_bias_m, f.clock_drift_mps,
-                 f.n_sats, f.pdop, f.hdop, f.vdop, f.gdop, 0, lat, lon, h)
+                 f.n_sats, f.pdop, f.hdop, f.vdop, f.gdop, 0, lat, lon, h, iono_params)
     run = dc_replace(rg, path=os.path.join(a.rinex, "combined.h5"), fixes=fx, obs=np.concatenate(merged_obs),
                      ephemerides=ephs, _used=None)
     obs_path, nav_path = os.path.join(a.rinex, "combined.obs"), os.path.join(a.rinex, "combined.nav")

@@ -111,7 +111,8 @@ def rewrite(src, repeat, compression):
             chans[int(g.attrs["prn"])] = r
         fixes = np.zeros(f["navigation/time_s"].shape[0], FIX_DTYPE)
         for c in FIX_DTYPE.names:
-            fixes[c] = f["navigation"][c][:]
+            if c in f["navigation"]:            # (iono_params: not in older run files)
+                fixes[c] = f["navigation"][c][:]
         obs = np.zeros(f["observables/time_s"].shape[0], OBS_DTYPE)
         for c in OBS_DTYPE.names:
             obs[c] = f["observables"][c][:]

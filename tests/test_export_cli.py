@@ -72,7 +72,7 @@ def test_info_command(linked):
     text = res.output
     for want in ("schema          gnssrx-run-2", "navigation mode assisted", "channels        10",
                  "modes         scalar", "mean position lat 35.68", "config:", "  navigation:",
-                 "iono/UTC        rinex: Klobuchar alpha 1.21e-08"):
+                 "iono/UTC        rinex: Klobuchar alpha 1.21e-08", "  ionosphere    broadcast "):
         assert want in text, want
     res = CliRunner().invoke(main, ["info", str(linked), "--json", "--no-config"])
     assert res.exit_code == 0, res.output
@@ -83,6 +83,7 @@ def test_info_command(linked):
         n_fix = f["navigation/gps_tow"].shape[0]
         n_obs = f["observables/prn"].shape[0]
     assert d["navigation"]["fixes"] == n_fix and d["observables"]["rows"] == n_obs
+    assert d["navigation"]["iono_params"] == {"broadcast": n_fix}      # the RINEX header's set from the start
     assert d["navigation"]["rate_hz"] == pytest.approx(10.0, rel=1e-3)
     assert d["navigation"]["first_fix"]["gps_time"].startswith("2022-01-01T01:59")
     assert d["navigation"]["mean_position"]["lat_deg"] == pytest.approx(35.681298, abs=1e-4)

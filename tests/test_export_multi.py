@@ -18,7 +18,7 @@ def _run(tmp_path, system="G"):
     for k in range(2):
         lat, lon, h = ecef2lla(x)
         fx[k] = (2300, 345600.0 + 0.1 * k, 30.0 + 0.1 * k, x, np.zeros(3), 12.0, 0.1, len(SATS), 1.2, 0.7, 1.0,
-                 1.4, 0, lat, lon, h)
+                 1.4, 0, lat, lon, h, 1)
         for j, p in enumerate(SATS):
             obs[k * len(SATS) + j] = (k, 2300, 345600.0 + 0.1 * k, 30.0 + 0.1 * k, p, 2.1e7 + 1e5 * j, 0.0,
                                       -1000.0 + j, 1e6 + j, 44.0, 10.0, 1, 1, 40.0 + j, 100.0 + 10 * j, 0.1)

@@ -123,3 +123,24 @@ def test_reference_run_file_at_most_25_mb(tokyo_run):
         assert f["channels"].attrs["channel_rate_hz"] == 0.0 and f.attrs["schema"] == SCHEMA
         assert sum(g["time_s"].shape[0] for g in f["channels"].values()) > 400_000     # every epoch stored
     assert os.path.getsize(tokyo_run) <= 25.0e6
+
+
+def test_fix_iono_params_column_reads_back_and_old_files_read_unknown(tmp_path):
+    """/navigation/iono_params (which Klobuchar set each fix used) is written and read back with its mapping;
+    a run file written before the column existed reads IONO_UNKNOWN, not 'none'."""
+    from receiver.runfile.record import IONO_BROADCAST, IONO_FALLBACK, IONO_NONE, IONO_UNKNOWN
+    fixes = np.zeros(5, FIX_DTYPE)
+    fixes["time_s"] = np.arange(5) * 0.1
+    fixes["iono_params"] = [IONO_FALLBACK, IONO_FALLBACK, IONO_BROADCAST, IONO_BROADCAST, IONO_NONE]
+    w = RunWriter(tmp_path / "new.h5", "{}", {"sample_rate_hz": 2.6e6})
+    w.append_fixes(fixes[:2])
+    w.append_fixes(fixes[2:])
+    w.close()
+    with RunFile(tmp_path / "new.h5") as rf:
+        assert np.array_equal(rf.fixes(), fixes)
+        assert rf.group_attrs("navigation")["iono_params_mapping"] == "0=none,1=broadcast,2=fallback"
+    with h5py.File(tmp_path / "new.h5", "a") as f:
+        del f["navigation/iono_params"]
+    with RunFile(tmp_path / "new.h5") as rf:
+        old = rf.fixes()
+    assert np.all(old["iono_params"] == IONO_UNKNOWN) and np.array_equal(old["time_s"], fixes["time_s"])

@@ -73,6 +73,10 @@ def run_info(path) -> dict:
             "n_sats_mean": float(np.mean(fx["n_sats"])),
             "pdop_mean": float(np.nanmean(fx["pdop"])),
         })
+        # fixes per Klobuchar set (/navigation/iono_params; 'unknown': a file written before the column)
+        from ..runfile.record import IONO_PARAMS_NAMES
+        codes, counts = np.unique(fx["iono_params"], return_counts=True)
+        nav["iono_params"] = {IONO_PARAMS_NAMES.get(int(c), "unknown"): int(k) for c, k in zip(codes, counts)}
         if ok.any():
             from ..gnss.geodesy import ecef2lla, ecef2enu
             e = fx["ecef"][ok]
@@ -142,6 +146,9 @@ def format_info(info: dict, show_config: bool = True) -> str:
         add(f"  modes         scalar {nav['modes']['scalar']}, vector {nav['modes']['vector']}, "
             f"coast {nav['modes']['coast']}")
         add(f"  satellites    {nav['n_sats_mean']:.1f} used on average, mean PDOP {nav['pdop_mean']:.2f}")
+        if nav.get("iono_params"):
+            add("  ionosphere    " + ", ".join(f"{k} {v}" for k, v in nav["iono_params"].items())
+                + " fixes (Klobuchar set)")
         if "mean_position" in nav:
             m = nav["mean_position"]
             add(f"  mean position lat {m['lat_deg']:.7f} lon {m['lon_deg']:.7f} h {m['height_m']:.2f} m")

@@ -22,7 +22,7 @@ from collections import deque
 import numpy as np
 
 from ..gnss.geodesy import ecef2lla
-from ..runfile.record import FIX_DTYPE, OBS_DTYPE
+from ..runfile.record import FIX_DTYPE, OBS_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from ..runfile.record import STATE_BIT_SYNC
 from ..gnss.signals import C_LIGHT, GPS_L1CA
 from ..gnss.lnav import LnavDecoder, SubframeEvent
@@ -444,7 +444,13 @@ class NavigationEngine:
         self.signal = signal                # SignalDef of the channels (None: GPS L1 C/A)
         self.assisted = ephemerides is not None
         self.rinex_ephs = ephemerides or {}
-        self.iono_utc = iono_utc
+        self.iono_utc = iono_utc            # the RINEX header's Klobuchar / UTC set (assisted mode), or None
+        self.iono_fallback = None           # navigation.klobuchar_fallback: used while no broadcast set is known
+        if getattr(nav_cfg, "ionosphere", "klobuchar") == "klobuchar" and \
+                getattr(nav_cfg, "klobuchar_fallback", True):
+            from ..gnss.atmosphere import FALLBACK_KLOBUCHAR_ALPHA, FALLBACK_KLOBUCHAR_BETA
+            from ..gnss.ephemeris import IonoUtc
+            self.iono_fallback = IonoUtc(alpha=FALLBACK_KLOBUCHAR_ALPHA, beta=FALLBACK_KLOBUCHAR_BETA)
         self.week_hint = week_hint
         self.rate = nav_cfg.rate_hz
         self.next_s = float(first_sample + int(round(fs / self.rate)))
@@ -515,7 +521,7 @@ class NavigationEngine:
 
     # ------------------------------------------------------------------------------------------
     # Navigation interface for the trackers (vector loop, channel manager): week(), ephemeris(prn, t),
-    # ephemerides(t), iono(), last_fix, set_noncoherent(prn, sample), decoded_ephemerides(),
+    # ephemerides(t), iono(), iono_params(), last_fix, set_noncoherent(prn, sample), decoded_ephemerides(),
     # satellite_los(prn, sample).
     def ephemerides(self, t):
         """prn -> Ephemeris valid at GPS time t: the RINEX file's (assisted mode) or the decoded ones, for
@@ -559,13 +565,31 @@ class NavigationEngine:
         return {p: ch.decoder.ephemeris for p, ch in sorted(self.channels.items())
                 if ch.decoder.ephemeris is not None}
 
-    def iono(self):
-        if self.iono_utc is not None:
+    def broadcast_iono(self):
+        """The broadcast Klobuchar / GPS-UTC set: the RINEX header's (assisted mode; not when the header has
+        GPS-UTC terms but no ION ALPHA / BETA: the reader leaves alpha and beta zero), else the first decoded
+        by any channel; None while none is known."""
+        if self.iono_utc is not None and (any(self.iono_utc.alpha) or any(self.iono_utc.beta)):
             return self.iono_utc
         for ch in self.channels.values():
             if ch.decoder.iono_utc is not None:
                 return ch.decoder.iono_utc
         return None
+
+    def iono(self):
+        """The Klobuchar set the fixes use now: the broadcast one, else the fallback set
+        (navigation.klobuchar_fallback), else None (no ionospheric correction)."""
+        io = self.broadcast_iono()
+        return io if io is not None else self.iono_fallback
+
+    def iono_params(self) -> int:
+        """FIX_DTYPE iono_params of a fix computed now: IONO_BROADCAST, IONO_FALLBACK or IONO_NONE (no
+        parameters, or navigation.ionosphere none)."""
+        if self.solver.ionosphere != "klobuchar":
+            return IONO_NONE
+        if self.broadcast_iono() is not None:
+            return IONO_BROADCAST
+        return IONO_FALLBACK if self.iono_fallback is not None else IONO_NONE
 
     def week(self):
         """GPS week (decoded, else input.start_gps_week), or None."""
@@ -854,7 +878,7 @@ class NavigationEngine:
         row = (out.gps_week, out.gps_tow, t_s, out.ecef, out.velocity_ecef, out.clock_bias_m,
                out.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop,
                MODE_AIDED if fix.aiding else 0,
-               float(lat), float(lon), float(h))
+               float(lat), float(lon), float(h), self.iono_params())
         used = set(fix.prns)
         el = dict(zip(fix.prns, fix.elevations_deg))
         az = dict(zip(fix.prns, fix.azimuths_deg))

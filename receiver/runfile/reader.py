@@ -32,7 +32,7 @@ from ..gnss.ephemeris import Ephemeris, IonoUtc
 from ..gnss.signals import C_LIGHT
 from ..gnss.time import gps_datetime, leap_seconds_at
 from .check import check_run_file
-from .record import FIX_DTYPE, OBS_DTYPE, STATE_BIT_SYNC
+from .record import FIX_DTYPE, IONO_UNKNOWN, OBS_DTYPE, STATE_BIT_SYNC
 
 
 def open_h5(path, what: str = "file") -> h5py.File:
@@ -389,14 +389,21 @@ def _opt_int(v):
         return None
 
 
+#: the value of a column an older run file does not have, where neither NaN nor 0 would be honest
+_MISSING = {"iono_params": IONO_UNKNOWN}
+
+
 def _table(group, dtype) -> np.ndarray:
-    """A group of equally long datasets -> structured array of ``dtype`` (missing columns NaN/0)."""
+    """A group of equally long datasets -> structured array of ``dtype`` (missing columns NaN/0, or
+    their _MISSING value)."""
     names = [n for n in dtype.names if n in group]
     n = group[names[0]].shape[0] if names else 0
     out = np.zeros(n, dtype)
     for name in dtype.names:
         if name in group:
             out[name] = group[name][:]
+        elif name in _MISSING:
+            out[name] = _MISSING[name]
         elif out[name].dtype.kind == "f":
             out[name] = np.nan
     return out

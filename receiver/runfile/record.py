@@ -58,7 +58,15 @@ FIX_DTYPE = np.dtype([
     ("n_sats", "i4"), ("pdop", "f8"), ("hdop", "f8"), ("vdop", "f8"), ("gdop", "f8"),
     ("mode", "u1"),                 # MODE_NAMES: 0 scalar, 1 vector, 2 coast, 3 aided
     ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
+    ("iono_params", "u1"),          # IONO_PARAMS_NAMES: the Klobuchar set the fix's ionospheric correction used
 ])
+
+# fix iono_params: 0 no ionospheric correction (navigation.ionosphere none, or no parameters known and
+# navigation.klobuchar_fallback off); 1 broadcast parameters (decoded from the signal, or the RINEX navigation
+# file's header in assisted mode); 2 the built-in fallback set (receiver/gnss/atmosphere.py), no broadcast
+# parameters known yet.  Run files written before the column existed read back IONO_UNKNOWN.
+IONO_NONE, IONO_BROADCAST, IONO_FALLBACK, IONO_UNKNOWN = 0, 1, 2, 255
+IONO_PARAMS_NAMES = {IONO_NONE: "none", IONO_BROADCAST: "broadcast", IONO_FALLBACK: "fallback"}
 
 OBS_DTYPE = np.dtype([
     ("epoch", "i4"), ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("prn", "i4"),

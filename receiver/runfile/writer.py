@@ -18,7 +18,7 @@ from .. import __version__
 from .. import interrupt
 from ..safeio import AtomicH5
 from ..gnss.satid import sat_label
-from .record import ACQ_REASONS, EPOCH_DTYPE, STATE_LOST, STATE_NAMES
+from .record import ACQ_REASONS, EPOCH_DTYPE, IONO_PARAMS_NAMES, STATE_LOST, STATE_NAMES
 
 
 COMPRESSION = {"none": {}, "lzf": {"compression": "lzf", "shuffle": True},
@@ -211,6 +211,7 @@ class RunWriter:
             self.f.create_group("channels").attrs["channel_rate_hz"] = self.channel_rate_hz
             g = self.f.create_group("navigation")
             g.attrs["mode_mapping"] = "0=scalar,1=vector,2=coast,3=aided"
+            g.attrs["iono_params_mapping"] = ",".join(f"{k}={v}" for k, v in IONO_PARAMS_NAMES.items())
             self._out.check()
         except BaseException:
             self.close(ok=False)

@@ -16,8 +16,8 @@ Chunk by chunk (``process(block, start)``):
      pipeline falls back to scalar tracking (receiver.tracking.vector.Handover.fall_back).
 
 Navigation interface used (receiver.nav.engine.NavigationEngine): ``week()``, ``ephemerides(t)``,
-``iono()``, ``channels[prn].has_time / tx_offset / bit_offset`` (satellite memory), ``set_noncoherent``,
-``resume``.
+``iono()``, ``iono_params()``, ``channels[prn].has_time / tx_offset / bit_offset`` (satellite memory),
+``set_noncoherent``, ``resume``.
 
 Vector channels are never dropped by the scalar lock detector (its loss timer is disabled): a blocked
 channel keeps being predicted and is re-captured without re-acquisition when the signal returns.
@@ -480,7 +480,9 @@ class VectorTracker:
         dops = self._dops(tau, r, lat, lon)
         t_s = (self.s_ref + tau * self.fs) / self.fs
         mode = MODE_VECTOR if nsat >= 4 else MODE_COAST
-        return (week, tow, t_s, r, v, b, d, nsat, *dops, mode, float(lat), float(lon), float(h))
+        # the Klobuchar set of this block's satellite polynomials (nav.iono() does not change during a block)
+        return (week, tow, t_s, r, v, b, d, nsat, *dops, mode, float(lat), float(lon), float(h),
+                self.nav.iono_params())
 
     def _dops(self, tau, r, lat, lon):
         """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4), from this chunk's satellite
