@@ -179,3 +179,43 @@ def test_vector_reinitialises_after_an_outage_it_cannot_bridge(drive, tmp_path):
     assert first_scalar - OUT_B <= 2.0
     assert np.any(mode[t > first_scalar] == 1)               # handed over again
     assert err[mode != 2].max() < 30.0, err[mode != 2].max()
+
+
+def test_cold_search_rejects_images_of_signals_tracked_in_channels():
+    """Two 53 dB-Hz satellites tracked in channels: a cold search of the other PRNs (which does not include
+    them, so the search's own cross-correlation test cannot see them) detects their Gold-code images at the
+    same Doppler and at k x 1 kHz for most PRNs, 30-32 dB-Hz; the channel manager rejects every one of them
+    and keeps a real 37 dB-Hz satellite at another Doppler."""
+    from types import SimpleNamespace
+    from receiver.acquisition import search, verify
+    from receiver.gnss.signals import GPS_L1CA
+    from receiver.tracking.channels import ChannelManager
+    from receiver.tracking.scalar import Channel
+    fs = 2.6e6
+    strong = [{"prn": 29, "doppler_hz": -2055.0, "code_phase_chips": 100.3, "cn0_dbhz": 53},
+              {"prn": 26, "doppler_hz": 727.0, "code_phase_chips": 600.7, "cn0_dbhz": 53}]
+    x = make_signal(strong + [{"prn": 7, "doppler_hz": 1500.0, "code_phase_chips": 300.2, "cn0_dbhz": 37}],
+                    duration_s=0.9, seed=5)
+    cfg = load_receiver_config()
+    mgr = ChannelManager(cfg, SimpleNamespace(first=0), None, fs, 0.0, GPS_L1CA, acquire=None)
+    for s in strong:
+        ch = Channel(s["prn"], s["doppler_hz"] + 20.0, s["code_phase_chips"], 0, cfg.tracking, fs, 0.0,
+                     signal=GPS_L1CA)
+        ch.process(x[:int(0.7 * fs)], 0)
+        assert ch.cn0_dbhz > 45 and not ch.lost
+        mgr.channels[s["prn"]] = ch
+    a = cfg.acquisition
+    s0 = int(0.7 * fs)
+    dw = int(a.coherent_ms * a.noncoherent * 1e-3 * fs)
+    blk = x[s0:]
+    res = search(blk, s0, fs, 0.0, [p for p in range(1, 33) if p not in (26, 29)], a.coherent_ms,
+                 a.noncoherent, a.doppler_max_hz, a.doppler_step_hz, a.pfa, a.threshold)
+    for r in res:
+        if r.detected and not verify(blk[dw:2 * dw], s0 + dw, fs, 0.0, r, a.coherent_ms, a.noncoherent,
+                                     a.doppler_step_hz, a.pfa, a.threshold):
+            r.detected = False
+    images = [r.prn for r in res if r.detected and r.prn != 7]
+    assert len(images) >= 10 and 7 in [r.prn for r in res if r.detected]
+    mgr._reject_tracked_images(res)
+    assert [r.prn for r in res if r.detected] == [7]
+    assert all(r.reason == "xcorr" for r in res if r.prn in images)
