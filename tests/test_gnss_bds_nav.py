@@ -181,3 +181,31 @@ def test_rinex3_beidou_records_round_trip(nominal, tmp_path):
     assert sorted(g) == [3] and not isinstance(g[3][0], BdsEphemeris)
     sim, _ = bds_rinex_ephemerides(out, WEEK, TOW + 20.0)   # the simulator's bds_rinex source
     assert sim == {p: e for p, e in ephs.items() if p <= 37}
+
+
+def test_far_replacement_ephemeris_needs_a_second_reception(nominal):
+    """A BCH block with two errors is 'corrected' into a wrong codeword, so a corrupted set can decode:
+    a replacement that moves the satellite by more than JUMP_M is used only when a second reception
+    decodes the same set; a genuine update (metres) replaces at once."""
+    from dataclasses import replace
+
+    from receiver.gnss.bds_nav import quantize_bds
+    ephs, iono = nominal
+    good = ephs[11]
+    far = quantize_bds(replace(good, omega0=good.omega0 + 1e-3))           # ~ 27 km along the orbit
+    near = quantize_bds(replace(far, af0=far.af0 + 2e-9))                   # 0.6 m of clock
+    ms0 = int(TOW * 1000)                                                  # a D1 bit edge (BDT ms % 20 == 0)
+    dec = BdsDecoder(11)
+    pieces = [(good, 40000), (far, 30000), (far, 30000), (near, 30000)]
+    seen, idx, ms = [], 0, ms0
+    for eph, n in pieces:
+        soft, first = _stream(eph, iono, False, ms, n, invert=False)
+        assert first == ms
+        dec.feed(soft, idx)
+        idx += len(soft)
+        ms += n
+        seen.append((dec.ephemeris, dec.ephemerides_held))
+    assert seen[0] == (good, 0)
+    assert seen[1] == (good, 1)          # first reception of the far set: held
+    assert seen[2] == (far, 1)           # the same set again: used
+    assert seen[3] == (near, 1)          # a near update: at once

@@ -57,3 +57,20 @@ def test_kf_predict_equals_numpy():
     kf_predict(x, P, F, Q)
     np.testing.assert_allclose(x, x_ref, rtol=1e-13, atol=1e-13)
     np.testing.assert_allclose(P, P_ref, rtol=1e-12, atol=1e-12)
+
+
+def test_kf_predict_of_a_sparse_transition_equals_the_dense_sums():
+    """kf_predict sums over each row's non-zero entries only: with a sparse F (the polynomial filter's
+    shape, a few entries per row) the result equals the dense sums in the same order bit for bit, i.e.
+    numpy's product to rounding, and exactly for the rows that are identity rows."""
+    rng, P, _ = _filter(4, n=12)
+    F = np.eye(12)
+    F[0, 3], F[0, 6], F[5, 9], F[11, 2] = 3.0, -1.0, 1e-3, -2.5      # a few couplings
+    Q = np.zeros((12, 12))
+    x = rng.normal(size=12)
+    dense_x = np.array([sum(F[i, k] * x[k] for k in range(12)) for i in range(12)])
+    FP = np.array([[sum(F[i, k] * P[k, j] for k in range(12)) for j in range(12)] for i in range(12)])
+    dense_P = np.array([[Q[i, j] + sum(FP[i, k] * F[j, k] for k in range(12)) for j in range(12)]
+                        for i in range(12)])
+    kf_predict(x, P, F, Q)
+    assert np.array_equal(x, dense_x) and np.array_equal(P, dense_P)

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .bds_ephemeris import BDS_PI, BdsEphemeris, BDT_GPS_OFFSET_S, BDT_WEEK_OFFSET
+from .bds_ephemeris import BDS_PI, BdsEphemeris, BDT_GPS_OFFSET_S, BDT_WEEK_OFFSET, bds_sat_state
 from .ephemeris import IonoUtc
 from .lnav import SubframeEvent, hard_bits
 from .time import WEEK_S
@@ -362,9 +362,16 @@ class BdsDecoder:
     polarity) followed 300 bits later by the next subframe's preamble with a consistent FraID and SOW.
     Events: :class:`receiver.gnss.lnav.SubframeEvent` with the GPS time of week of the subframe start.
     State: ``ephemeris`` (BdsEphemeris, BDT toe/toc/week), ``iono_utc`` (Klobuchar), ``week`` (GPS week),
-    ``parity_failures`` (BCH blocks corrected), ``synced``, ``polarity``.
+    ``parity_failures`` (BCH blocks corrected), ``synced``, ``polarity``, ``ephemerides_held``.
+
+    A new ephemeris that puts the satellite more than ``JUMP_M`` away from the current one (position plus
+    c x clock, at the new set's toe) replaces it only when a second reception decodes the same set: the
+    BCH(15,11) decoder corrects one error per block, so two errors in a block are "corrected" into a third
+    and a corrupted set can pass at low C/N0 (as with GPS LNAV's single-bit correction); a genuine update
+    moves the satellite by metres.
     """
     MAX_MISSES = 3
+    JUMP_M = 300.0
 
     def __init__(self, prn: int, week_hint: int | None = None, geo: bool = False):
         self.prn = int(prn)
@@ -374,6 +381,8 @@ class BdsDecoder:
         self.iono_utc: IonoUtc | None = None
         self.week: int | None = None
         self.parity_failures = 0
+        self.ephemerides_held = 0
+        self._held: BdsEphemeris | None = None   # a far replacement waiting for a second reception
         self.synced = False
         self.polarity = 0
         self._bits = np.zeros(0, np.uint8)
@@ -507,6 +516,14 @@ class BdsDecoder:
             if len(self._sub) == 3:
                 self._assemble_d1()
 
+    @staticmethod
+    def _near(old: BdsEphemeris, new: BdsEphemeris) -> bool:
+        from .signals import C_LIGHT
+        t = np.array([new.toe + BDT_GPS_OFFSET_S])     # GPS seconds of week of the new set's toe
+        p0, _, c0, _ = bds_sat_state([old], t)
+        p1, _, c1, _ = bds_sat_state([new], t)
+        return float(np.linalg.norm(p1[0] - p0[0])) + C_LIGHT * abs(float(c1[0] - c0[0])) <= BdsDecoder.JUMP_M
+
     def _set_iono(self, f):
         self.iono_utc = IonoUtc(alpha=tuple(f[f"alpha{k}"] for k in range(4)),
                                 beta=tuple(f[f"beta{k}"] for k in range(4)),
@@ -540,14 +557,23 @@ class BdsDecoder:
 
     def _make(self, clk, orb):
         wn = int(clk["wn"])
-        self.week = wn + BDT_WEEK_OFFSET
         semi = {k: orb[k] * BDS_PI for k in _SEMICIRCLE}
-        self.ephemeris = BdsEphemeris(
+        eph = BdsEphemeris(
             prn=self.prn, week=wn, toe=float(orb["toe"]), toc=float(clk["toc"]), af0=clk["a0"], af1=clk["a1"],
             af2=clk["a2"], tgd=clk["tgd1"], iode=int(clk["aode"]), iodc=int(clk["aodc"]),
             sqrt_a=orb["sqrt_a"], e=orb["e"], i0=semi["i0"], omega0=semi["omega0"], omega=semi["omega"],
             m0=semi["m0"], delta_n=semi["delta_n"], idot=semi["idot"], omega_dot=semi["omega_dot"],
             cuc=orb["cuc"], cus=orb["cus"], crc=orb["crc"], crs=orb["crs"], cic=orb["cic"], cis=orb["cis"],
             health=int(clk["sath1"]), ura_index=int(clk["urai"]), tgd2=clk["tgd2"])
+        if eph == self.ephemeris:
+            return
+        if self.ephemeris is not None and not self._near(self.ephemeris, eph):
+            if eph != self._held:
+                self._held = eph                       # wait for a second reception of the same set
+                self.ephemerides_held += 1
+                return
+        self._held = None
+        self.week = wn + BDT_WEEK_OFFSET
+        self.ephemeris = eph
         if self.iono_utc is not None:
             self.iono_utc.wnt = self.week

@@ -31,12 +31,26 @@ FORMS = {"none": FORM_NONE, "paper": FORM_PAPER, "innovation": FORM_INNOVATION, 
 @njit(cache=True)
 def kf_predict(x, P, F, Q):
     """x <- F x, P <- F P F^T + Q (in place), in plain loops (BLAS calls for these small matrices cost more
-    than the arithmetic; the sums' order differs from numpy's at the float-rounding level)."""
+    than the arithmetic; the sums' order differs from numpy's at the float-rounding level).
+
+    Transitions are sparse (two or three entries per row: 18 x 18 for the polynomial filter), so the sums
+    run over each row's non-zero entries only, in the same order as the dense sums: skipped terms are exact
+    zeros, so the result is the dense product's to the bit (for finite P)."""
     n = x.shape[0]
+    nz = np.empty((n, n), np.int64)
+    cnt = np.zeros(n, np.int64)
+    for i in range(n):
+        c = 0
+        for k in range(n):
+            if F[i, k] != 0.0:
+                nz[i, c] = k
+                c += 1
+        cnt[i] = c
     xn = np.empty(n)
     for i in range(n):
         acc = 0.0
-        for k in range(n):
+        for t in range(cnt[i]):
+            k = nz[i, t]
             acc += F[i, k] * x[k]
         xn[i] = acc
     x[:] = xn
@@ -44,13 +58,15 @@ def kf_predict(x, P, F, Q):
     for i in range(n):
         for j in range(n):
             acc = 0.0
-            for k in range(n):
+            for t in range(cnt[i]):
+                k = nz[i, t]
                 acc += F[i, k] * P[k, j]
             FP[i, j] = acc
     for i in range(n):
         for j in range(n):
             acc = Q[i, j]
-            for k in range(n):
+            for t in range(cnt[j]):
+                k = nz[j, t]
                 acc += FP[i, k] * F[j, k]
             P[i, j] = acc
 

@@ -86,14 +86,13 @@ def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e):
     dt = tau - tau_k
     _sat(POLY, TAU_A, j, tau, sp, sv)
     rng2 = 0.0
-    los = np.empty(3)
-    for a in range(3):
-        los[a] = sp[a] - (x[ip + a] + x[iv + a] * dt)
-        rng2 += los[a] * los[a]
+    for a in range(3):                       # e holds the line of sight, then its unit vector
+        e[a] = sp[a] - (x[ip + a] + x[iv + a] * dt)
+        rng2 += e[a] * e[a]
     rng = math.sqrt(rng2)
     rr = 0.0
     for a in range(3):
-        e[a] = los[a] / rng
+        e[a] = e[a] / rng
         rr += e[a] * (sv[a] - x[iv + a])
     b = x[ib] + (x[idd] + dlt) * dt
     rho = rng + ATM[j] + b - sp[3]

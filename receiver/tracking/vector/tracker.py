@@ -345,6 +345,7 @@ class VectorTracker:
         POLY, ATM, EL = satellite_polys(ephs, self.t_ref, tau_a, span / 2.0, b, d + dl, r,
                                         self.nav.iono(), self.cfg.navigation)
         TAU_A = np.full(m, tau_a)
+        self._geo = (list(self.prns), POLY, tau_a)
         cap = int(len(block) / fs * 1000.0) + 8
         REC = np.zeros((m, cap, K.N_OUT))
         NREC = np.zeros(m, np.int64)
@@ -476,39 +477,30 @@ class VectorTracker:
         if tow >= 604800.0:
             tow, week = tow - 604800.0, week + 1
         lat, lon, h = ecef2lla(r)
-        dops = self._dops(tau, r)
+        dops = self._dops(tau, r, lat, lon)
         t_s = (self.s_ref + tau * self.fs) / self.fs
         mode = MODE_VECTOR if nsat >= 4 else MODE_COAST
         return (week, tow, t_s, r, v, b, d, nsat, *dops, mode, float(lat), float(lon), float(h))
 
-    def _dops(self, tau, r):
-        """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4)."""
+    def _dops(self, tau, r, lat, lon):
+        """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4), from this chunk's satellite
+        polynomials (the geometry the loop itself used at receiver time tau)."""
         lock_min = float(self.v.lock_cn0_dbhz)
-        los = [p for p in self.prns if p in self.channels and p in self.ephs
-               and self.channels[p].st[K.S_CN0] >= lock_min]
-        if len(los) < 4:
+        prns, POLY, tau_a = self._geo
+        rows = [i for i, p in enumerate(prns) if p in self.channels and p in self.ephs
+                and self.channels[p].st[K.S_CN0] >= lock_min]
+        if len(rows) < 4:
             return (np.nan,) * 4
-        E = self._los_cache(los, tau, r)
+        c = POLY[rows, :, :3]
+        dt = tau - tau_a
+        los = c[:, 0] + (c[:, 1] + c[:, 2] * dt) * dt - r
+        E = los / np.linalg.norm(los, axis=1)[:, None]
         H = np.hstack([-E, np.ones((len(E), 1))])
         try:
             Qm = np.linalg.inv(H.T @ H)
         except np.linalg.LinAlgError:
             return (np.nan,) * 4
-        lat, lon, _ = ecef2lla(r)
         R = enu_matrix(lat, lon)
         qe = R @ Qm[:3, :3] @ R.T
         return (float(np.sqrt(np.trace(qe))), float(np.sqrt(qe[0, 0] + qe[1, 1])),
                 float(np.sqrt(qe[2, 2])), float(np.sqrt(np.trace(Qm))))
-
-    def _los_cache(self, prns, tau, r):
-        key = (tuple(prns), round(tau, 0))
-        c = getattr(self, "_los_key", None)
-        if c == key:
-            return self._los_val
-        from .geometry import transmit_state
-        pos, _, _ = transmit_state([self.ephs[p] for p in prns],
-                                   np.full(len(prns), self.t_ref + tau), r)
-        los = pos - r
-        E = los / np.linalg.norm(los, axis=1)[:, None]
-        self._los_key, self._los_val = key, E
-        return E
