@@ -18,9 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft as sfft
 from numba import njit
-from .estimation.stats import gamma_isf, gamma_median
+from .estimation.stats import gamma_isf, gamma_median, median_last_axis
 
 from .gnss.signals import GPS_L1CA, sample_code
 from .runfile.record import ACQ_REASONS
@@ -72,15 +71,14 @@ class _Spectra:
         self.spectra = {}
         for r in self.fracs:
             mix = np.exp(-2j * np.pi * (r / T) * t).astype(np.complex64)
-            self.spectra[r] = sfft.fft(blocks * mix[None, :], axis=1, workers=threads())       # (K, n)
+            self.spectra[r] = np.fft.fft(blocks * mix[None, :], axis=1)       # (K, n)
         j = np.arange(n1)
         # bin index of decimated line j for Doppler d: (m * j + shift_d) mod n
         self.idx = (m * j[None, :] + shift[:, None]) % n                               # (n_dopp, n1)
         self.n1, self.k, self.n_dopp = n1, k, len(dopplers)
 
-    def power(self, cf, workers=None):
+    def power(self, cf):
         """Non-coherently summed correlation power (n_dopp, n1) for the conjugate code spectrum cf."""
-        workers = threads() if workers is None else workers
         power = np.zeros((self.n_dopp, self.n1), np.float32)
         for r in self.fracs:
             sel = np.flatnonzero(self.frac == r)
@@ -89,7 +87,7 @@ class _Spectra:
             for k in range(self.k):
                 _gather(self.spectra[r][k], idx, prod)           # prod[i] = spectrum[idx[i]]
                 np.multiply(prod, cf[None, :], out=prod)         # (numpy's complex product, as before)
-                corr = sfft.ifft(prod, axis=1, workers=workers, overwrite_x=True)
+                corr = np.fft.ifft(prod, axis=1, out=prod)
                 _add_power(corr, sel, power)                     # power[sel] += |corr|^2
         return power
 
@@ -112,15 +110,43 @@ def _add_power(corr, rows, power):
             power[r, j] += c.real * c.real + c.imag * c.imag
 
 
+@njit(cache=True, nogil=True)
+def _add_power_shifted(corr, rows, shifts, acc):
+    """acc[rows[i], j] += |corr[i, (j - shifts[i]) mod n1]|^2 (real^2 + imag^2 in float32, as numpy forms
+    it): the high-sensitivity pass's power of one block, each row moved back by its code drift."""
+    n1 = corr.shape[1]
+    for i in range(corr.shape[0]):
+        r = rows[i]
+        s = shifts[i] % n1
+        for j in range(n1):
+            jj = j - s
+            if jj < 0:
+                jj += n1
+            c = corr[i, jj]
+            acc[r, j] += c.real * c.real + c.imag * c.imag
+
+
+@njit(cache=True, nogil=True)
+def _code_wipe(x, code, phase, ratio):
+    """x * sample_code(code, ratio * fs, fs, len(x), phase): the same chip index (floor of phase + i ratio,
+    modulo the code length) and the same products as numpy's."""
+    out = np.empty(x.shape[0], x.dtype)
+    n_code = code.shape[0]
+    for i in range(x.shape[0]):
+        c = code[np.int64(np.floor(phase + i * ratio)) % n_code]
+        out[i] = x[i] * c
+    return out
+
+
 def _code_fft(sig, prn, fs, n1):
     code = sample_code(sig.code(prn), sig.chip_rate, fs, n1).astype(np.complex64)
-    return np.conj(sfft.fft(code)).astype(np.complex64)
+    return np.conj(np.fft.fft(code)).astype(np.complex64)
 
 
 def _row_floor(power, k):
     """Robust noise floor of each Doppler row: median / median of Gamma(K, 1/K).  A tone or a strong
     signal raising whole rows (all code phases) raises their floor with them."""
-    med = np.median(power, axis=1) if power.shape[1] < 20000 else np.median(power[:, ::4], axis=1)
+    med = median_last_axis(power) if power.shape[1] < 20000 else median_last_axis(power[:, ::4])
     return np.maximum(med / _gamma_median(k), 1e-30)
 
 
@@ -174,12 +200,12 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     n_cells = len(dopplers) * n1
     thr = _threshold(pfa, n_cells, noncoherent)
     spc = fs / sig.chip_rate
-    # the PRNs are independent: on several threads each searches its own PRNs with a 1-thread FFT (the
-    # same numbers as one thread searching them all)
+    # the PRNs are independent: on several threads each searches its own PRNs (the same numbers as one
+    # thread searching them all; numpy's FFTs release the GIL)
     parallel = threads() > 1 and len(prns) > 1
 
     def one(prn):
-        power = sp.power(_code_fft(sig, prn, fs, n1), workers=1 if parallel else None)
+        power = sp.power(_code_fft(sig, prn, fs, n1))
         pn = power / _row_floor(power, noncoherent)[:, None]
         row_max = pn.max(axis=1)
         order = np.argsort(-row_max)
@@ -257,25 +283,18 @@ def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_
     total = min(n * n_blocks, len(samples))
     n_blocks = max(1, total // n)
     sig = signal if signal is not None else GPS_L1CA
-    # the code Doppler matters over 200 ms (1.8 chips/s at 2.8 kHz): follow it
-    code = sample_code(sig.code(prn), sig.chip_rate * (1.0 + coarse_hz / sig.carrier_hz), fs,
-                       n * n_blocks, code_phase_chips)
-    y = (samples[:n * n_blocks] * code).reshape(n_blocks, n)
+    # the code Doppler matters over 200 ms (1.8 chips/s at 2.8 kHz): follow it (the samples times
+    # sample_code(code, chip rate with Doppler, fs, ...), in one compiled pass)
+    y = _code_wipe(samples[:n * n_blocks], sig.code(prn), float(code_phase_chips),
+                   sig.chip_rate * (1.0 + coarse_hz / sig.carrier_hz) / fs).reshape(n_blocks, n)
     nfft = 1 << int(np.ceil(np.log2(n * 8)))
     # Power of the nfft-point zero-padded spectrum of each block after the carrier wipe-off at the coarse
     # Doppler, summed over the blocks.  Only the lines within +/- 1.5 bins of the coarse Doppler (and one
-    # either side for the interpolation) are needed: a direct DFT at those ~40 lines, the carrier wipe-off
-    # folded into it (the wipe-off phase at a block's first sample is a unit factor per block, gone in
-    # |.|^2), instead of n_blocks FFTs of nfft points: the same values to rounding, ~5x less CPU.
+    # either side for the interpolation) are needed (:func:`_line_powers`; the wipe-off phase at a block's
+    # first sample is a unit factor per block, gone in |.|^2), instead of n_blocks FFTs of nfft points.
     kmax = int(np.floor(1.5 * bin_hz * nfft / fs))
     ks = np.arange(-kmax - 1, kmax + 2)
-    m = np.arange(n)
-    dft = np.empty((len(ks), n), np.complex128)                   # exp(-2 pi i m (f0 / fs + k / nfft))
-    dft[0] = np.exp(-2j * np.pi * m * ((if_hz + coarse_hz) / fs + ks[0] / nfft))
-    w = np.exp(-2j * np.pi * m / nfft)
-    for j in range(1, len(ks)):
-        dft[j] = dft[j - 1] * w
-    spec_k = (np.abs(np.dot(dft, y.T)) ** 2).sum(axis=1)         # power at the lines ks
+    spec_k = _line_powers(y, (if_hz + coarse_hz) / fs, ks, nfft)   # power at the lines ks
     inner = slice(1, len(ks) - 1)                                  # |f| <= 1.5 bins
     # FFT order of the lines (0..kmax, then -kmax..-1) so that a tie resolves as np.argmax over the FFT did
     order = np.concatenate([np.flatnonzero(ks[inner] >= 0), np.flatnonzero(ks[inner] < 0)]) + 1
@@ -290,6 +309,55 @@ def refine_doppler(samples: np.ndarray, fs: float, if_hz: float, prn: int, code_
     else:
         d = 0.0
     return float(coarse_hz + k * fs / nfft + d * fs / nfft)
+
+
+def _line_powers_direct(y: np.ndarray, f0: float, ks: np.ndarray, nfft: int) -> np.ndarray:
+    """sum_b |sum_m y[b, m] exp(-2 pi i m (f0 + k / nfft))|^2 for k in ks (consecutive): the direct DFT at
+    those lines, one row of exponentials per line (the reference for :func:`_line_powers`)."""
+    n = y.shape[1]
+    m = np.arange(n)
+    dft = np.empty((len(ks), n), np.complex128)                   # exp(-2 pi i m (f0 + k / nfft))
+    dft[0] = np.exp(-2j * np.pi * m * (f0 + ks[0] / nfft))
+    w = np.exp(-2j * np.pi * m / nfft)
+    for j in range(1, len(ks)):
+        dft[j] = dft[j - 1] * w
+    return (np.abs(np.dot(dft, y.T)) ** 2).sum(axis=1)
+
+
+#: terms of the Taylor series of exp(-2 pi i r k / nfft) within a segment (|argument| <= _SEG_ARG: the
+#: first term left out is below 1e-18 of the sum)
+_TAYLOR_TERMS = 8
+_SEG_ARG = 0.02
+
+
+def _line_powers(y: np.ndarray, f0: float, ks: np.ndarray, nfft: int) -> np.ndarray:
+    """:func:`_line_powers_direct` with ~1/3 of the arithmetic, all of it in BLAS: the samples (carrier
+    wiped off at f0) in segments of D, m = q D + r; exp(-2 pi i m k / nfft) = exp(-2 pi i q D k / nfft)
+    x exp(-2 pi i r k / nfft), the second factor as its Taylor series in r / D (D such that the argument
+    stays within 0.02 rad: 8 terms are exact to rounding).  Per block the moments M_p[q] = sum_r z[qD + r]
+    (r / D)^p (one matrix product), then X_k = sum_p (-2 pi i k D / nfft)^p / p! sum_q exp(-2 pi i q D k /
+    nfft) M_p[q] (a second).  The same values to ~1e-15 relative (tests/test_acquisition_cost.py).  Few
+    lines or short segments (wide bins, short blocks): the direct DFT, which is then as cheap."""
+    b, n = y.shape
+    kk = max(1, int(np.max(np.abs(ks))))
+    d = max(1, int(_SEG_ARG * nfft / (2.0 * np.pi * kk)))
+    if d < 20 or len(ks) < 3 * _TAYLOR_TERMS:
+        return _line_powers_direct(y, f0, ks, nfft)
+    q = -(-n // d)
+    z = np.zeros((b, q * d), np.complex128)
+    np.multiply(y, np.exp(-2j * np.pi * np.arange(n) * f0), out=z[:, :n])
+    p = np.arange(_TAYLOR_TERMS)
+    r = (np.arange(d) / d)[:, None] ** p[None, :]                   # (D, P)
+    zr = z.reshape(b * q, d)
+    mom = (zr.real @ r) + 1j * (zr.imag @ r)                        # (B Q, P): M_p[b, q]
+    mom = np.ascontiguousarray(mom.reshape(b, q, len(p)).transpose(0, 2, 1)).reshape(b * len(p), q)
+    qd = (np.outer(np.arange(q) * d, ks) % nfft) / nfft             # q D k / nfft, reduced exactly
+    v = np.exp(-2j * np.pi * qd)                                    # (Q, K)
+    t = (mom @ v).reshape(b, len(p), len(ks))                       # (B, P, K), one matrix product
+    fact = np.cumprod(np.concatenate([[1.0], np.arange(1, len(p))]))
+    coef = (-2j * np.pi * ks[None, :] * d / nfft) ** p[:, None] / fact[:, None]     # (P, K)
+    x = (t * coef[None, :, :]).sum(axis=1)                          # (B, K)
+    return (x.real ** 2 + x.imag ** 2).sum(axis=0)
 
 
 def cross_correlation_image(strong: AcqResult, weak: AcqResult, fs: float, coherent_ms: int,

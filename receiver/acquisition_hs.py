@@ -25,10 +25,12 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.stats import gamma
 
-from .acquisition import AcqResult, _Spectra, cross_correlation_image, verify_columns
+from .estimation.stats import gamma_isf, gamma_median, median_last_axis
+from .acquisition import (AcqResult, _Spectra, _add_power_shifted, _gather, cross_correlation_image,
+                          verify_columns)
 from .gnss.signals import GPS_L1CA, sample_code
+from .threads import map_ordered, threads
 
 N_STATS = 3         # all blocks, even blocks, odd blocks
 
@@ -55,33 +57,36 @@ class _BlockSpectra(_Spectra):
         super().__init__(samples, fs, if_hz, dopplers, m, k)
         self.m, self.dopplers = m, dopplers
 
-    def powers(self, cf, fs, carrier_hz, groups):
+    def powers(self, cf, fs, carrier_hz, groups, workers=-1):
         """Per group of rows (an index array into the Doppler grid): the (even, odd) block sums of the
-        correlation power, (2, n_rows, n1), with each block shifted back by its code drift."""
+        correlation power, (2, n_rows, n1), with each block shifted back by its code drift.  ``workers``:
+        threads of the inverse FFTs (-1: all cores)."""
         n1, T = self.n1, self.m * 1e-3
         out = []
         for sel in groups:
             acc = np.zeros((2, sel.size, n1), np.float32)
             # the peak of block k sits k T d / f_c x fs samples earlier than in block 0 (code Doppler)
             drift = np.outer(np.arange(self.k) * T * fs, self.dopplers[sel] / carrier_hz)   # (K, rows)
-            cols = np.arange(n1)
             for r in np.unique(self.frac[sel]):
                 rows = np.flatnonzero(self.frac[sel] == r)
                 spec = self.spectra[r]
                 ix = self.idx[sel[rows]]
+                prod = np.empty((rows.size, n1), np.complex64)
                 for k in range(self.k):
-                    corr = sfft.ifft(spec[k][ix] * cf[None, :], axis=1, workers=-1)
-                    p = corr.real ** 2 + corr.imag ** 2
+                    _gather(spec[k], ix, prod)                       # spec[k][ix]
+                    np.multiply(prod, cf[None, :], out=prod)
+                    corr = sfft.ifft(prod, axis=1, workers=workers, overwrite_x=True)
                     sh = np.rint(drift[k, rows]).astype(np.int64)
-                    p = np.take_along_axis(p, (cols[None, :] - sh[:, None]) % n1, axis=1)
-                    acc[k & 1, rows] += p
+                    # acc[k & 1, rows] += |corr|^2 with each row moved back by its drift (compiled: the
+                    # same float32 sums as numpy's square, take_along_axis and add)
+                    _add_power_shifted(corr, rows, sh, acc[k & 1])
             out.append(acc)
         return out
 
 
 def _floor(p, k):
-    med = np.median(p, axis=-1) if p.shape[-1] < 20000 else np.median(p[..., ::4], axis=-1)
-    return np.maximum(med / float(gamma.median(k, scale=1.0 / k)), 1e-30)
+    med = median_last_axis(p) if p.shape[-1] < 20000 else median_last_axis(p[..., ::4])
+    return np.maximum(med / gamma_median(k), 1e-30)
 
 
 def _stats(acc, k_even, k_odd):
@@ -93,7 +98,7 @@ def _stats(acc, k_even, k_odd):
 
 
 def _thr(pfa, n_cells, k):
-    return float(gamma.isf(pfa / (N_STATS * n_cells), k, scale=1.0 / k))
+    return gamma_isf(pfa / (N_STATS * n_cells), k)
 
 
 def _code_fft(sig, prn, fs, n1):
@@ -134,10 +139,13 @@ def search_hs(samples: np.ndarray, start_index: int, fs: float, if_hz: float, pr
     thrs = [_thr(pfa, n_cells, k) for k in (K, k_even, k_odd)]
     spc = fs / sig.chip_rate
     allrows = np.arange(len(dopplers))
-    out = []
-    for prn in prns:
+    # the PRNs are independent: on several threads each searches its own PRNs with 1-thread FFTs (the
+    # same numbers as one thread searching them all with all-core FFTs)
+    parallel = threads() > 1 and len(prns) > 1
+
+    def one(prn):
         cf = _code_fft(sig, prn, fs, n1)
-        acc = sp.powers(cf, fs, sig.carrier_hz, [allrows])[0]
+        acc = sp.powers(cf, fs, sig.carrier_hz, [allrows], workers=1 if parallel else -1)[0]
         stats = _stats(acc, k_even, k_odd)
         best = None                       # (metric, stat index, row, col)
         reason = "threshold"
@@ -175,8 +183,9 @@ def search_hs(samples: np.ndarray, start_index: int, fs: float, if_hz: float, pr
         if res.detected and fine:
             res.doppler_hz = refine_doppler_hs(samples[:need], fs, if_hz, prn, res.code_phase_chips, dop,
                                                step, m, sig)
-        out.append(res)
-    return out
+        return res
+
+    return map_ordered(one, list(prns)) if parallel else [one(p) for p in prns]
 
 
 def refine_doppler_hs(samples, fs, if_hz, prn, code_phase_chips, coarse_hz, bin_hz, block_ms=10,

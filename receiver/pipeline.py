@@ -34,6 +34,9 @@ from .gnss.registry import get_signal
 from .gnss.satid import sat_label
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
+from . import _numba_start
+
+_numba_start.prepare()          # numba's first cache load without importing scipy.linalg (receiver/_numba_start.py)
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
@@ -149,13 +152,15 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
         res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
                       a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
                       doppler_center_hz=c_)
-        for r in res_:
-            if r.detected and a.verify and len(block) >= 2 * dwell:
-                ok = verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r, a.coherent_ms,
-                            a.noncoherent, a.doppler_step_hz, a.pfa, a.threshold, signal=sig)
-                r.verified = int(ok)
-                if not ok:
-                    r.detected, r.reason = False, "verify"
+        todo = [r for r in res_ if r.detected and a.verify and len(block) >= 2 * dwell]
+        # the dwells are independent: on the thread pool (the same result per detection)
+        oks = threads.map_ordered(lambda r: verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r,
+                                                   a.coherent_ms, a.noncoherent, a.doppler_step_hz, a.pfa,
+                                                   a.threshold, signal=sig), todo)
+        for r, ok in zip(todo, oks):
+            r.verified = int(ok)
+            if not ok:
+                r.detected, r.reason = False, "verify"
         return res_
 
     res = _search(prns, a.doppler_max_hz)
@@ -288,6 +293,12 @@ class BackgroundWriter:
                 return
             args = (np.concatenate(self._tables.pop(name)),)
         self._q.put((name, args))
+
+    def write_acquisition(self, results, attrs=None):
+        """Queued like the appends (a search no longer waits for the pending writes), from copies of the
+        results taken now."""
+        import copy
+        self._put("write_acquisition", ([copy.copy(r) for r in results], dict(attrs or {})))
 
     def flush(self):
         """Wait until every append has been written (raises a write error)."""

@@ -91,6 +91,12 @@ def main():
     ap.add_argument("--set", dest="sets", action="append", default=[], help="receiver config override")
     ap.add_argument("--tag", default="default", help="name of this receiver variant in the output files")
     ap.add_argument("--reference", action="store_true", help="the 45 dB-Hz reference recording only")
+    ap.add_argument("--tow-offset", type=float, default=0.0,
+                    help="start the recording this many seconds later in the LNAV frame (time.tow_s + offset; "
+                         "the scenarios start 3 s before a subframe 1)")
+    ap.add_argument("--duration", type=float, default=None, help="recording length (s; default the scenario's)")
+    ap.add_argument("--keep", action="store_true", help="keep the simulated recording (default: deleted "
+                    "after the run when --tow-offset or --duration is given)")
     a = ap.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     if a.reference:
@@ -98,23 +104,35 @@ def main():
         return
     rows = []
     for seed in a.seeds:
-        stem = OUT / f"{a.scenario}_s{seed}"
+        import yaml
+        base = yaml.safe_load(open(ROOT / "configs" / "scenarios" / f"hs_{a.scenario}.yaml"))
+        sim_sets = ["--set", f"time.seed={seed}"]
+        suffix = ""
+        if a.tow_offset:
+            sim_sets += ["--set", f"time.tow_s={base['time']['tow_s'] + a.tow_offset}"]
+            suffix += f"_o{a.tow_offset:g}"
+        if a.duration:
+            sim_sets += ["--set", f"time.duration_s={a.duration}"]
+            suffix += f"_d{a.duration:g}"
+        stem = OUT / f"{a.scenario}_s{seed}{suffix}"
         if not Path(f"{stem}.bin").exists():
-            _cli("simulate", f"configs/scenarios/hs_{a.scenario}.yaml", "-o", f"{stem}.bin",
-                 "--set", f"time.seed={seed}", "--quiet")
-        run = OUT / f"{a.scenario}_s{seed}_{a.tag}.h5"
+            _cli("simulate", f"configs/scenarios/hs_{a.scenario}.yaml", "-o", f"{stem}.bin", *sim_sets, "--quiet")
+        run = OUT / f"{a.scenario}_s{seed}{suffix}_{a.tag}.h5"
         args = ["run", "configs/default.yaml", "--input", f"{stem}.bin", "-o", str(run), "--quiet"]
         for s in a.sets:
             args += ["--set", s]
         _cli(*args)
         r = score(run, Path(f"{stem}.truth.h5"))
         r["seed"] = seed
+        r["tow_offset_s"] = a.tow_offset
         rows.append(r)
-        print(f"{a.scenario} seed {seed} [{a.tag}]: acquired {len(r['acquired'])}/{len(r['above15'])} above 15 deg "
+        if suffix and not a.keep:
+            Path(f"{stem}.bin").unlink()
+        print(f"{a.scenario}{suffix} seed {seed} [{a.tag}]: acquired {len(r['acquired'])}/{len(r['above15'])} above 15 deg "
               f"(tracked {len(r['tracked_above15'])}), first fix {r['ttff_s']}, fixes {r['n_fixes']} "
               f"(availability {r['availability']:.2f}), 3D RMS {r['rms3d_m']}, mean sats {r['n_sats_mean']}",
               flush=True)
-    with open(OUT / f"{a.scenario}_{a.tag}.json", "w") as f:
+    with open(OUT / f"{a.scenario}{suffix}_{a.tag}.json", "w") as f:
         json.dump(rows, f, indent=1, default=float)
 
 

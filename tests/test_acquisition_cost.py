@@ -107,3 +107,52 @@ def test_cold_search_window_before_a_fix_covers_every_satellite(tokyo_run):
             assert abs(dops[j] - centre) < half - 300.0, (t, j, dops[j], centre, half)
             checked += 1
     assert checked > 80
+
+
+@pytest.mark.parametrize("fs, block_ms, n_blocks, bin_hz", [(2.6e6, 10, 20, 125.0), (4e6, 10, 20, 125.0),
+                                                            (16.368e6, 7, 3, 125.0), (2.6e6, 10, 4, 500.0),
+                                                            (2.6e6, 1, 40, 125.0)])
+def test_segmented_line_powers_equal_the_direct_dft(fs, block_ms, n_blocks, bin_hz):
+    """The fine Doppler's line powers by segment moments (Taylor series within a segment) equal the direct
+    DFT at the lines to rounding."""
+    from receiver.acquisition import _line_powers, _line_powers_direct
+    rng = np.random.default_rng(11)
+    n = int(round(block_ms * 1e-3 * fs))
+    nfft = 1 << int(np.ceil(np.log2(n * 8)))
+    kmax = int(np.floor(1.5 * bin_hz * nfft / fs))
+    ks = np.arange(-kmax - 1, kmax + 2)
+    t = np.arange(n * n_blocks) / fs
+    y = (0.3 * np.exp(2j * np.pi * 1077.3 * t) + rng.standard_normal(t.size)
+         + 1j * rng.standard_normal(t.size)).astype(np.complex64).reshape(n_blocks, n)
+    ref = _line_powers_direct(y, 1000.0 / fs, ks, nfft)
+    got = _line_powers(y, 1000.0 / fs, ks, nfft)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * ref.max())
+
+
+def test_high_sensitivity_block_powers_equal_the_numpy_formulation():
+    """acquisition_hs._BlockSpectra.powers (compiled gather / shifted power sum) gives bit for bit the
+    block sums of the numpy formulation it replaced (fancy-index gather, square, take_along_axis, add)."""
+    import scipy.fft as sfft
+
+    from receiver.acquisition_hs import _BlockSpectra, _code_fft
+    fs, m, k = FS, 10, 20
+    x = make_signal([dict(prn=5, doppler_hz=4345.0, code_phase_chips=300.0, cn0_dbhz=38.0)], fs, 0.2,
+                    seed=4).astype(np.complex64)
+    dopplers = 4000.0 + np.arange(-1000.0, 1000.0 + 25.0, 50.0)
+    sp = _BlockSpectra(x, fs, 0.0, dopplers, m, k)
+    cf = _code_fft(GPS_L1CA, 5, fs, sp.n1)
+    sel = np.arange(len(dopplers))
+    got = sp.powers(cf, fs, GPS_L1CA.carrier_hz, [sel])[0]
+    ref = np.zeros_like(got)
+    n1, cols = sp.n1, np.arange(sp.n1)
+    drift = np.outer(np.arange(k) * m * 1e-3 * fs, dopplers / GPS_L1CA.carrier_hz)
+    for r in np.unique(sp.frac):
+        rows = np.flatnonzero(sp.frac == r)
+        ix = sp.idx[rows]
+        for kk in range(k):
+            corr = sfft.ifft(sp.spectra[r][kk][ix] * cf[None, :], axis=1)
+            p = corr.real ** 2 + corr.imag ** 2
+            sh = np.rint(drift[kk, rows]).astype(np.int64)
+            ref[kk & 1, rows] += np.take_along_axis(p, (cols[None, :] - sh[:, None]) % n1, axis=1)
+    np.testing.assert_array_equal(got, ref)
+    assert np.rint(np.abs(drift)).max() >= 1             # the shifts were exercised

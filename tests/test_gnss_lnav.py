@@ -435,3 +435,35 @@ def test_far_replacement_ephemeris_needs_a_second_reception():
                                           encode_frames(upd, iono, t0 + 60, 2190, 1)]), prn=3)
     _assert_eph_close(dec.ephemeris, upd)
     assert dec.ephemerides_held == 0
+
+
+def test_first_ephemeris_refused_by_the_check_needs_a_second_reception():
+    """A satellite's first ephemeris has no earlier set to compare with: when ``first_check`` refuses it (the
+    navigation engine: its range disagrees with the current fix) it is held until a second reception decodes
+    the same set; a check with no objection (True / None) uses it at once.  The check sees the TOW and bit
+    index of the subframe that completed the set."""
+    ephs, iono = _need_brdc()
+    eph = ephs[3][0]
+    bad = replace(eph, omega0=eph.omega0 + 2.6e-3)
+    t0 = 518400.0 - 600
+    calls = []
+
+    def refuse(e, tow, bit_index):
+        calls.append((e.omega0, tow, bit_index))
+        return False
+
+    one = encode_frames(bad, iono, t0, 2190, 1)
+    dec = LnavDecoder(prn=3)
+    dec.first_check = refuse
+    dec.feed(_soft(one), 0)
+    assert dec.ephemeris is None and dec.ephemerides_held == 1
+    assert calls == [(pytest.approx(bad.omega0, abs=EPH_LSB["omega0"]), t0 + 12.0, 600)]
+    events = dec.feed(_soft(encode_frames(bad, iono, t0 + 30, 2190, 1)), len(one))
+    _assert_eph_close(dec.ephemeris, bad)                       # received twice: used
+    assert any(isinstance(e, EphemerisEvent) for e in events)
+    for verdict in (True, None):
+        dec = LnavDecoder(prn=3)
+        dec.first_check = lambda e, tow, bit_index: verdict
+        dec.feed(_soft(one), 0)
+        _assert_eph_close(dec.ephemeris, bad)
+        assert dec.ephemerides_held == 0

@@ -47,10 +47,13 @@ def test_same_sky_and_doppler_as_the_third_party_recording(tmp_path):
 
 
 @need_shared
-def test_static_45dbhz_fix_velocity_and_pseudorange_accuracy(tmp_path):
+@pytest.mark.parametrize("ppm", [0.7, -0.7])
+def test_static_45dbhz_fix_velocity_and_pseudorange_accuracy(tmp_path, ppm):
+    """Also: one fix per navigation epoch on the round GPS times, whichever the sign of the receiver's clock
+    drift (a slow clock once put each fix 0.1 us before its round time and the next epoch 0.1 us later)."""
     paths = simulate(TOKYO, tmp_path / "s.bin", [("time.duration_s", 14.0), ("cn0.mode", "constant"),
                                                 ("cn0.dbhz", 45.0), ("clock.bias_s", 3e-4),
-                                                ("clock.freq_error_ppm", 0.7), ("clock.noise", "tcxo")],
+                                                ("clock.freq_error_ppm", ppm), ("clock.noise", "tcxo")],
                      progress=False)
     cfg = load_receiver_config(paths["yaml"], [("output.path", str(tmp_path / "run.h5")),
                                                ("navigation.ephemeris", str(SHARED / "brdc0010.22n")),
@@ -59,6 +62,12 @@ def test_static_45dbhz_fix_velocity_and_pseudorange_accuracy(tmp_path):
     from receiver.evaluate import evaluate
     ev = evaluate(tmp_path / "run.h5", paths["truth"])
     assert ev["n_fixes"] >= 80
+    with h5py.File(tmp_path / "run.h5") as f:
+        tow = f["navigation/gps_tow"][:]
+        rate = cfg.navigation.rate_hz
+    steps = np.diff(tow) * rate              # the first fix falls anywhere, the next on a round time
+    assert steps[0] >= 0.5 and np.all(np.abs(steps[1:] - 1.0) < 1e-3), steps.min()
+    assert np.all(np.abs(tow[1:] * rate - np.round(tow[1:] * rate)) < 1e-3)
     assert ev["pos_3d_rms_m"] <= 2.0 and ev["vel_3d_rms_mps"] <= 0.05, ev
     # receiver pseudoranges vs the truth's (same definition: clock reading minus transmit time)
     with h5py.File(tmp_path / "run.h5") as f, h5py.File(paths["truth"]) as t:

@@ -145,3 +145,41 @@ def test_read_ahead_gives_the_samples_of_plain_reads():
     finally:
         ahead.close()
     assert ahead.ahead_used == 4             # chunks 1, 2, 4, 5 came from the read-ahead; 3 was read again
+
+
+def test_background_writer_queues_acquisition_tables_from_a_snapshot():
+    """write_acquisition does not wait for the pending appends; what it writes is the results as they
+    were at the call, in the order of the calls."""
+    import threading
+
+    import numpy as np
+
+    from receiver.acquisition import AcqResult
+    from receiver.pipeline import BackgroundWriter
+
+    gate = threading.Event()
+
+    class Slow:
+        def __init__(self):
+            self.calls = []
+
+        def append_channel(self, prn, recs):
+            gate.wait(10)
+            self.calls.append(("ch", prn))
+
+        def write_acquisition(self, results, attrs=None):
+            self.calls.append(("acq", [(r.prn, r.detected) for r in results], attrs["fs"]))
+
+        def close(self, ok=True):
+            pass
+
+    f = Slow()
+    w = BackgroundWriter(f)
+    w.append_channel(3, np.zeros(2))                  # held by the gate
+    res = [AcqResult(7, True, 100.0, 5.0, 0, 2.0, 30.0, 40.0)]
+    w.write_acquisition(res, {"fs": 2.6e6})           # returns although the append is pending
+    res[0].detected = False                           # (the caller's later changes are not written)
+    assert f.calls == []
+    gate.set()
+    w.close()
+    assert f.calls == [("ch", 3), ("acq", [(7, True)], 2.6e6)]

@@ -20,7 +20,6 @@ by construction.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 
 
 class FilterDivergence(np.linalg.LinAlgError):
@@ -47,6 +46,7 @@ def solve_triangular(T: np.ndarray, B: np.ndarray, lower: bool) -> np.ndarray:
     """
     n = T.shape[0]
     if n > 32:
+        import scipy.linalg as sla          # (not at import: ~0.25 s at start-up)
         return sla.solve_triangular(T, B, lower=lower)
     B = np.array(B, dtype=float, copy=True)
     vec = B.ndim == 1

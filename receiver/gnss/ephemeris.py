@@ -11,7 +11,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .signals import F_REL, MU_GPS, OMEGA_E
-from .time import WEEK_S, wrap_week_seconds
+from .time import HALF_WEEK, WEEK_S, wrap_week_seconds
 
 GPS_PI = 3.1415926535898          # value of pi used by IS-GPS-200 for semicircle conversion
 
@@ -239,8 +239,8 @@ def select(ephs: Iterable[Ephemeris] | None, t: float, week: int | None = None,
             continue
         if week is not None:
             dt = abs((week - eph.week) * WEEK_S + (t - eph.toe))
-        else:
-            dt = abs(float(wrap_week_seconds(t - eph.toe)))
+        else:       # wrap_week_seconds of a scalar with Python floats (the same floor modulo; ~10x cheaper)
+            dt = abs((float(t - eph.toe) + HALF_WEEK) % WEEK_S - HALF_WEEK)
         if dt <= max_age_s and (best_dt is None or dt < best_dt):
             best, best_dt = eph, dt
     return best

@@ -489,6 +489,10 @@ class LnavDecoder:
     (``ephemerides_held`` counts the held ones): single-bit correction "corrects" any odd-weight error
     pattern, so at low C/N0 a corrupted set can pass parity with the current issue of data (seen at
     27-29 dB-Hz: Omega0 off 2.6 mrad, positions off 73-9866 km); a genuine update moves it by metres.
+    A satellite's *first* ephemeris has no set to compare with: ``first_check`` (set by the user, e.g. the
+    navigation engine: ``first_check(ephemeris, tow_s, bit_index)`` with the TOW and bit index of the start
+    of the subframe that completed it) returning False holds it the same way until a second reception
+    decodes the same set (e.g. its range disagrees with the current fix); True or None uses it at once.
     """
 
     JUMP_M = 300.0              # a replacement ephemeris further than this from the current one needs a repeat
@@ -519,6 +523,7 @@ class LnavDecoder:
         self.words_corrected = 0
         self.ephemerides_held = 0
         self._held: Ephemeris | None = None   # a far replacement waiting for a second reception
+        self.first_check = None               # callable(eph, tow_s, bit_index) -> bool | None (see above)
 
     # -- input ---------------------------------------------------------------------------
     def feed(self, bits, first_bit_index: int) -> list:
@@ -700,7 +705,7 @@ class LnavDecoder:
             self._sub[sfid] = (words, tow, bit_index)
             if sfid == 1:
                 self.week = self._full_week(_get(words, _SF1[0]))
-            self._assemble(bit_index, events)
+            self._assemble(bit_index, events, tow)
         elif sfid == 4:
             data_id = _get(words, _P18[0])
             sv_id = _get(words, _P18[1])
@@ -722,7 +727,7 @@ class LnavDecoder:
                        a0=v["a0"], a1=v["a1"], tot=v["tot"], wnt=int(wnt), dt_ls=int(v["dt_ls"]),
                        wn_lsf=int(wn_lsf), dn=int(v["dn"]), dt_lsf=int(v["dt_lsf"]))
 
-    def _assemble(self, bit_index, events):
+    def _assemble(self, bit_index, events, tow=None):
         if not all(k in self._sub for k in (1, 2, 3)) or self.week is None:
             return
         w1, tow1, _ = self._sub[1]
@@ -755,7 +760,11 @@ class LnavDecoder:
             code_on_l2=int(vals["code_on_l2"]), l2p_flag=int(vals["l2p_flag"]),
             aodo=int(round(vals["aodo"])), tx_time=tow1)
         if eph != self.ephemeris:
-            if self.ephemeris is not None and not self._near(self.ephemeris, eph, tow1):
+            if self.ephemeris is not None:
+                suspect = not self._near(self.ephemeris, eph, tow1)
+            else:
+                suspect = self.first_check is not None and self.first_check(eph, tow, bit_index) is False
+            if suspect:
                 if self._held is None or replace(self._held, tx_time=tow1) != eph:
                     self._held = eph                    # wait for a second reception of the same set
                     self.ephemerides_held += 1

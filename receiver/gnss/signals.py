@@ -36,8 +36,9 @@ QZSS_PRNS = tuple(sorted(QZSS_G2_DELAY))
 L1CA_PRNS = GPS_PRNS + QZSS_PRNS
 
 
+@lru_cache(maxsize=None)
 def _g_sequences():
-    """G1 and G2 (IS-GPS-200 Figure 3-9), 1023 chips each from the all-ones state."""
+    """G1 and G2 (IS-GPS-200 Figure 3-9), 1023 chips each from the all-ones state (read-only)."""
     g1, g2 = [1] * 10, [1] * 10
     o1 = np.empty(CA_CODE_LEN, np.uint8)
     o2 = np.empty(CA_CODE_LEN, np.uint8)
@@ -47,29 +48,26 @@ def _g_sequences():
         f2 = g2[1] ^ g2[2] ^ g2[5] ^ g2[7] ^ g2[8] ^ g2[9]
         g1 = [f1] + g1[:9]
         g2 = [f2] + g2[:9]
+    o1.setflags(write=False)
+    o2.setflags(write=False)
     return o1, o2
 
 
 @lru_cache(maxsize=None)
 def ca_code_bits(prn: int) -> np.ndarray:
     """C/A code of a GPS PRN (1..32) or a QZSS PRN (193..202) as 1023 bits (0/1, uint8), first chip first."""
+    g1, g2 = _g_sequences()
     if prn in QZSS_G2_DELAY:
-        g1, g2 = _g_sequences()
         out = g1 ^ np.roll(g2, QZSS_G2_DELAY[prn])
         out.setflags(write=False)
         return out
     if prn not in _G2_TAPS:
         raise ValueError(f"L1 C/A PRN must be 1..32 (GPS) or 193..202 (QZSS), got {prn}")
     t1, t2 = _G2_TAPS[prn]
-    g1 = [1] * 10
-    g2 = [1] * 10
-    out = np.empty(CA_CODE_LEN, dtype=np.uint8)
-    for i in range(CA_CODE_LEN):
-        out[i] = g1[9] ^ g2[t1 - 1] ^ g2[t2 - 1]
-        f1 = g1[2] ^ g1[9]
-        f2 = g2[1] ^ g2[2] ^ g2[5] ^ g2[7] ^ g2[8] ^ g2[9]
-        g1 = [f1] + g1[:9]
-        g2 = [f2] + g2[:9]
+    # the G2 register shifts one stage per chip: stage s at chip i holds the G2 output (stage 10) of chip
+    # i + 10 - s (the sequence is periodic from the all-ones state); the phase selector XORs stages t1, t2
+    i = np.arange(CA_CODE_LEN)
+    out = g1 ^ g2[(i + 10 - t1) % CA_CODE_LEN] ^ g2[(i + 10 - t2) % CA_CODE_LEN]
     out.setflags(write=False)
     return out
 

@@ -16,6 +16,7 @@ Time keeping
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections import deque
 
 import numpy as np
@@ -25,6 +26,7 @@ from ..runfile.record import FIX_DTYPE, OBS_DTYPE
 from ..runfile.record import STATE_BIT_SYNC
 from ..gnss.signals import C_LIGHT, GPS_L1CA
 from ..gnss.lnav import LnavDecoder, SubframeEvent
+from .bits_jit import bit_segments
 from .pvt import Aiding, NavSolver, Observation
 from .pvt_filter import make_pvt_filter
 
@@ -36,6 +38,34 @@ ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bi
 MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
 AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
 AID_REF_SATS = 5            # ... and from the unaided solutions of aided epochs with this many satellites
+FIRST_EPH_RANGE_M = 200.0   # a satellite's first decoded ephemeris whose range disagrees with the current fix by
+FIRST_EPH_FIX_AGE_S = 30.0  # more than this (fix at most this old) is used only after a second reception
+
+
+def first_ephemeris_range_error(eph, tx_tow: float, rx_gps_tow: float, rx_ecef) -> float:
+    """Measured minus predicted range (m) of a satellite: the range measured from its transmit time (satellite
+    clock, s of week) and the receiver's true GPS time, against the geometric range from the ephemeris to the
+    receiver position (Earth rotation during the travel time applied).  Atmosphere and receiver noise leave
+    tens of metres; a corrupted ephemeris (a miscorrected LNAV word) kilometres."""
+    from ..gnss.ephemeris import earth_rotation, sat_state
+    from ..gnss.time import wrap_week_seconds
+    pos, _, clk, _ = sat_state(eph, tx_tow)
+    rx = np.asarray(rx_ecef, float)
+    measured = C_LIGHT * (float(wrap_week_seconds(rx_gps_tow - tx_tow)) + float(clk))
+    tau = 0.075
+    for _ in range(2):
+        rho = float(np.linalg.norm(earth_rotation(np.asarray(pos, float), tau) - rx))
+        tau = rho / C_LIGHT
+    return measured - rho
+
+
+def _columns(recs) -> tuple:
+    """(recs, sample_index, code_period, code_phase_chips, code_rate_hz, doppler_hz, carrier_phase_cycles,
+    pll_lock, cn0_dbhz) of channel records, the columns as Python lists (exact: int64 -> int, float64 ->
+    float, float32 -> the same value as a float)."""
+    return (recs,) + tuple(recs[k].tolist() for k in (
+        "sample_index", "code_period", "code_phase_chips", "code_rate_hz", "doppler_hz", "carrier_phase_cycles",
+        "pll_lock", "cn0_dbhz"))
 
 
 class ChannelNav:
@@ -70,6 +100,7 @@ class ChannelNav:
         self.polarity = 0
         self.recent = deque()       # recent records (for interpolation at navigation epochs)
         self.recent_track = deque()  # the track (self.tracks) each of them belongs to
+        self._cols = {}             # id(records) -> _columns(records) of those in recent
         self.last_sample = -1
         self.lock_start_s = None
         self.locked = False
@@ -117,6 +148,7 @@ class ChannelNav:
         if not keep:
             self.recent.clear()
             self.recent_track.clear()
+            self._cols = {}
         self.last_sample = -1
         self.track_start_s = None
         self.lock_start_s = None
@@ -141,6 +173,7 @@ class ChannelNav:
             self.decoder.ephemeris, self.decoder.iono_utc, self.decoder.week = \
                 old.ephemeris, old.iono_utc, old.week
             self.decoder.parity_failures = old.parity_failures
+            self.decoder.first_check = getattr(old, "first_check", None)
 
     def set_assisted_offset(self, tx_offset: float):
         """Transmit-time offset found by the assisted ambiguity search (until frame sync confirms)."""
@@ -167,6 +200,7 @@ class ChannelNav:
         while len(self.recent) > 3:
             self.recent.popleft()
             self.recent_track.popleft()
+        self._cols = {id(r): self._cols.get(id(r)) or _columns(r) for r in self.recent}
         self.last_sample = int(recs["sample_index"][-1])
         if self.track_start_s is None:
             st = np.flatnonzero(recs["state"] != 0)          # first epoch after the FLL pull-in
@@ -185,28 +219,16 @@ class ChannelNav:
             return
         r = recs[sync]
         bit_ms = self.bit_ms
-        bits_idx = (r["code_period"] - bit_offset) // bit_ms
         nc_from = self.noncoherent_from
-        nc = (np.zeros(len(r), bool) if nc_from is None else r["sample_index"] >= nc_from)
         # per bit index: the prompt sums over its two 10-ms halves (their sum decides a phase-locked bit,
-        # both enter the differential detection) and the integration time (vectorised), then the bits in
-        # order (a few per chunk), continuing the bit left incomplete by the last chunk.  An epoch's halves
-        # (prompt1/2) go to the half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
-        starts = np.flatnonzero(np.r_[True, bits_idx[1:] != bits_idx[:-1]])
-        o = (r["code_period"] - bit_offset) % bit_ms                 # epoch start within its bit (ms)
-        late1 = o >= bit_ms // 2
-        late2 = 2 * o + r["integration_ms"] >= bit_ms
-        p1 = r["prompt1_i"].astype(np.float64) + 1j * r["prompt1_q"].astype(np.float64)
-        p2 = r["prompt2_i"].astype(np.float64) + 1j * r["prompt2_q"].astype(np.float64)
-        ha = np.where(late1, 0.0, p1) + np.where(late2, 0.0, p2)
-        hb = (p1 + p2) - ha
-
-        def csum(x):
-            return (np.add.reduceat(x.real, starts) + 1j * np.add.reduceat(x.imag, starts)).tolist()
-
-        seg = zip(bits_idx[starts].tolist(), csum(ha), csum(hb),
-                  np.add.reduceat(r["integration_ms"].astype(np.int64), starts).tolist(),
-                  (np.add.reduceat(nc.astype(np.int64), starts) > 0).tolist())
+        # both enter the differential detection) and the integration time (compiled, the sums bit-identical
+        # to numpy's reduceat: receiver.navigation.bits_jit), then the bits in order (a few per chunk),
+        # continuing the bit left incomplete by the last chunk.  An epoch's halves (prompt1/2) go to the
+        # half-bit their start lies in (epochs of 1-10 ms, or 20 ms split in the middle).
+        seg_bit, ar, ai, br, bi, seg_ms, ncs = bit_segments(
+            r["code_period"], r["integration_ms"], r["sample_index"], r["prompt1_i"], r["prompt1_q"],
+            r["prompt2_i"], r["prompt2_q"], int(bit_offset), int(bit_ms), -1 if nc_from is None else int(nc_from))
+        seg = zip(seg_bit.tolist(), (ar + 1j * ai).tolist(), (br + 1j * bi).tolist(), seg_ms.tolist(), ncs.tolist())
         out_bits, first = [], None
         for b, a, bb, ms, n in seg:
             if self.cur_bit is None or b != self.cur_bit:
@@ -289,6 +311,14 @@ class ChannelNav:
             settle_s = own
         return start is not None and s / self.fs - start >= settle_s
 
+    def _columns(self, recs):
+        """The columns measure/locked_at read, as Python lists (cached for the records added by :meth:`add`:
+        a binary search and list reads instead of numpy calls on scalars, ~10x cheaper per epoch)."""
+        hit = self._cols.get(id(recs))
+        if hit is not None and hit[0] is recs:
+            return hit
+        return _columns(recs)
+
     def measure(self, s: float):
         """(relative transmit time s, NCO Doppler Hz, carrier phase cycles) at fractional sample s.
 
@@ -301,18 +331,17 @@ class ChannelNav:
         """measure(s) and the number of the track the records belong to: the carrier phase is continuous
         within one track only (a re-acquired channel starts a new one)."""
         for recs, track in zip(reversed(self.recent), reversed(self.recent_track)):
-            si = recs["sample_index"]
+            c = self._columns(recs)
+            si = c[1]
             if len(si) == 0 or si[0] > s:
                 continue
-            k = int(np.searchsorted(si, s, side="right")) - 1
+            k = bisect_right(si, s) - 1
             if k >= len(si) - 1 and s - si[-1] > 0.03 * self.fs:
                 return None
-            r = recs[k]
-            dt = (s - float(r["sample_index"])) / self.fs
-            txrel = (int(r["code_period"]) * 1e-3 + float(r["code_phase_chips"]) / self.chip_rate
-                     + dt * float(r["code_rate_hz"]) / self.chip_rate)
-            dop = float(r["doppler_hz"])
-            phase = float(r["carrier_phase_cycles"]) + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
+            dt = (s - float(si[k])) / self.fs
+            txrel = (c[2][k] * 1e-3 + c[3][k] / self.chip_rate + dt * c[4][k] / self.chip_rate)
+            dop = c[5][k]
+            phase = c[6][k] + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
             if self.polarity < 0:
                 phase += 0.5
             return txrel, dop, phase, track
@@ -327,19 +356,21 @@ class ChannelNav:
         for t in (s, s + guard_s * self.fs):
             found = None
             for recs in reversed(self.recent):
-                si = recs["sample_index"]
+                c = self._columns(recs)
+                si = c[1]
                 if len(si) == 0 or si[0] > t:
                     continue
-                k = int(np.searchsorted(si, t, side="right")) - 1
-                found = recs[max(k, 0)]
+                found = (c, max(bisect_right(si, t) - 1, 0))
                 break
             if found is None:
                 if t == s:
                     return False
                 continue
-            if not found["pll_lock"]:
+            c, k = found
+            if not c[7][k]:
                 return False
-            if t == s and presence_cn0 is not None and found["cn0_dbhz"] >= presence_cn0 and \
+            # (the C/N0 column is float32: compared in float32, as numpy compares a float32 with a float)
+            if t == s and presence_cn0 is not None and c[8][k] >= float(np.float32(presence_cn0)) and \
                     guard_s > LOCK_GUARD_PRESENT_S:
                 return self.locked_at(s, LOCK_GUARD_PRESENT_S)
         return True
@@ -361,7 +392,7 @@ class ChannelNav:
         h = self.hatch
         # (a suspended channel's remaining epochs are before its loss: its lock there is checked per epoch)
         if h is None or (self.active and not self.locked) or h["track"] != track:   # new track: new phase
-            h = self.hatch = {"z0": z, "t0": t, "S": np.zeros(5), "n": 0, "track": track}
+            h = self.hatch = {"z0": z, "t0": t, "S": [0.0] * 5, "n": 0, "track": track}   # (Python floats)
         zr, tr = z - h["z0"], t - h["t0"]
         S = h["S"]
         if h["n"] >= 20:
@@ -370,13 +401,14 @@ class ChannelNav:
             # slip: restart.  The threshold is 20 m, or 6 x the RMS of the code against the fit when that is
             # larger (weak channels: a 0.5-Hz DLL at 27 dB-Hz wanders +/- 10 m; restarting on such an
             # excursion would put the raw code back into the smoothed range)
-            if abs(res) > max(20.0, 6.0 * np.sqrt(h.get("r2", 0.0))):
+            if abs(res) > max(20.0, 6.0 * math.sqrt(h.get("r2", 0.0))):
                 self.hatch = None
                 self.smooth_update(s, txrel, phase, window_epochs, track)
                 return
             h["r2"] = h.get("r2", res * res) + (res * res - h.get("r2", res * res)) / min(h["n"], window_epochs)
-        S *= 1.0 - 1.0 / window_epochs
-        S += (1.0, tr, tr * tr, zr, tr * zr)
+        f = 1.0 - 1.0 / window_epochs             # (each sum scaled, then the new term added: as numpy did)
+        S[0], S[1], S[2], S[3], S[4] = S[0] * f + 1.0, S[1] * f + tr, S[2] * f + tr * tr, S[3] * f + zr, \
+            S[4] * f + tr * zr
         h["n"] += 1
 
     def slope_info(self):
@@ -446,14 +478,39 @@ class NavigationEngine:
             self.aid_cfg = None
         self.aid_hist = deque()     # (t_s, clock bias m, drift m/s, height m, up speed m/s, TDOP, VDOP) of unaided fixes
         self.n_aided = 0
+        self.first_eph_checks = []  # (prn, receiver time s, range error m) of first ephemerides checked
         # assisted mode: approximate GPS TOW of file sample 0 (input.start_gps_tow_s) lets transmit times
         # be resolved from bit synchronisation alone, before any subframe has been decoded
         self.approx_tow0 = approx_tow0
 
     def channel(self, prn: int) -> ChannelNav:
         if prn not in self.channels:
-            self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
+            ch = self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
+            ch.decoder.first_check = lambda eph, tow, bit_index, ch=ch: self._first_ephemeris_ok(
+                ch, eph, tow, bit_index)
         return self.channels[prn]
+
+    def _first_ephemeris_ok(self, ch: ChannelNav, eph, tow: float, bit_index: int):
+        """A satellite's first decoded ephemeris against the current fix (LnavDecoder.first_check): False when
+        the range it predicts for the channel's latest measurement differs from the measured one by more than
+        FIRST_EPH_RANGE_M (the decoder then waits for a second reception of the same set); None (no opinion)
+        without a fix of at most FIRST_EPH_FIX_AGE_S or a measurement."""
+        if self.last_fix is None or ch.bit_offset < 0 or ch.last_sample < 0:
+            return None
+        s = float(ch.last_sample)
+        m = ch.measure(s)
+        s_fix, fix = self.last_fix
+        dt = (s - s_fix) / self.fs
+        if m is None or not 0.0 <= dt <= FIRST_EPH_FIX_AGE_S:
+            return None
+        rx = np.asarray(fix.ecef, float)
+        v = np.asarray(fix.velocity_ecef, float)
+        if np.all(np.isfinite(v)):
+            rx = rx + v * dt
+        tx = tow - (ch.bit_offset + ch.bit_ms * bit_index) * 1e-3 + m[0]
+        err = first_ephemeris_range_error(eph, tx, self.gps_time(s), rx)
+        self.first_eph_checks.append((ch.prn, s / self.fs, err))
+        return abs(err) <= FIRST_EPH_RANGE_M
 
     def add_records(self, prn: int, recs, bit_offset: int):
         self.channel(prn).add(recs, bit_offset)
@@ -497,7 +554,12 @@ class NavigationEngine:
         return out
 
     def ephemeris(self, prn: int, t):
-        return self.ephemerides(t).get(prn)
+        """ephemerides(t).get(prn), selecting for prn only."""
+        if self.assisted:
+            from ..gnss.ephemeris import select
+            return select(self.rinex_ephs.get(prn), t)
+        ch = self.channels.get(prn)
+        return ch.decoder.ephemeris if ch is not None else None
 
     def _ephemerides(self, t):
         """The ephemerides of the satellites with navigation memory (the fixes' candidates)."""
@@ -588,9 +650,11 @@ class NavigationEngine:
             self.next_s += self.fs * step
             return
         s_fix, fix = self.last_fix
-        # next round GPS time after the current epoch, mapped to a sample with the estimated drift
+        # the round GPS time after the one nearest the current epoch (0.5-1.5 steps ahead: an epoch that
+        # lands a little before its round time -- a first fix anywhere, a clock running slow -- is not
+        # followed by a second fix a few microseconds later), mapped to a sample with the estimated drift
         t_now = fix.gps_tow + (self.next_s - s_fix) / self.fs * (1 - fix.clock_drift_mps / C_LIGHT)
-        t_next = (math.floor(t_now * self.rate + 1e-6) + 1) / self.rate
+        t_next = (math.floor(t_now * self.rate + 0.5) + 1) / self.rate
         scale = self.fs / (1 - fix.clock_drift_mps / C_LIGHT)
         self.next_s = s_fix + (t_next - fix.gps_tow) * scale
 

@@ -10,6 +10,7 @@ tropospheric delays and b the receiver clock bias (c times the receiver clock er
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,6 +19,8 @@ from ..gnss.geodesy import azel, ecef2lla, enu_matrix
 from ..gnss.signals import C_LIGHT, LAMBDA_L1
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import earth_rotation, sat_state, select
+from ..gnss.ephemeris_jit import sat_states
+from .wls_jit import WEIGHTING, linearise
 from ..gnss.time import normalize_week_tow, wrap_week_seconds
 
 
@@ -125,6 +128,8 @@ class Aiding:
         return np.array(hs), np.array(rs), np.array(ws)
 
 
+_ZERO4 = np.zeros(4)
+
 # URA index -> nominal URA (m), IS-GPS-200 20.3.3.3.1.3 (upper bounds; 15: no accuracy prediction)
 URA_M = (2.40, 3.40, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0, 1536.0, 3072.0,
          6144.0, 6144.0)
@@ -198,7 +203,10 @@ class NavSolver:
         obs = [r[0] for r in rows]
         ephs = [r[1] for r in rows]
         tx = np.array([o.tx_tow for o in obs], float)
-        pos, vel, clk, drift = sat_state(ephs, tx)
+        if any(hasattr(type(e), "state") for e in ephs):      # BeiDou ephemerides among them
+            pos, vel, clk, drift = sat_state(ephs, tx)
+        else:                                                   # GPS/QZSS LNAV: the compiled path
+            pos, vel, clk, drift = sat_states(ephs, tx)
         rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
         return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
                      [o.cn0_dbhz for o in obs], [o.doppler_hz * o.wavelength_m / LAMBDA_L1 for o in obs],
@@ -234,6 +242,58 @@ class NavSolver:
             tropo = saastamoinen_m(lat, h, el)
         return iono, tropo
 
+    def _compiled_ok(self, extra, iono_utc) -> bool:
+        """The compiled linearisation covers this solve: one clock (no inter-system bias columns), the
+        built-in weightings and models, a 4+4-coefficient Klobuchar model."""
+        if extra or self.weighting not in WEIGHTING or self.troposphere not in ("saastamoinen", "none") or \
+                self.ionosphere not in ("klobuchar", "none"):
+            return False
+        if self.ionosphere == "klobuchar" and iono_utc is not None:
+            return len(iono_utc.alpha) == 4 and len(iono_utc.beta) == 4
+        return True
+
+    def _linearise(self, pos_tx, x, b, rho_c, cn0, ura, corrections, iono_utc, tow):
+        """One Gauss-Newton step's geometry, corrections, weights and residuals (receiver.navigation.wls_jit;
+        the same as :meth:`_linearise_numpy` without inter-system biases)."""
+        known = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) > 5.0e6
+        lat = lon = h = 0.0
+        if known:
+            lat, lon, h = (float(v) for v in ecef2lla(x))
+        corr = bool(corrections and known)
+        iono_on = corr and self.ionosphere == "klobuchar" and iono_utc is not None
+        alpha = np.asarray(iono_utc.alpha, float) if iono_on else _ZERO4
+        beta = np.asarray(iono_utc.beta, float) if iono_on else _ZERO4
+        tropo_on = corr and self.troposphere == "saastamoinen" and -1000.0 < h < 50e3
+        tau, los, az, el, iono, tropo, w, resid, hm = linearise(
+            pos_tx, np.asarray(x, float), float(b), rho_c, cn0, ura, known, corr, lat, lon, h, iono_on, alpha,
+            beta, float(tow), tropo_on, WEIGHTING[self.weighting], self.troposphere == "none")
+        if not known:
+            az = el = None
+        return known, tau, los, az, el, iono, tropo, w, resid, hm
+
+    def _linearise_numpy(self, pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow):
+        """(known, tau, los, az, el, iono, tropo, w, resid, h) at position x, clock b (numpy; any number
+        of clock groups: e_cols / isb)."""
+        n = len(pos_tx)
+        tau = np.linalg.norm(pos_tx - x, axis=1) / C_LIGHT
+        pos = earth_rotation(pos_tx, tau)
+        diff = pos - x
+        rng = np.linalg.norm(diff, axis=1)
+        los = diff / rng[:, None]
+        known = np.linalg.norm(x) > 5.0e6
+        if known:
+            az, el = azel(x, pos)
+        else:
+            az = el = None
+        if corrections and known:
+            iono, tropo = self._atmosphere(x, az, el, iono_utc, tow)
+        else:
+            iono = tropo = np.zeros(n)
+        w = self._weights(el if (corrections and known) else None, cn0, iono, ura)
+        resid = rho_c - iono - tropo - (rng + b + e_cols @ isb)
+        h = np.hstack([-los, np.ones((n, 1)), e_cols])
+        return known, tau, los, az, el, iono, tropo, w, resid, h
+
     def _wls(self, s: _Sats, active, x, b, corrections, iono_utc, tow, aid=None):
         """Gauss-Newton WLS on the active satellites. Returns dict or None.
 
@@ -250,24 +310,15 @@ class NavSolver:
         isb = np.zeros(len(extra))
         rho_c = s.rho[idx] + C_LIGHT * s.clk[idx]
         pos_tx = s.pos[idx]
+        cn0, ura = s.cn0[idx], s.ura_m[idx]
+        compiled = self._compiled_ok(extra, iono_utc)
         for it in range(1, self.MAX_ITER + 1):
-            tau = np.linalg.norm(pos_tx - x, axis=1) / C_LIGHT
-            pos = earth_rotation(pos_tx, tau)
-            diff = pos - x
-            rng = np.linalg.norm(diff, axis=1)
-            los = diff / rng[:, None]
-            known = np.linalg.norm(x) > 5.0e6
-            if known:
-                az, el = azel(x, pos)
+            if compiled:
+                known, tau, los, az, el, iono, tropo, w, resid, h = self._linearise(
+                    pos_tx, x, b, rho_c, cn0, ura, corrections, iono_utc, tow)
             else:
-                az = el = None
-            if corrections and known:
-                iono, tropo = self._atmosphere(x, az, el, iono_utc, tow)
-            else:
-                iono = tropo = np.zeros(len(idx))
-            w = self._weights(el if (corrections and known) else None, s.cn0[idx], iono, s.ura_m[idx])
-            resid = rho_c - iono - tropo - (rng + b + e_cols @ isb)
-            h = np.hstack([-los, np.ones((len(idx), 1)), e_cols])
+                known, tau, los, az, el, iono, tropo, w, resid, h = self._linearise_numpy(
+                    pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow)
             if n_aid:
                 if not known:
                     return None

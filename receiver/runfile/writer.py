@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import zlib
 
 import h5py
 import numpy as np
@@ -39,15 +40,47 @@ ROUNDED_DIGITS = {"doppler_hz": 3, "code_rate_hz": 5, "code_phase_chips": 7}
 SCHEMA = "gnssrx-run-2"
 
 
+def _gzip_chunk(block: np.ndarray, rows: int) -> bytes:
+    """One HDF5 chunk of ``rows`` rows through the shuffle + deflate filters of COMPRESSION["gzip"], as
+    HDF5 would store it: the rows padded to a whole chunk with the fill value 0, the bytes of the
+    elements regrouped by significance (shuffle; a no-op for 1-byte elements), zlib-compressed at the
+    same level.  zlib releases the GIL while it compresses, so on the BackgroundWriter thread the
+    compression overlaps the main thread (h5py's own filter pipeline runs with the GIL held)."""
+    if len(block) < rows:
+        pad = np.zeros((rows,) + block.shape[1:], block.dtype)
+        pad[:len(block)] = block
+        block = pad
+    size = block.dtype.itemsize
+    raw = np.ascontiguousarray(block).view(np.uint8).reshape(-1, size)
+    if size > 1:
+        raw = np.ascontiguousarray(raw.T)
+    return zlib.compress(raw, COMPRESSION["gzip"]["compression_opts"])
+
+
+def _direct(ds: h5py.Dataset) -> bool:
+    """The dataset's filters are exactly shuffle + deflate at our level (written by :func:`_gzip_chunk`)."""
+    return ds.compression == "gzip" and ds.shuffle and ds.scaleoffset is None and not ds.fletcher32 and \
+        ds.compression_opts == COMPRESSION["gzip"]["compression_opts"]
+
+
 def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none", digits=None,
-            rows: int = CHUNK_ROWS):
+            rows: int = CHUNK_ROWS, cache: dict | None = None, chunks: list | None = None):
+    """Append ``data`` to group[name] (created on the first call).  ``cache``: a dict the caller keeps per
+    group, name -> dataset, for the datasets written by whole compressed chunks (saves the h5py look-ups of
+    every later append; those writes bypass HDF5's chunk cache).  The other datasets are opened per call:
+    closing one flushes its chunk cache through the filters (what the scale-offset columns rely on).
+    ``chunks``: ``data``'s chunks already compressed by :func:`_gzip_chunk` (used on the direct path)."""
+    hit = cache.get(name) if cache is not None else None
     if digits is not None and not np.isfinite(data).all():
         # the scale-offset filter would turn NaN/Inf into numbers: this column of this group is stored
         # exactly from now on (the rows already written stay rounded; ``resolution`` still bounds them)
         digits = None
         if name in group and group[name].scaleoffset is not None:
             _unround(group, name, compression, rows)
-    if name not in group:
+            hit = None
+    if hit is not None:
+        ds, direct = hit, True
+    elif name not in group:
         maxshape = (None,) + data.shape[1:]
         chunk = (rows,) + data.shape[1:]
         if digits is not None:
@@ -57,13 +90,29 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
                   **{k: v for k, v in COMPRESSION[compression].items() if k != "shuffle"}}
         else:
             kw = COMPRESSION[compression]
-        ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
-        if digits is not None:
-            ds.attrs["resolution"] = 10.0 ** -int(digits)
+        if digits is None and compression == "gzip":      # written below, chunk by chunk
+            ds = group.create_dataset(name, shape=(0,) + data.shape[1:], dtype=data.dtype, maxshape=maxshape,
+                                      chunks=chunk, **kw)
+            direct = True
+        else:
+            ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
+            if digits is not None:
+                ds.attrs["resolution"] = 10.0 ** -int(digits)
+            return
     else:
         ds = group[name]
-        n = ds.shape[0]
-        ds.resize(n + len(data), axis=0)
+        direct = compression == "gzip" and ds.chunks[0] == rows and _direct(ds)
+    if cache is not None and direct:
+        cache[name] = ds
+    n = ds.shape[0]
+    ds.resize(n + len(data), axis=0)
+    if direct and n % rows == 0:
+        # whole chunks compressed here (the same bytes in the file as through h5py's filters)
+        tail = (0,) * (data.ndim - 1)
+        for i, a in enumerate(range(0, len(data), rows)):
+            z = chunks[i] if chunks is not None else _gzip_chunk(data[a:a + rows], rows)
+            ds.id.write_direct_chunk((n + a,) + tail, z)
+    else:
         ds[n:] = data
 
 
@@ -143,6 +192,7 @@ class RunWriter:
         chunks (few large HDF5 writes; the file is only renamed into place at the end anyway)."""
         self._buffers: dict[int, list] = {}
         self._tables: dict[str, list] = {}
+        self._groups: dict = {}     # prn or table group -> (h5py group, _append's dataset cache)
         self.round_columns = bool(round_columns)
         self.system = str((attrs or {}).get("system", "G"))     # RINEX letter of the signal: group names
         self.compression = compression
@@ -203,19 +253,59 @@ class RunWriter:
         if sum(len(b) for b in buf) >= self.FLUSH_ROWS:
             self._flush_channel(prn)
 
-    def _flush_channel(self, prn: int):
-        buf = self._buffers.pop(prn, None)
-        if not buf:
+    def _flush_channel(self, prn: int, final: bool = False):
+        """Write the buffered records of prn: whole chunks (the rest stays buffered), all of them if final."""
+        records = self._take(self._buffers, prn, final)
+        if records is None:
             return
-        records = np.concatenate(buf)
-        g = self.f["channels"].require_group(sat_label(prn, self.system))
-        if "prn" not in g.attrs:
-            g.attrs["prn"] = prn
-            g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+        g, cache = self._groups.get(prn, (None, None))
+        if g is None:
+            g = self.f["channels"].require_group(sat_label(prn, self.system))
+            if "prn" not in g.attrs:
+                g.attrs["prn"] = prn
+                g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+            cache = {}
+            self._groups[prn] = (g, cache)
         rounded = ROUNDED_DIGITS if self.round_columns else {}
-        for name in EPOCH_DTYPE.names:
-            _append(g, name, np.ascontiguousarray(records[name]), self.compression, rounded.get(name))
+        cols = [(name, np.ascontiguousarray(records[name]), rounded.get(name)) for name in EPOCH_DTYPE.names]
+        pre = self._precompress(g, cache, cols)
+        for name, col, digits in cols:
+            _append(g, name, col, self.compression, digits, cache=cache, chunks=pre.get(name))
         self._out.check()
+
+    def _precompress(self, g, cache: dict, cols) -> dict:
+        """name -> the compressed chunks of the columns that go the direct way (gzip, not rounded, a new
+        dataset or one whose rows end on a chunk boundary), compressed on the receiver's thread pool (zlib
+        releases the GIL: the columns of a flush, e.g. the last partial chunks at close, use every core).
+        The chunks are the ones _append would compute, so the file does not depend on it."""
+        if self.compression != "gzip":
+            return {}
+        todo = []
+        for name, col, digits in cols:
+            if digits is not None:
+                continue
+            ds = cache.get(name)
+            if (ds is not None and ds.shape[0] % CHUNK_ROWS == 0) or (ds is None and name not in g):
+                todo.append((name, col))
+        if not todo:
+            return {}
+        from ..threads import map_ordered
+        done = map_ordered(lambda nc: [_gzip_chunk(nc[1][a:a + CHUNK_ROWS], CHUNK_ROWS)
+                                       for a in range(0, len(nc[1]), CHUNK_ROWS)], todo)
+        return {name: z for (name, _), z in zip(todo, done)}
+
+    def _take(self, buffers: dict, key, final: bool):
+        """The buffered rows of ``key`` to write now: a whole number of chunks (CHUNK_ROWS), the rest kept
+        for later (every chunk is then written once, compressed whole: _append's direct path), or all of
+        them when ``final``.  None: nothing to write."""
+        buf = buffers.pop(key, None)
+        if not buf:
+            return None
+        rows = np.concatenate(buf) if len(buf) > 1 else buf[0]
+        n = len(rows) if final else len(rows) // CHUNK_ROWS * CHUNK_ROWS
+        if n < len(rows):
+            buffers[key] = [rows[n:]]
+        return rows[:n] if n else None
 
     def _write_stats(self):
         for prn, st in self._stats.items():
@@ -237,14 +327,16 @@ class RunWriter:
         if sum(len(b) for b in buf) >= self.FLUSH_ROWS:
             self._flush_table(group)
 
-    def _flush_table(self, group: str):
-        buf = self._tables.pop(group, None)
-        if not buf:
+    def _flush_table(self, group: str, final: bool = False):
+        rows = self._take(self._tables, group, final)
+        if rows is None:
             return
-        rows = np.concatenate(buf)
-        g = self.f.require_group(group)
+        g, cache = self._groups.get(group, (None, None))
+        if g is None:
+            g, cache = self.f.require_group(group), {}
+            self._groups[group] = (g, cache)
         for name in rows.dtype.names:
-            _append(g, name, np.ascontiguousarray(rows[name]), self.compression)
+            _append(g, name, np.ascontiguousarray(rows[name]), self.compression, cache=cache)
         self._out.check()
 
     def append_fixes(self, fixes: np.ndarray):
@@ -304,9 +396,9 @@ class RunWriter:
             return
         try:
             for prn in list(self._buffers):
-                self._flush_channel(prn)
+                self._flush_channel(prn, final=True)
             for group in list(self._tables):
-                self._flush_table(group)
+                self._flush_table(group, final=True)
             self._write_stats()
             self._out.check()
         except BaseException:

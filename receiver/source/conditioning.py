@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from ..estimation.stats import gamma_isf, gamma_median
+from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
 
 # equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
 _ENBW_BH = 2.0044
@@ -84,8 +84,8 @@ def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e
     freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
     fb = min(floor_bins, nfft // 4) | 1
     h = fb // 2                                        # running median over fb bins, wrapping around
-    med = np.median(np.lib.stride_tricks.sliding_window_view(np.concatenate([spec[-h:], spec, spec[:h]]), fb),
-                    axis=1)
+    med = median_last_axis(np.lib.stride_tricks.sliding_window_view(np.concatenate([spec[-h:], spec, spec[:h]]),
+                                                                     fb))
     floor = med / gamma_median(k)
     floor = np.maximum(floor, 1e-30)
     thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
@@ -233,8 +233,10 @@ class Canceller:
             self.amp[k] = a
             resid = resid - a * np.conj(ph)
 
-    def process(self, x: np.ndarray) -> np.ndarray:
-        out = np.empty(len(x), np.complex64)
+    def process(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The conditioned samples of ``x`` (into ``out``, complex64 of len(x), when given)."""
+        if out is None:
+            out = np.empty(len(x), np.complex64)
         if not self.active:
             out[:] = x
             return out
@@ -303,8 +305,10 @@ class ConditionedReader:
             need = start + n - pos
             if need <= 0:
                 return have[:n].copy()
-            new = self._filter(self._reader.read(pos, need))
-            out = np.concatenate([have, new])
+            raw = self._reader.read(pos, need)
+            out = np.empty(len(have) + len(raw), np.complex64)
+            out[:len(have)] = have
+            self._filter(raw, out[len(have):])         # (filtered in place: no concatenation copy)
         else:
             raw = self._reader.read(start, n)
             self.canceller.reset(raw)
@@ -312,8 +316,8 @@ class ConditionedReader:
         self._tail, self._tail_start = out, start
         return out
 
-    def _filter(self, raw):
-        y = self.canceller.process(raw)
+    def _filter(self, raw, out=None):
+        y = self.canceller.process(raw, out)
         if self.blank_level > 0:
             self.blanked += int(np.count_nonzero(y == 0))
         self.processed += len(y)

@@ -57,7 +57,14 @@ S_ESYNC_Q2 = 76        # sum of the 1-ms prompt power while the energies accumul
 S_RINGQ = 77           # 20 slots: the last 20 one-ms prompt Q values
 S_CN0_MAX = 97         # largest C/N0 estimate after the pull-in (weak classification)
 S_WEAK_DONE = 98       # 1: the weak classification has been made
-N_STATE = 99
+S_FL_RE = 99           # false-lock test: sum of P2 conj(P1) (second against first half of bit-aligned epochs)
+S_FL_IM = 100
+S_FL_MS = 101          # ms summed in the current false-lock window
+S_FL_COUNT = 102       # false locks corrected so far
+N_STATE = 103
+
+#: false-lock test window (ms of bit-aligned epochs >= 10 ms): 0.5 s leaves ~2 Hz of noise at 27 dB-Hz
+FL_WINDOW_MS = 500.0
 
 # ---- config indices
 C_FS = 0
@@ -119,7 +126,7 @@ MODE_LOST = 3
 #: state entries of the C/N0 estimator and the lock / PLI filters (reset if they become non-finite)
 _ESTIMATOR_STATE = (S_CN0, S_PLI_I2, S_PLI_Q2, S_ACC_ABSI, S_ACC_Q2, S_ACC_M2, S_ACC_M4, S_ACC_N, S_ACC_I2,
                     S_LOCK_ABSI, S_LOCK_ABSQ, S_LAST_PI, S_LAST_PQ, S_PREV_I, S_PRES_ACC, S_PRES_MS,
-                    S_PRES_REF, S_ABSENT_MS)
+                    S_PRES_REF, S_ABSENT_MS, S_FL_RE, S_FL_IM, S_FL_MS)
 
 
 def repair_state(st: np.ndarray) -> bool:
@@ -424,6 +431,25 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
                 st[S_MODE] = MODE_BIT_SYNC           # no data, no overlay: any period is an edge
                 st[S_BIT_OFFSET] = 0
         o[O_STATE] = st[S_MODE]
+        # ---- false lock (built-in loop, bit-aligned epochs of >= 10 ms): a Costas loop integrating T is blind
+        # to a residual of 1/(2T) (25 Hz at 20 ms: the phase turns by half a cycle per epoch, read as a data
+        # flip), where it holds with the prompt 3.9 dB down and every other bit inverted (no preamble, no
+        # frame).  The two halves of an epoch (one data bit) turn by a quarter cycle against each other
+        # there, by nothing in true lock: their rotation, summed over FL_WINDOW_MS, measures the residual
+        # unambiguously within +/-1/T; beyond +/-1/(4T) the loop's frequency is moved by it.
+        if cfg[C_CARRIER_EXTERNAL] == 0 and st[S_MODE] == MODE_BIT_SYNC and periods >= 10 and \
+                (int(o[O_PERIOD]) - int(st[S_BIT_OFFSET])) % bit_ms == 0:
+            st[S_FL_RE] += p2.real * p1.real + p2.imag * p1.imag
+            st[S_FL_IM] += p2.imag * p1.real - p2.real * p1.imag
+            st[S_FL_MS] += periods
+            if st[S_FL_MS] >= FL_WINDOW_MS:
+                ang = math.atan2(st[S_FL_IM], st[S_FL_RE])
+                if abs(ang) > 0.25 * math.pi:
+                    st[S_PLL_FREQ] += ang / (two_pi * 0.5 * T)
+                    st[S_FL_COUNT] += 1.0
+                st[S_FL_RE] = 0.0
+                st[S_FL_IM] = 0.0
+                st[S_FL_MS] = 0.0
         # ---- loop filters (built in): FLL-assisted PLL, carrier-aided DLL
         if cfg[C_CARRIER_EXTERNAL] == 0:
             pull = st[S_MODE] == MODE_PULL_IN

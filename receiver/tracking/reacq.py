@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft as sfft
 from ..estimation.stats import gamma_isf, gamma_median
 
 from ..gnss.signals import GPS_L1CA, sample_code
@@ -67,15 +66,15 @@ def narrow_search(samples: np.ndarray, start_index: int, fs: float, if_hz: float
     # replica is shifted by the predicted code phase so that lag 0 is the prediction
     rep = sample_code(sig.code(prn), sig.chip_rate, fs, n1, code_phase_chips % code_len)
     rep = np.tile(rep, m).astype(np.complex64)
-    cf = np.conj(sfft.fft(rep))
+    cf = np.conj(np.fft.fft(rep))
     mask = window_cells(code_half, code_len, n1)
     t = np.arange(n) / fs
     blocks = samples[:n * K].reshape(K, n).astype(np.complex64)
     power = np.zeros((len(dopplers), n1))
     for i, d in enumerate(dopplers):
         mix = np.exp(-2j * np.pi * (if_hz + d) * t).astype(np.complex64)
-        spec = sfft.fft(blocks * mix[None, :], axis=1, workers=1)
-        corr = sfft.ifft(spec * cf[None, :], axis=1, workers=1)
+        spec = np.fft.fft(blocks * mix[None, :], axis=1)
+        corr = np.fft.ifft(spec * cf[None, :], axis=1)
         p = corr.real ** 2 + corr.imag ** 2                # (K, n): lags repeat every n1 samples
         power[i] = p.reshape(K, m, n1)[:, 0, :].sum(axis=0)
     noise = float(np.median(power)) / gamma_median(K)   # robust mean of the noise cells

@@ -270,8 +270,9 @@ def set_presence(c: np.ndarray, trk_cfg):
 def early_late_spacing(trk_cfg, fs: float, chip_rate: float) -> float:
     """E-L spacing actually used (chips).  With ``tracking.early_late_snap`` the early and late replicas
     sit a whole number of samples from the prompt: with few samples per chip and an unfiltered signal,
-    a fractional-sample offset gives a code bias that wanders with the sub-sample phase (+/- 2.5 m at
-    2.6 MS/s and 0.5 chip when the code Doppler is small); a whole-sample offset cancels it."""
+    a fractional-sample offset gives a code bias that wanders with the sub-sample phase when the code
+    Doppler is small; a whole-sample offset cancels it but widens the spacing at low sample rates (0.79
+    chip at 2.6 MS/s), and the wider spacing costs more than the bias: off by default (README)."""
     d = float(trk_cfg.early_late_chips)
     if not trk_cfg.early_late_snap:
         return d

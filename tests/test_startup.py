@@ -1,0 +1,58 @@
+"""Start-up of ``gnssrx run`` (issue 19: a 1-s file in <= 2 s with a warm numba cache): the run path does
+not import the scipy modules it no longer needs, and numba's BLAS still works after the light first load
+(receiver/_numba_start.py)."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from synth import make_signal
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SATS = [dict(prn=p, doppler_hz=d, code_phase_chips=c, cn0_dbhz=46.0)
+        for p, d, c in ((3, 1200.0, 100.0), (7, -2300.0, 400.0), (11, 3100.0, 800.0), (17, -700.0, 50.0),
+                        (22, 2500.0, 600.0), (28, -3600.0, 950.0))]
+
+PROBE = r"""
+import json, runpy, sys
+sys.argv = ["gnssrx", "run", sys.argv[1], "--input", sys.argv[2], "-o", sys.argv[3], "-q",
+            "--set", "input.format=int8_iq", "--set", "input.sample_rate_hz=2600000", "--set", "input.if_hz=0"]
+try:
+    runpy.run_module("receiver.cli", run_name="__main__")
+except SystemExit as exc:
+    code = exc.code
+scipy_mods = sorted(m for m in sys.modules if m.startswith("scipy."))
+import numpy as np
+from numba import njit
+@njit
+def dot(a, b):
+    return np.dot(a, b)
+a = np.arange(9.0).reshape(3, 3)
+print(json.dumps({"code": code, "scipy": scipy_mods, "dot_ok": bool(np.array_equal(dot(a, a), a @ a))}))
+"""
+
+
+def test_run_path_imports_no_heavy_scipy_module(tmp_path):
+    x = make_signal(SATS, duration_s=0.5, seed=3) * 20.0
+    iq = np.empty(2 * x.size, np.int8)
+    iq[0::2] = np.clip(np.rint(x.real), -127, 127)
+    iq[1::2] = np.clip(np.rint(x.imag), -127, 127)
+    f = tmp_path / "x.bin"
+    iq.tofile(f)
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    p = subprocess.run([sys.executable, "-c", PROBE, str(ROOT / "configs" / "default.yaml"), str(f),
+                        str(tmp_path / "x.h5")], capture_output=True, text=True, env=env, cwd=tmp_path,
+                       timeout=300)
+    out = json.loads(p.stdout.strip().splitlines()[-1])
+    assert out["code"] in (0, None), p.stderr
+    import h5py
+    with h5py.File(tmp_path / "x.h5", "r") as h:
+        found = sorted(int(q) for q, d in zip(h["acquisition/prn"][:], h["acquisition/detected"][:]) if d)
+    assert found == sorted(s["prn"] for s in SATS)
+    heavy = [m for m in out["scipy"] if m.split(".")[1] in ("fft", "special", "stats", "linalg", "signal")]
+    assert heavy == [], heavy
+    assert out["dot_ok"]                   # numba compiles and runs np.dot (BLAS) after the light start
