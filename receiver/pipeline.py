@@ -577,6 +577,12 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
                     nav.add_records(prn, recs, ch.bit_offset)
         if vector is not None and vector.reinit_needed:
             vector = handover.fall_back(vector, start + chunk)      # scalar channels, hand over again
+        # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest.
+        # Before the chunk's navigation epochs: a satellite found again inside the chunk just tracked (its
+        # channel catches up to the chunk end) enters the epochs after its pull-in, not only the next chunk's
+        if start + chunk + overlap < reader.end:
+            with stage("re-acquisition"):
+                manager.after_chunk(start, start + chunk)
         if nav is not None:
             with stage("navigation"):
                 fixes, obs = nav.update(start + chunk)
@@ -597,10 +603,6 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
                 if iono_from is None and len(bc):
                     iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
                 fix_ecef.append(fixes["ecef"])
-        # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest
-        if start + chunk + overlap < reader.end:
-            with stage("re-acquisition"):
-                manager.after_chunk(start, start + chunk)
         start += chunk
         if bar is not None:
             bar.update(round(min(chunk, reader.end - start + chunk) / fs, 3))

@@ -4,6 +4,7 @@ local process pool, the cache, a Dask LocalCluster (identical metrics), and resu
 The recordings are simulated once into a shared cache directory (keep_recordings on for the first runs; the
 resume test switches it off and checks that the IF files are deleted at the end)."""
 import csv
+import os
 import math
 import shutil
 import time
@@ -127,3 +128,19 @@ def test_resume_runs_only_the_missing(pool_run, dirs):
     final = run_batch(CI, _over(dirs, "resume", keep=False), jobs=2)
     assert (final.executed, final.cached) == (0, 4)
     assert np.all([r["status"] == "ok" for r in final.rows])
+
+
+def test_stale_partials_are_removed_but_not_those_another_batch_is_writing(tmp_path):
+    """A batch starting in a directory removes the *.partial run files of interrupted runs, not those whose
+    lock names a live writer (two batch invocations into one output directory lost each other's runs)."""
+    import subprocess
+    import sys
+    from receiver.batch.runner import remove_stale_partials
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    for key, pid in (("live", os.getpid()), ("dead", dead.pid), ("nolock", None)):
+        (tmp_path / f"{key}.h5.partial").write_bytes(b"x")
+        if pid is not None:
+            (tmp_path / f"{key}.h5.lock").write_text(f"{pid}\n")
+    assert remove_stale_partials(tmp_path) == 2
+    assert sorted(p.name for p in tmp_path.glob("*.partial")) == ["live.h5.partial"]

@@ -1,7 +1,8 @@
 """Continuity through signal outages (issue 14): channel lifecycle, satellite navigation memory, coasting.
 
 One 32-s simulated drive (50 m/s figure-eight, ten satellites at 45 dB-Hz, configs/scenarios/outage_fig8.yaml)
-with every signal removed for 1.5 s at 26.3-27.8 s and G11 blocked from 28.5 s to the end.  The first fix
+with every signal removed for 1.5 s at 26.3-27.8 s G11 blocked from 28.5 s to the end and G24 from 29.0 to 30.6 s (its return inside a 0.5-s processing chunk, the
+other satellites tracked).  The first fix
 comes at ~21 s (subframes 1-3 decoded); subframes start at 2, 8, ..., 26, 32 s, so after the outage no
 subframe is complete before the end of the file: pseudoranges after the outage come from the navigation
 memory.
@@ -23,6 +24,7 @@ from synth import make_signal
 ROOT = Path(__file__).resolve().parents[1]
 OUT_A, OUT_B = 26.3, 27.8          # total outage (s since the first sample)
 G11_FROM = 28.5                     # G11 blocked from here to the end
+G24_A, G24_B = 29.0, 30.6           # G24 blocked (the processing chunks start at k x 0.5 s)
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +33,8 @@ def drive(tmp_path_factory):
     sc = yaml.safe_load((ROOT / "configs" / "scenarios" / "outage_fig8.yaml").read_text())
     sc["time"]["duration_s"] = 32.0
     sc["blockage"] = {"total": [{"start_s": OUT_A, "end_s": OUT_B}],
-                      "outages": [{"prn": 11, "start_s": G11_FROM, "end_s": 32.0}]}
+                      "outages": [{"prn": 11, "start_s": G11_FROM, "end_s": 32.0},
+                                  {"prn": 24, "start_s": G24_A, "end_s": G24_B}]}
     paths = simulate(sc, str(d / "drive.bin"), progress=False)
     return paths
 
@@ -135,6 +138,15 @@ def test_navigation_memory_fixes_resume_without_a_new_subframe(drive, scalar_run
         used_after = np.unique(obs["prn"][:][(obs["time_s"][:] > OUT_B)])
         eph_prns = sorted(int(p) for p in f["ephemeris"]["prn"][:])
     assert len(used_after) >= 8
+    # a satellite returning while others are tracked enters the fixes within 0.25 s (search step, 40-ms
+    # pull-in, settle, 0.1-s epochs): its channel, re-acquired inside the chunk just tracked, is used in that
+    # chunk's epochs (when they were computed before the re-acquisition, the first use was at the next
+    # chunk, 31.0 s or later)
+    with h5py.File(scalar_run, "r") as f:
+        obs = f["observables"]
+        ot, op, ou = obs["time_s"][:], obs["prn"][:], obs["used_in_fix"][:] > 0
+    first = ot[(op == 24) & ou & (ot > G24_B)]
+    assert len(first) and first[0] - G24_B <= 0.25, first[:1]
     assert eph_prns == [1, 7, 11, 14, 15, 17, 24, 26, 29, 30]
 
 
@@ -167,3 +179,43 @@ def test_vector_reinitialises_after_an_outage_it_cannot_bridge(drive, tmp_path):
     assert first_scalar - OUT_B <= 2.0
     assert np.any(mode[t > first_scalar] == 1)               # handed over again
     assert err[mode != 2].max() < 30.0, err[mode != 2].max()
+
+
+def test_cold_search_rejects_images_of_signals_tracked_in_channels():
+    """Two 53 dB-Hz satellites tracked in channels: a cold search of the other PRNs (which does not include
+    them, so the search's own cross-correlation test cannot see them) detects their Gold-code images at the
+    same Doppler and at k x 1 kHz for most PRNs, 30-32 dB-Hz; the channel manager rejects every one of them
+    and keeps a real 37 dB-Hz satellite at another Doppler."""
+    from types import SimpleNamespace
+    from receiver.acquisition import search, verify
+    from receiver.gnss.signals import GPS_L1CA
+    from receiver.tracking.channels import ChannelManager
+    from receiver.tracking.scalar import Channel
+    fs = 2.6e6
+    strong = [{"prn": 29, "doppler_hz": -2055.0, "code_phase_chips": 100.3, "cn0_dbhz": 53},
+              {"prn": 26, "doppler_hz": 727.0, "code_phase_chips": 600.7, "cn0_dbhz": 53}]
+    x = make_signal(strong + [{"prn": 7, "doppler_hz": 1500.0, "code_phase_chips": 300.2, "cn0_dbhz": 37}],
+                    duration_s=0.9, seed=5)
+    cfg = load_receiver_config()
+    mgr = ChannelManager(cfg, SimpleNamespace(first=0), None, fs, 0.0, GPS_L1CA, acquire=None)
+    for s in strong:
+        ch = Channel(s["prn"], s["doppler_hz"] + 20.0, s["code_phase_chips"], 0, cfg.tracking, fs, 0.0,
+                     signal=GPS_L1CA)
+        ch.process(x[:int(0.7 * fs)], 0)
+        assert ch.cn0_dbhz > 45 and not ch.lost
+        mgr.channels[s["prn"]] = ch
+    a = cfg.acquisition
+    s0 = int(0.7 * fs)
+    dw = int(a.coherent_ms * a.noncoherent * 1e-3 * fs)
+    blk = x[s0:]
+    res = search(blk, s0, fs, 0.0, [p for p in range(1, 33) if p not in (26, 29)], a.coherent_ms,
+                 a.noncoherent, a.doppler_max_hz, a.doppler_step_hz, a.pfa, a.threshold)
+    for r in res:
+        if r.detected and not verify(blk[dw:2 * dw], s0 + dw, fs, 0.0, r, a.coherent_ms, a.noncoherent,
+                                     a.doppler_step_hz, a.pfa, a.threshold):
+            r.detected = False
+    images = [r.prn for r in res if r.detected and r.prn != 7]
+    assert len(images) >= 10 and 7 in [r.prn for r in res if r.detected]
+    mgr._reject_tracked_images(res)
+    assert [r.prn for r in res if r.detected] == [7]
+    assert all(r.reason == "xcorr" for r in res if r.prn in images)

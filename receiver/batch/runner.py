@@ -71,6 +71,20 @@ def _progress(total: int, quiet: bool, name: str):
     return tqdm(total=total, unit="run", desc=f"batch {name}", leave=False, dynamic_ncols=True)
 
 
+def remove_stale_partials(runs_dir) -> int:
+    """Remove the ``*.partial`` run files left by interrupted runs; keep those whose ``.lock`` names a live
+    process (a run of another batch invocation writing into the same directory).  Returns the count."""
+    from ..safeio import OutputLock, _alive
+    n = 0
+    for stale in Path(runs_dir).glob("*.partial"):
+        owner = OutputLock(str(stale)[:-len(".partial")])._owner()
+        if owner is not None and _alive(owner):
+            continue
+        stale.unlink(missing_ok=True)
+        n += 1
+    return n
+
+
 def run_batch(batch, overrides=(), jobs: int | None = None, scheduler: str | None = None, client=None,
               force: bool = False, retry_failed: bool | None = None, quiet: bool = True,
               write: bool = True) -> BatchResult:
@@ -88,8 +102,7 @@ def run_batch(batch, overrides=(), jobs: int | None = None, scheduler: str | Non
     retry = b.cfg.retry_failed if retry_failed is None else retry_failed
     keep = b.cfg.keep_recordings
     os.makedirs(os.path.join(b.output_dir, "runs"), exist_ok=True)
-    for stale in Path(b.output_dir, "runs").glob("*.partial"):
-        stale.unlink(missing_ok=True)
+    remove_stale_partials(os.path.join(b.output_dir, "runs"))
 
     results: dict = {}
     todo: list = []

@@ -99,6 +99,7 @@ class ChannelNav:
         self.tow_ref = None
         self.polarity = 0
         self.recent = deque()       # recent records (for interpolation at navigation epochs)
+        self.recent_track = deque()  # the track (self.tracks) each of them belongs to
         self._cols = {}             # id(records) -> _columns(records) of those in recent
         self.last_sample = -1
         self.lock_start_s = None
@@ -117,6 +118,7 @@ class ChannelNav:
         self.active = True          # a channel tracks this satellite
         self.settle_s = None        # settle time of the current track (None: navigation.settle_s)
         self.tracks = 1             # tracks (channels) of this satellite so far
+        self.prev_track = None      # (track_start_s, settle_s, last sample) of the previous track (resume)
         self.resumed_with_time = 0  # re-acquisitions that kept the transmit-time reference
 
     def _new_decoder(self, week_hint):
@@ -127,20 +129,26 @@ class ChannelNav:
         return LnavDecoder(self.prn, week_hint=week_hint)
 
     def suspend(self):
-        """The channel lost the signal: keep the memory, forget the track's measurement state."""
+        """The channel lost the signal: keep the memory; the track's records stay for the epochs before the
+        loss that are not computed yet (the channel manager handles losses before the chunk's navigation
+        epochs); measure() returns nothing beyond them."""
         self.active = False
         self.locked = False
         self.hatch = None
-        self.recent.clear()
-        self._cols = {}
 
     def resume(self, continuous: bool, settle_s: float | None = None):
         """A new channel tracks this satellite.  continuous: it continues the old channel's code-period
         count (same bit offset, transmit-time reference still valid)."""
         self.active = True
         self.tracks += 1
-        self.recent.clear()
-        self._cols = {}
+        keep = continuous and self.has_time
+        # a continuous track keeps the old records (same code-period count, same transmit-time reference)
+        # for the not yet computed epochs before the loss; they are judged by the old track's settle state
+        self.prev_track = (self.track_start_s, self.settle_s, self.last_sample) if keep and self.recent else None
+        if not keep:
+            self.recent.clear()
+            self.recent_track.clear()
+            self._cols = {}
         self.last_sample = -1
         self.track_start_s = None
         self.lock_start_s = None
@@ -188,8 +196,10 @@ class ChannelNav:
         if len(recs) == 0:
             return
         self.recent.append(recs)
+        self.recent_track.append(self.tracks)
         while len(self.recent) > 3:
             self.recent.popleft()
+            self.recent_track.popleft()
         self._cols = {id(r): self._cols.get(id(r)) or _columns(r) for r in self.recent}
         self.last_sample = int(recs["sample_index"][-1])
         if self.track_start_s is None:
@@ -294,9 +304,12 @@ class ChannelNav:
     def settled(self, s: float, settle_s: float) -> bool:
         """True once the loops have tracked for settle_s after the pull-in (DLL transient over); a resumed
         track uses its own (shorter) settle time."""
-        if self.settle_s is not None:
-            settle_s = self.settle_s
-        return self.track_start_s is not None and s / self.fs - self.track_start_s >= settle_s
+        start, own = self.track_start_s, self.settle_s
+        if self.prev_track is not None and s <= self.prev_track[2]:
+            start, own, _ = self.prev_track          # an epoch of the previous track (before its loss)
+        if own is not None:
+            settle_s = own
+        return start is not None and s / self.fs - start >= settle_s
 
     def _columns(self, recs):
         """The columns measure/locked_at read, as Python lists (cached for the records added by :meth:`add`:
@@ -311,7 +324,13 @@ class ChannelNav:
 
         The relative transmit time counts from the start of code period 0 of this channel; it needs no
         frame sync, so pseudoranges can be carrier-smoothed from the start of tracking."""
-        for recs in reversed(self.recent):
+        m = self.measure_track(s)
+        return None if m is None else m[:3]
+
+    def measure_track(self, s: float):
+        """measure(s) and the number of the track the records belong to: the carrier phase is continuous
+        within one track only (a re-acquired channel starts a new one)."""
+        for recs, track in zip(reversed(self.recent), reversed(self.recent_track)):
             c = self._columns(recs)
             si = c[1]
             if len(si) == 0 or si[0] > s:
@@ -325,7 +344,7 @@ class ChannelNav:
             phase = c[6][k] + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
             if self.polarity < 0:
                 phase += 0.5
-            return txrel, dop, phase
+            return txrel, dop, phase, track
         return None
 
     def locked_at(self, s: float, guard_s: float = LOCK_GUARD_S, presence_cn0: float | None = None) -> bool:
@@ -356,7 +375,7 @@ class ChannelNav:
                 return self.locked_at(s, LOCK_GUARD_PRESENT_S)
         return True
 
-    def smooth_update(self, s: float, txrel: float, phase: float, window_epochs: int):
+    def smooth_update(self, s: float, txrel: float, phase: float, window_epochs: int, track: int = 0):
         """Carrier smoothing, step 1: add this epoch's code-minus-carrier to the channel's fit.
 
         The code-minus-carrier z = c (s/fs - txrel) + lambda * phase is constant for an ideal front end
@@ -371,8 +390,9 @@ class ChannelNav:
         t = s / self.fs
         z = C_LIGHT * (t - txrel) + self.wavelength * phase
         h = self.hatch
-        if h is None or not self.locked:
-            h = self.hatch = {"z0": z, "t0": t, "S": [0.0] * 5, "n": 0}     # (Python floats: 5 scalars)
+        # (a suspended channel's remaining epochs are before its loss: its lock there is checked per epoch)
+        if h is None or (self.active and not self.locked) or h["track"] != track:   # new track: new phase
+            h = self.hatch = {"z0": z, "t0": t, "S": [0.0] * 5, "n": 0, "track": track}   # (Python floats)
         zr, tr = z - h["z0"], t - h["t0"]
         S = h["S"]
         if h["n"] >= 20:
@@ -383,7 +403,7 @@ class ChannelNav:
             # excursion would put the raw code back into the smoothed range)
             if abs(res) > max(20.0, 6.0 * math.sqrt(h.get("r2", 0.0))):
                 self.hatch = None
-                self.smooth_update(s, txrel, phase, window_epochs)
+                self.smooth_update(s, txrel, phase, window_epochs, track)
                 return
             h["r2"] = h.get("r2", res * res) + (res * res - h.get("r2", res * res)) / min(h["n"], window_epochs)
         f = 1.0 - 1.0 / window_epochs             # (each sum scaled, then the new term added: as numpy did)
@@ -809,15 +829,15 @@ class NavigationEngine:
             if not ch.settled(s, self.cfg.settle_s) or not ch.locked_at(s, presence_cn0=self.presence_cn0):
                 ch.hatch = None
                 continue
-            m = ch.measure(s)
+            m = ch.measure_track(s)
             if m is None:
                 ch.hatch = None
                 continue
-            ch.smooth_update(s, m[0], m[2], window)
+            ch.smooth_update(s, m[0], m[2], window, m[3])
             if not ch.has_time:
                 continue
-            prev = ch.measure(s - dt * self.fs)
-            dop = (m[2] - prev[2]) / dt if prev is not None else m[1]
+            prev = ch.measure_track(s - dt * self.fs)
+            dop = (m[2] - prev[2]) / dt if prev is not None and prev[3] == m[3] else m[1]
             meas[prn] = (m, dop, ch)
         # common code-minus-carrier drift (clock-rate mismatch between code and carrier), weighted
         info = [i for i in (ch.slope_info() for ch in self.channels.values()) if i is not None]

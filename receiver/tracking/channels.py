@@ -41,6 +41,7 @@ import numpy as np
 from ..gnss.satid import sat_label
 from ..gnss.signals import C_LIGHT
 from . import kernel as K
+from ..acquisition import AcqResult, cross_correlation_image
 from .reacq import narrow_search
 from .scalar import Channel
 
@@ -51,6 +52,9 @@ CATCH_UP_OVERLAP_S = 0.03       # as the pipeline's chunk overlap: a channel's e
 MAX_LOS_RATE_MPS = 1000.0       # bound of a GPS/BeiDou MEO satellite's range rate seen from the ground (~930 m/s)
 COLD_MARGIN_HZ = 500.0          # cold search after a fix: margin of the Doppler window (drift error, rate)
 GOOD_MARGIN_S = 0.1             # lock detectors lag: the prediction starts this long before the last good epoch
+XCORR_RATIO_DB = 15.0           # a cold detection this much weaker than a tracked signal at its Doppler is an image
+XCORR_IMAGE_FRACTION = 0.25     # ... or at k x 1 kHz when the predicted image explains this share of its power
+CHUNK_YOUNG_S = 1.0             # a channel opened this recently is judged by its search's C/N0 until in lock
 
 
 @dataclass
@@ -81,6 +85,7 @@ class ChannelManager:
         self.writer = writer
         self.log = log or (lambda msg: None)
         self.channels: dict[int, Channel] = {}
+        self._open_cn0: dict[int, tuple] = {}   # prn -> (sample, C/N0 estimate of the search) of its channel
         self.sats: dict[int, SatTrack] = {}
         self.events: list = []          # (time_s, prn, event, detail)
         self._rr = 0
@@ -108,6 +113,7 @@ class ChannelManager:
         ch = Channel(prn, doppler, code_phase, sample, self.cfg.tracking, self.fs, self.if_hz,
                      channel_id=sat.channel_id, signal=self.signal, weak=weak)
         self.channels[prn] = ch
+        self._open_cn0[prn] = (int(sample), cn0_est)
         sat.state = "tracking"
         sat.good.clear()
         return ch
@@ -145,6 +151,7 @@ class ChannelManager:
         res = self.acquire(self.cfg, self.reader, next_start, pick, sensitive=weak,
                            known_hz=[ch.doppler_hz for ch in self.channels.values()] if weak else (),
                            **({"doppler_window": window} if window is not None else {}))
+        self._reject_tracked_images(res)
         if self.writer is not None:
             self.writer.write_acquisition(res, {"fs": self.fs})
         for r in res:
@@ -156,6 +163,57 @@ class ChannelManager:
                     self.nav.resume(r.prn, continuous=False)
                 self._event(r.sample_index, r.prn, "cold acquisition", f"Doppler {r.doppler_hz:.0f} Hz")
                 sat.reacquisitions += 1
+
+    def _reject_tracked_images(self, res):
+        """Un-detect cold-search detections that are cross-correlation images of a signal a channel tracks.
+
+        The search's own test (receiver.acquisition.reject_cross_correlations) compares only the PRNs it
+        searched; a satellite already in a channel is not among them, so a 45 dB-Hz signal's Gold-code
+        sidelobes (-21..-24 dB) passed as a ~23 dB-Hz 'satellite' that is not in the sky (urban canyon:
+        G09 / G10 at 22-28 dB-Hz, at the Doppler of G26 / G29 or 1 kHz from G11's).  The same rules are
+        applied against every channel: same Doppler within half a bin and >= 15 dB weaker, or a k x 1 kHz
+        offset whose image predicted from the two codes at the tracked code phase explains >= 1/4 of the
+        detection's power.  A channel's strength is its C/N0 while in lock, else (a channel opened by this
+        chunk's re-acquisition, still in its pull-in) the C/N0 its search estimated."""
+        det = [r for r in res if r.detected]
+        if not det:
+            return
+        a = self.cfg.acquisition
+        half_bin = 1.0 / (2.0 * a.coherent_ms * 1e-3)
+        lock_min = self.cfg.tracking.lock_cn0_min_dbhz
+        code_len = self.signal.code_len
+        for r in det:
+            for prn, ch in self.channels.items():
+                if ch.lost or prn == r.prn:
+                    continue
+                if ch.st[K.S_LOCK] > 0 and ch.cn0_dbhz >= lock_min:
+                    cn0 = float(ch.cn0_dbhz)
+                elif self._open_cn0.get(prn) is not None and \
+                        ch.next_sample - self._open_cn0[prn][0] < CHUNK_YOUNG_S * self.fs:
+                    cn0 = self._open_cn0[prn][1]
+                else:
+                    continue
+                ratio_db = cn0 - r.cn0_dbhz_est
+                if ratio_db <= 0:
+                    continue
+                dd = ch.doppler_hz - r.doppler_hz
+                if abs(dd) <= half_bin and ratio_db > XCORR_RATIO_DB:
+                    r.detected, r.reason = False, "xcorr"
+                    break
+                k = round(dd / 1000.0)
+                if k == 0 or abs(k) > 60 or abs(dd - 1000.0 * k) > half_bin:
+                    continue
+                cp = (ch.st[K.S_CODE_PHASE] - (ch.next_sample - r.sample_index) / self.fs
+                      * ch.st[K.S_CODE_RATE]) % code_len
+                strong = AcqResult(prn, True, ch.doppler_hz, float(cp), r.sample_index, 1.0, 1.0, cn0)
+                img = cross_correlation_image(strong, r, self.fs, a.coherent_ms, self.signal)
+                if img * 10 ** (ratio_db / 10) >= XCORR_IMAGE_FRACTION:
+                    r.detected, r.reason = False, "xcorr"
+                    break
+            if not r.detected:
+                self._event(r.sample_index, r.prn, "cold detection rejected",
+                            f"(cross-correlation image of a tracked signal, Doppler {r.doppler_hz:.0f} Hz, "
+                            f"{r.cn0_dbhz_est:.1f} dB-Hz)")
 
     # ------------------------------------------------------------------ per chunk
     def note(self, prn: int, recs: np.ndarray):
@@ -357,6 +415,7 @@ class ChannelManager:
                 cp = cp_pred
                 predicted = True
         ch = self._open(prn, res.doppler_hz, cp, int(s))
+        self._open_cn0[prn] = (int(s), res.cn0_dbhz_est)     # (its strength until in lock: image test)
         # continue the old channel's code-period count: the predicted transmit time fixes the integer ms
         st = ch.st
         s_first = float(st[K.S_NEXT_SAMPLE])
