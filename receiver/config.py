@@ -374,10 +374,11 @@ RECEIVER_SCHEMA = {
         "dll_order": P(2, "int", "DLL order (2 absorbs a code/carrier rate mismatch)", choices=(1, 2)),
         "dll_bw_pull_in_hz": P(4.0, "float", "DLL noise bandwidth during pull-in", lo=0.01),
         "early_late_chips": P(0.5, "float", "early-late spacing (total, chips)", lo=0.05, hi=1.5),
-        "early_late_snap": P(False, "bool", "round the early/late offsets to whole samples (a sub-sample "
-                                            "code bias of unfiltered signals with little code Doppler; but "
-                                            "0.5 chip becomes 0.79 chip at 2.6 MS/s: 1.8x the 3D RMS on "
-                                            "the third-party recording, README)"),
+        "early_late_snap": P(False, "bool", "round the early/late offsets to whole samples on every channel "
+                                            "(0.5 chip becomes 0.79 chip at 2.6 MS/s: 1.8x the 3D RMS on the "
+                                            "third-party recording); off: whole samples only while a channel "
+                                            "pulls in and on weak channels, the exact spacing otherwise "
+                                            "(README)"),
         "cn0_window_ms": P(200, "int", "window for the C/N0 estimator (ms)", lo=20),
         "cn0_estimator": P("snv", "str", "C/N0 estimator: snv (signal-to-noise variance of the locked "
                                          "prompt; M2M4 before lock) or m2m4", choices=("snv", "m2m4")),

@@ -168,3 +168,27 @@ def test_weak_channel_leaves_a_half_bit_rate_false_lock():
     idx = ((twenty["code_period"] + 1 - 5) // 20) % len(bits)
     agree = np.mean(np.sign(twenty["prompt_i"]) == bits[idx])
     assert agree > 0.98 or agree < 0.02
+
+
+def test_pull_in_and_weak_channels_use_the_whole_sample_spacing():
+    """At 2.6 MS/s 0.5 chip is 1.27 samples: tracked channels correlate at the exact spacing, channels in
+    pull-in and weak channels at the whole-sample one (2 samples = 0.787 chip), which holds weak codes."""
+    from types import SimpleNamespace
+
+    from receiver.tracking import kernel as K
+    from receiver.tracking.scalar import early_late_spacing
+    trk = SimpleNamespace(early_late_chips=0.5, early_late_snap=False)
+    exact = early_late_spacing(trk, 2.6e6, 1.023e6)
+    wide = early_late_spacing(trk, 2.6e6, 1.023e6, snap=True)
+    assert exact == 0.5 and abs(wide - 2 * 1.023 / 2.6) < 1e-12
+    cfg = np.zeros(K.N_CONFIG)
+    cfg[K.C_EL_SPACING], cfg[K.C_EL_SPACING_WIDE] = exact, wide
+    st = np.zeros(K.N_STATE)
+    st[K.S_MODE] = K.MODE_PULL_IN
+    assert K.el_spacing(st, cfg) == wide
+    st[K.S_MODE] = K.MODE_TRACK
+    assert K.el_spacing(st, cfg) == exact
+    st[K.S_WEAK] = 1.0
+    assert K.el_spacing(st, cfg) == wide
+    cfg[K.C_EL_SPACING_WIDE] = 0.0                     # early_late_snap: true -> one spacing throughout
+    assert K.el_spacing(st, cfg) == exact

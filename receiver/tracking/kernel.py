@@ -106,7 +106,8 @@ C_ESYNC_MIN_MS = 35    # > 0: bit sync by the energy of 20-ms sums once this man
 C_WEAK_DLL_BW = 36     # DLL noise bandwidth of a weak channel after pull-in
 C_WEAK_FLL_BW = 37     # FLL noise bandwidth of a weak channel's pull-in (0: none, the PLL alone)
 C_WEAK_GRACE_MS = 38   # lost-grace time of a weak channel (it needs longer to reach phase lock)
-N_CONFIG = 39
+C_EL_SPACING_WIDE = 39  # > 0: E-L spacing (chips) during pull-in and on weak channels (whole samples)
+N_CONFIG = 40
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -121,6 +122,16 @@ MODE_PULL_IN = 0
 MODE_TRACK = 1
 MODE_BIT_SYNC = 2
 MODE_LOST = 3
+
+
+@njit(cache=True)
+def el_spacing(st, cfg):
+    """E-L spacing (chips) of this epoch: the whole-sample one (C_EL_SPACING_WIDE, when set) while the
+    channel pulls in and on weak channels -- a narrow correlator's +/- d/2 linear range loses weak signals
+    and codes not yet settled -- else the configured one."""
+    if cfg[C_EL_SPACING_WIDE] > 0 and (st[S_MODE] == MODE_PULL_IN or st[S_WEAK] > 0):
+        return cfg[C_EL_SPACING_WIDE]
+    return cfg[C_EL_SPACING]
 
 
 #: state entries of the C/N0 estimator and the lock / PLI filters (reset if they become non-finite)
@@ -186,7 +197,7 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
         T = periods * 1e-3
         code_step = st[S_CODE_RATE] / fs
         carr_step = st[S_CARR_FREQ] / fs
-        half_el = 0.5 * cfg[C_EL_SPACING]
+        half_el = 0.5 * el_spacing(st, cfg)
         cp = st[S_CODE_PHASE]
         if cfg[C_NH_BASE] > 0 and st[S_MODE] == MODE_BIT_SYNC:
             # overlay (NH) wipe-off: correlate against the NH-modulated code section

@@ -72,6 +72,8 @@ class Channel:
         c[K.C_CARRIER_HZ] = sig.carrier_hz
         c[K.C_CODE_LEN] = sig.code_len
         c[K.C_EL_SPACING] = early_late_spacing(trk_cfg, fs, sig.chip_rate)
+        if not trk_cfg.early_late_snap:       # pull-in and weak channels: whole samples (>= the spacing)
+            c[K.C_EL_SPACING_WIDE] = early_late_spacing(trk_cfg, fs, sig.chip_rate, snap=True)
         c[K.C_PLL_BW] = trk_cfg.pll_bw_hz
         c[K.C_PLL_ORDER] = trk_cfg.pll_order
         c[K.C_FLL_BW] = trk_cfg.fll_bw_hz
@@ -267,14 +269,14 @@ def set_presence(c: np.ndarray, trk_cfg):
     c[K.C_PRES_LOST_MS] = p.lost_ms
 
 
-def early_late_spacing(trk_cfg, fs: float, chip_rate: float) -> float:
+def early_late_spacing(trk_cfg, fs: float, chip_rate: float, snap: bool | None = None) -> float:
     """E-L spacing actually used (chips).  With ``tracking.early_late_snap`` the early and late replicas
     sit a whole number of samples from the prompt: with few samples per chip and an unfiltered signal,
     a fractional-sample offset gives a code bias that wanders with the sub-sample phase when the code
     Doppler is small; a whole-sample offset cancels it but widens the spacing at low sample rates (0.79
     chip at 2.6 MS/s), and the wider spacing costs more than the bias: off by default (README)."""
     d = float(trk_cfg.early_late_chips)
-    if not trk_cfg.early_late_snap:
+    if not (trk_cfg.early_late_snap if snap is None else snap):
         return d
     half_samples = max(1, round(0.5 * d * fs / chip_rate))
     return 2.0 * half_samples * chip_rate / fs

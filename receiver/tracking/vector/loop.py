@@ -166,7 +166,7 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
                 txrel = CA[j] + o[K.O_PERIOD] * 1e-3 + \
                     (o[K.O_CODE_PHASE] + 0.5 * ns * o[K.O_CODE_RATE] / fs) / chip
                 rho_meas = C_LIGHT * (tau_mid - txrel) + \
-                    code_disc_m(o[K.O_E], o[K.O_L], CF[j, K.C_EL_SPACING], chip)
+                    code_disc_m(o[K.O_E], o[K.O_L], K.el_spacing(ST[j], CF[j]), chip)
                 dop = o[K.O_DOPPLER] + freq_disc_hz(o[K.O_P1I], o[K.O_P1Q], o[K.O_P2I], o[K.O_P2Q], t_int)
                 rate_meas = -LAMBDA * dop
                 rho_hat, rate_hat, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_mid, tau_k,
