@@ -238,3 +238,26 @@ def test_pdop_mask_refuses_weak_geometry(brdc, rx):
     for sub, f in strong:
         g = masked.fix(WEEK, rx_tow, list(sub), ephs, iono)
         assert g is not None and np.allclose(g.ecef, f.ecef)
+
+
+def test_grossly_wrong_satellite_is_left_out_when_the_wls_cannot_converge(brdc, rx):
+    """One satellite with a corrupted ephemeris thousands of km off (a set decoded from noise: semi-major axis
+    or clock offset wrong) keeps the iteration from converging before the residual test can see it; the
+    solver then leaves each satellite out in turn: the fix is computed from the others, the bad one
+    rejected (before: no fix at all, for as long as the set stayed in use)."""
+    ephs, iono = brdc
+    rx_tow, obs = simulate(ephs, iono, rx, sigma_m=1.0, seed=3)
+    bad = [o.prn for o in obs][3]
+    for wrong in (replace(ephs[bad], sqrt_a=ephs[bad].sqrt_a * 1.8), replace(ephs[bad], af0=0.1)):
+        e2 = dict(ephs)
+        e2[bad] = wrong
+        for x0 in (None, rx + 500.0):
+            f = NavSolver(cfg()).fix(WEEK, rx_tow, obs, e2, iono, x0=x0)
+            assert f is not None
+            assert f.rejected_prns == [bad] and bad not in f.prns and f.n_sats == len(obs) - 1
+            assert np.linalg.norm(f.ecef - rx) < 10.0
+    # with only 5 satellites a left-out one cannot be checked by the residuals of the other 4: no fix
+    few = [o for o in obs if o.prn != bad][:4] + [o for o in obs if o.prn == bad]
+    e2 = dict(ephs)
+    e2[bad] = replace(ephs[bad], af0=0.1)
+    assert NavSolver(cfg()).fix(WEEK, rx_tow, few, e2, iono) is None

@@ -485,10 +485,15 @@ class LnavDecoder:
     of data (IODC / IODE), so an ephemeris is decoded even when no frame arrives without an error.
 
     A new ephemeris that puts the satellite more than ``JUMP_M`` away from the current one (position plus
-    c x clock, at the new subframe 1's time) replaces it only when a second reception decodes the same set
+    c x clock, at the new subframe 1's time), or that has the current issue of data (IODE and IODC) with
+    other contents, replaces it only when a second reception decodes the same set
     (``ephemerides_held`` counts the held ones): single-bit correction "corrects" any odd-weight error
     pattern, so at low C/N0 a corrupted set can pass parity with the current issue of data (seen at
-    27-29 dB-Hz: Omega0 off 2.6 mrad, positions off 73-9866 km); a genuine update moves it by metres.
+    27-29 dB-Hz: Omega0 off 2.6 mrad, positions off 73-9866 km; and from the noise a coasting vector
+    channel demodulates during a total outage: subframe 2 words after a good IODE word, a satellite
+    82 000 km off); a genuine update moves it by metres and comes with a new issue of data.  A second
+    reception means subframes 1, 2 and 3 all received after those the held set was built from: the held set
+    assembled again when the next subframe 1 or 3 arrives (with the same corrupted subframe 2) is not one.
     A satellite's *first* ephemeris has no set to compare with: ``first_check`` (set by the user, e.g. the
     navigation engine: ``first_check(ephemeris, tow_s, bit_index)`` with the TOW and bit index of the start
     of the subframe that completed it) returning False holds it the same way until a second reception
@@ -523,6 +528,7 @@ class LnavDecoder:
         self.words_corrected = 0
         self.ephemerides_held = 0
         self._held: Ephemeris | None = None   # a far replacement waiting for a second reception
+        self._held_src = -1                   # the latest bit index of the subframes the held set came from
         self.first_check = None               # callable(eph, tow_s, bit_index) -> bool | None (see above)
 
     # -- input ---------------------------------------------------------------------------
@@ -760,14 +766,25 @@ class LnavDecoder:
             code_on_l2=int(vals["code_on_l2"]), l2p_flag=int(vals["l2p_flag"]),
             aodo=int(round(vals["aodo"])), tx_time=tow1)
         if eph != self.ephemeris:
-            if self.ephemeris is not None:
-                suspect = not self._near(self.ephemeris, eph, tow1)
+            cur = self.ephemeris
+            src = [self._sub[k][2] for k in (1, 2, 3)]      # bit indices of the subframes it was built from
+            if cur is not None:
+                # the same issue of data with other contents is a decoding error in one of the two (the
+                # control segment changes IODE / IODC with every upload); a far one is suspect too
+                same_iod = eph.iode == cur.iode and eph.iodc == cur.iodc
+                suspect = (same_iod and replace(eph, tx_time=cur.tx_time) != cur) or \
+                    not self._near(cur, eph, tow1)
             else:
                 suspect = self.first_check is not None and self.first_check(eph, tow, bit_index) is False
             if suspect:
                 if self._held is None or replace(self._held, tx_time=tow1) != eph:
                     self._held = eph                    # wait for a second reception of the same set
+                    self._held_src = max(src)
                     self.ephemerides_held += 1
+                    return
+                if min(src) <= self._held_src:
+                    # the held set assembled again with a subframe it was built from (the next subframe 1
+                    # or 3 completing the set with the same corrupted subframe 2): not a second reception
                     return
             self._held = None
             self.ephemeris = eph

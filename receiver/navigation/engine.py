@@ -215,11 +215,16 @@ class ChannelNav:
             return
         self.bit_offset = bit_offset
         sync = recs["state"] == STATE_BIT_SYNC
+        nc_from = self.noncoherent_from
+        if nc_from is not None:
+            # a vector channel coasting through an outage keeps demodulating: its epochs with the signal
+            # absent (the presence test zeroes C/N0) are noise - bits from them are a gap, not data
+            # (random words pass parity half the time with single-bit correction)
+            sync &= ~((recs["sample_index"] >= nc_from) & (recs["cn0_dbhz"] <= 0.0))
         if not sync.any():
             return
         r = recs[sync]
         bit_ms = self.bit_ms
-        nc_from = self.noncoherent_from
         # per bit index: the prompt sums over its two 10-ms halves (their sum decides a phase-locked bit,
         # both enter the differential detection) and the integration time (compiled, the sums bit-identical
         # to numpy's reduceat: receiver.navigation.bits_jit), then the bits in order (a few per chunk),

@@ -357,6 +357,32 @@ class NavSolver:
                     h_dop=h_dop, w=w[:ns], los=los, tau=tau, redundancy=len(resid) - h.shape[1],
                     az=az, el=el, iono=iono, tropo=tropo, rho_c=rho_c, iterations=it)
 
+    def _leave_one_out(self, s: _Sats, active, x, b, corrections, iono_utc, tow, aid, rejected):
+        """The WLS failed on the active satellites (no convergence, or converged far below the Earth's
+        surface): a grossly wrong range - a corrupted ephemeris putting a satellite thousands of km off -
+        drags the iteration away before the residual test can see it.  Leave each satellite out in turn and
+        keep the solution whose largest normalised residual is smallest; the satellite left out is marked
+        inactive and appended to ``rejected``.  Unaided, and only while at least 5 satellites remain (an
+        over-determined fix, so the choice is checked by the residuals); None when no subset converges."""
+        idx = np.flatnonzero(active)
+        if aid is not None or len(idx) < 6:
+            return None
+        best = None
+        for i in idx:
+            trial = active.copy()
+            trial[i] = False
+            sol = self._wls(s, trial, x, b, corrections, iono_utc, tow)
+            if sol is None or (corrections and sol["el"] is None):
+                continue
+            worst = float(np.max(np.abs(sol["norm_res"])))
+            if best is None or worst < best[0]:
+                best = (worst, i, sol)
+        if best is None:
+            return None
+        active[best[1]] = False
+        rejected.append(int(s.prn[best[1]]))
+        return best[2]
+
     # -------------------------------------------------------------------------------------
     def fix(self, week, rx_tow, observations, ephemerides, iono_utc=None, x0=None, aid: Aiding | None = None):
         """Position/velocity/time fix at receiver time rx_tow (receiver clock, s of week).
@@ -374,8 +400,11 @@ class NavSolver:
             return None
         n = len(s)
         active = np.ones(n, dtype=bool)
+        rejected = []
         if x0 is None or not np.all(np.isfinite(x0)) or np.linalg.norm(x0) < 5e6:
             first = self._wls(s, active, np.zeros(3), 0.0, False, iono_utc, rx_tow)
+            if first is None:
+                first = self._leave_one_out(s, active, np.zeros(3), 0.0, False, iono_utc, rx_tow, None, rejected)
             if first is None:
                 return None
             x, b = first["x"], first["b"]
@@ -386,9 +415,10 @@ class NavSolver:
         # elevation mask, from the first position
         _, el0 = azel(x, earth_rotation(s.pos, np.linalg.norm(s.pos - x, axis=1) / C_LIGHT))
         active &= el0 >= np.radians(self.elevation_mask_deg)
-        rejected = []
         while True:
             sol = self._wls(s, active, x, b, True, iono_utc, rx_tow, aid)
+            if sol is None or sol["el"] is None:
+                sol = self._leave_one_out(s, active, x, b, True, iono_utc, rx_tow, aid, rejected)
             if sol is None:
                 return None
             x, b = sol["x"], sol["b"]
