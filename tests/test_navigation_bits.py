@@ -155,3 +155,25 @@ def test_lock_guard_is_shorter_for_channels_the_presence_test_judges():
     assert not ch.locked_at(0.98 * fs, presence_cn0=33.0)     # 20 ms before: still excluded
     rec["cn0_dbhz"][rec["pll_lock"] > 0] = 30.0          # too weak for the presence test: the long guard
     assert not ch.locked_at(s, presence_cn0=33.0)
+
+
+def test_frequency_locked_epochs_without_signal_are_a_gap_not_bits(frames):
+    """A vector channel coasting through a total outage keeps producing prompts - noise, its C/N0 zeroed by
+    the presence test.  Demodulated, about half of the random words pass parity with single-bit correction
+    (issue 14, seed 2: a subframe 2 whose IODE word came before the outage gave a set 82 000 km off).  Those
+    epochs are a gap in the bit stream: no word is decoded from them; the subframes around decode."""
+    eph, bits = frames
+    rec = _records(bits, freq_hz=4.0, phase0=0.5, seed=8)
+    a, b = (1500 + 300 + 90) * BIT_MS, (1500 + 600) * BIT_MS        # frame 2, subframe 2 words 4-10
+    rng = np.random.default_rng(9)
+    for c in ("prompt1_i", "prompt1_q", "prompt2_i", "prompt2_q"):
+        rec[c][a:b] = 0.1 * rng.standard_normal(b - a)
+    rec["prompt_i"][a:b] = rec["prompt1_i"][a:b] + rec["prompt2_i"][a:b]
+    rec["prompt_q"][a:b] = rec["prompt1_q"][a:b] + rec["prompt2_q"][a:b]
+    rec["cn0_dbhz"][a:b] = 0.0
+    rec["pll_lock"][a:b] = 0
+    ch, events = _decode(rec, noncoherent_from=0)
+    assert ch.decoder.parity_failures == 0 and ch.decoder.words_corrected == 0
+    sf = [e.subframe_id for e in events if type(e).__name__ == "SubframeEvent"]
+    assert sf == [1, 2, 3, 4, 5, 1, 3, 4, 5]                    # all but the one with the gap
+    assert ch.decoder.ephemeris.sqrt_a == eph.sqrt_a and ch.decoder.ephemeris.crs == eph.crs
