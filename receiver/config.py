@@ -585,6 +585,9 @@ RECEIVER_SCHEMA = {
             "height_sigma_m": P(2.0, "float", "standard deviation of the predicted height right after an "
                                               "unaided fix", lo=1e-3),
             "height_rate_mps": P(0.5, "float", "its growth per second of age (vertical speed error)", lo=0.0),
+            "max_pdop": P(8.0, "float", "no aided fix when its PDOP (the constraints counted as pseudo-satellites) "
+                                        "exceeds this: 3 satellites nearly in a plane with the constraints "
+                                        "(urban canyon: PDOP 8-13, errors 12-25 m)", lo=1.0),
             "residual_threshold_m": P(15.0, "float", "an aided fix whose largest normalised residual "
                                                      "(satellite or constraint, m referred to a weight-1 "
                                                      "satellite) exceeds this drops that satellite while still "

@@ -165,3 +165,32 @@ def test_engine_predicts_the_clock_and_height_from_unaided_fixes(rx):
                            2.6e6, 0.0, 0)
     off._remember(10.0, fix(10.0))
     assert off._aiding(10.5) is None
+
+
+def test_aided_pdop_limit_refuses_the_weak_triples_only(brdc, rx):
+    """3 satellites with noisy ranges and noisy clock / height predictions: the aided fix's error grows with
+    its PDOP (constraints included).  Aiding.max_pdop (navigation.aiding.max_pdop) refuses exactly the fixes
+    above it - their errors are much larger than those of the fixes kept - and leaves the others unchanged."""
+    ephs, iono = brdc
+    solver = NavSolver(cfg())
+    kept, refused = [], []
+    for seed in range(3):
+        rx_tow, obs = simulate(ephs, iono, rx, bias_m=BIAS, drift_mps=DRIFT, sigma_m=2.0, seed=seed)
+        rng = np.random.default_rng(seed)
+        for sub in combinations(obs, 3):
+            kw = dict(clock_err=rng.normal(0, 1.0), height_err=rng.normal(0, 2.0), code_sigma_m=2.0)
+            f = solver.fix(WEEK, rx_tow, list(sub), ephs, iono, x0=rx + 30.0, aid=_aid(**kw))
+            g = solver.fix(WEEK, rx_tow, list(sub), ephs, iono, x0=rx + 30.0, aid=_aid(max_pdop=5.0, **kw))
+            if f is None:
+                assert g is None
+                continue
+            err = float(np.linalg.norm(f.ecef - rx))
+            if f.pdop > 5.0:
+                assert g is None
+                refused.append(err)
+            else:
+                assert g is not None and np.array_equal(g.ecef, f.ecef)
+                kept.append(err)
+    rms = lambda e: float(np.sqrt(np.mean(np.square(e))))   # noqa: E731
+    assert len(refused) >= 5 and len(kept) >= 100
+    assert rms(refused) > 1.8 * rms(kept), (rms(refused), rms(kept))

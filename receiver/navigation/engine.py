@@ -791,6 +791,7 @@ class NavigationEngine:
         h = np.array(self.aid_hist)
         dt = t_s - h[:, 0]
         aid = Aiding(code_sigma_m=c.code_sigma_m, residual_threshold_m=c.residual_threshold_m,
+                     max_pdop=getattr(c, "max_pdop", float("inf")),
                      rate_sigma_mps=c.rate_sigma_mps)
         w = 1.0 / h[:, 5] ** 2
         # the drift: the velocity of a fix from 3 Dopplers needs it (and the epoch placement a finite drift)

@@ -102,6 +102,7 @@ class Aiding:
     drift_mps: float | None = None      # predicted clock drift (velocity of a 3-satellite fix) ...
     drift_sigma_mps: float = 1.0
     rate_sigma_mps: float = 0.1         # ... against a weight-1 pseudorange rate of this standard deviation
+    max_pdop: float = float("inf")      # an aided fix whose PDOP (constraints included) exceeds this is refused
 
     def count(self) -> int:
         return int(self.clock_m is not None) + int(self.height_m is not None)
@@ -455,6 +456,8 @@ class NavSolver:
         pdop = float(np.sqrt(np.trace(q_enu)))
         gdop = float(np.sqrt(np.trace(q)))
         if not pdop <= self.max_pdop:       # geometry too weak for a usable position (e.g. 4 satellites in a line)
+            return None
+        if aid is not None and not pdop <= aid.max_pdop:    # the same for an aided fix (its own limit)
             return None
 
         # velocity and clock drift from Doppler
