@@ -28,7 +28,7 @@ from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
 from .config import RECEIVER_SCHEMA
 from .runfile.provenance import provenance
-from .runfile.writer import RunWriter
+from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
 from .gnss.satid import sat_label
@@ -465,7 +465,8 @@ def _writer(cfg, reader, out_path, fs, if_hz, reads):
         "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
         **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
         compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
-        round_columns=cfg.output.round_columns)
+        round_columns=cfg.output.round_columns,
+        chunk_rows=chunk_rows_for(reader.duration_s, cfg.output.channel_rate_hz))
 
 
 def check_meaning(cfg, reader):
