@@ -52,6 +52,14 @@ def _get_pool() -> ThreadPoolExecutor:
     return _pool
 
 
+def shutdown() -> None:
+    """Stop the pool's worker threads (a new pool starts on the next use)."""
+    global _pool, _pool_n
+    if _pool is not None:
+        _pool.shutdown(wait=True)
+        _pool, _pool_n = None, 0
+
+
 def map_ordered(fn, items: list) -> list:
     """[fn(x) for x in items], on the thread pool when more than one thread is allowed (results in the
     order of ``items``)."""
