@@ -27,7 +27,7 @@ from .source.io import SampleReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
 from .config import RECEIVER_SCHEMA
-from .runfile.provenance import provenance
+from .runfile.provenance import provenance_async
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
@@ -232,6 +232,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
+    prov = provenance_async()           # git / package versions on a thread while the input opens
     with stage("open input"):
         reader = open_input(cfg)
         out_path = default_output_path(cfg, cfg.input.path)
@@ -242,7 +243,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
             ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
     fs, if_hz = reader.fs, reader.if_hz
     with stage("write"):
-        writer = _writer(cfg, reader, out_path, fs, if_hz, reads)
+        writer = _writer(cfg, reader, out_path, fs, if_hz, reads, prov)
     if threads.threads() > 1:
         writer = BackgroundWriter(writer)      # HDF5 appends overlap tracking (same file, same order)
     ok = False
@@ -456,14 +457,14 @@ def _fork_stage(reader):
     return reader
 
 
-def _writer(cfg, reader, out_path, fs, if_hz, reads):
+def _writer(cfg, reader, out_path, fs, if_hz, reads, prov):
     return RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
         "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
         "input_if_hz": cfg.input.if_hz,
         "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
-        **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        **prov(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
         compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
         round_columns=cfg.output.round_columns,
         chunk_rows=chunk_rows_for(reader.duration_s, cfg.output.channel_rate_hz))

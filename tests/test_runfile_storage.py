@@ -172,3 +172,14 @@ def test_short_runs_get_small_chunks_and_read_back_alike(tmp_path):
                 assert np.isnan(v[2500]) if name == "doppler_hz" else True
             else:
                 assert np.array_equal(v, r[name], equal_nan=True), name
+
+
+def test_provenance_computed_on_a_thread_is_the_same(tmp_path):
+    """The pipeline starts the provenance attributes (package versions, git commit: subprocesses) on a
+    thread while the input opens: the same attributes as computed in line."""
+    from receiver.runfile.provenance import HASH_BYTES, provenance, provenance_async
+    f = tmp_path / "x.bin"
+    f.write_bytes(bytes(range(256)) * (HASH_BYTES // 128))
+    later = provenance_async()
+    want = provenance(f)
+    assert later(f) == want and want["input_size_bytes"] == 2 * HASH_BYTES
