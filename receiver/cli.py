@@ -25,6 +25,19 @@ from .logs import setup_cli  # noqa: E402
 
 class _Group(click.Group):
     def main(self, *args, **kwargs):
+        # the process's own command line: the console script or ``python -m receiver.cli`` (their __main__
+        # module calls this very group), no explicit arguments (click's test runner and scripts pass
+        # args=...), standalone (the exit status is the result); then the exit skips the teardown
+        process_entry = not args and "args" not in kwargs and kwargs.get("standalone_mode", True) and \
+            getattr(sys.modules.get("__main__"), "main", None) is self
+        try:
+            return self._main(*args, **kwargs)
+        except SystemExit as exc:
+            if process_entry:
+                _exit_now(exc.code)
+            raise
+
+    def _main(self, *args, **kwargs):
         import signal
         saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGXFSZ)}
         interrupt.install()
@@ -54,6 +67,39 @@ class _Group(click.Group):
             sig = exc if isinstance(exc, interrupt.Interrupted) else interrupt.Interrupted(2)
             click.echo(f"gnssrx: interrupted by {sig.name}; unfinished output files removed", err=True)
             ctx.exit(sig.exit_code)
+
+
+def _exit_now(code) -> None:
+    """End the process with ``sys.exit(code)``'s status without the interpreter's teardown of every module
+    (with numpy, numba / llvmlite and h5py loaded that teardown took 0.2-0.25 s of a quiet 1-s run, ~0.5 s
+    at load 9).  The command has finished: its files are closed and renamed.  The atexit handlers still run
+    (logging, HDF5, multiprocessing), the receiver's thread pool is shut down and stdout / stderr are
+    flushed first.  Returns (the caller raises SystemExit as usual) when another non-daemon thread is still
+    alive, or under a profiler, tracer or coverage (their results are written at the interpreter's exit)."""
+    import atexit
+    import threading
+    if sys.getprofile() is not None or sys.gettrace() is not None:
+        return
+    from . import threads
+    threads.shutdown()
+    if any(t is not threading.main_thread() and t.is_alive() and not t.daemon for t in threading.enumerate()):
+        return
+    if code is None:
+        status = 0
+    elif isinstance(code, int):
+        status = code & 0xFF
+    else:                                   # sys.exit("message"): printed, status 1
+        print(code, file=sys.stderr)
+        status = 1
+    try:
+        atexit._run_exitfuncs()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except Exception:  # noqa: BLE001 - a closed pipe: nothing more can be written anyway
+                pass
+        os._exit(status)
 
 
 class _StderrWarnings(logging.Handler):

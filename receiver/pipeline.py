@@ -27,8 +27,8 @@ from .source.io import SampleReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
 from .config import RECEIVER_SCHEMA
-from .runfile.provenance import provenance
-from .runfile.writer import RunWriter
+from .runfile.provenance import provenance_async
+from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
 from .gnss.satid import sat_label
@@ -232,6 +232,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
+    prov = provenance_async()           # git / package versions on a thread while the input opens
     with stage("open input"):
         reader = open_input(cfg)
         out_path = default_output_path(cfg, cfg.input.path)
@@ -242,7 +243,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
             ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
     fs, if_hz = reader.fs, reader.if_hz
     with stage("write"):
-        writer = _writer(cfg, reader, out_path, fs, if_hz, reads)
+        writer = _writer(cfg, reader, out_path, fs, if_hz, reads, prov)
     if threads.threads() > 1:
         writer = BackgroundWriter(writer)      # HDF5 appends overlap tracking (same file, same order)
     ok = False
@@ -456,16 +457,17 @@ def _fork_stage(reader):
     return reader
 
 
-def _writer(cfg, reader, out_path, fs, if_hz, reads):
+def _writer(cfg, reader, out_path, fs, if_hz, reads, prov):
     return RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
         "first_sample": reader.first, "n_samples": reader.n_samples,
         "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
         "input_if_hz": cfg.input.if_hz,
         "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
-        **provenance(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        **prov(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
         compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
-        round_columns=cfg.output.round_columns)
+        round_columns=cfg.output.round_columns,
+        chunk_rows=chunk_rows_for(reader.duration_s, cfg.output.channel_rate_hz))
 
 
 def check_meaning(cfg, reader):
@@ -539,6 +541,38 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
     vector = None
     handover = _vector_handover(cfg, channels, nav, fs, quiet) if cfg.vector.enabled else None
     bar = _progress(reader.duration_s, quiet)
+
+    def finish_chunk(end):
+        """The chunk's navigation epochs up to sample ``end`` (fixes, observables) and their bookkeeping."""
+        nonlocal n_fixes, first_fix, iono_from
+        with stage("navigation"):
+            fixes, obs = nav.update(end)
+        with stage("write"):
+            if vector is None:
+                writer.append_fixes(fixes)
+            else:
+                fixes = vfixes          # the summary counts the fixes that were written
+            writer.append_observables(obs)
+        if len(fixes):
+            n_fixes += len(fixes)
+            if first_fix is None:
+                first_fix = float(fixes["time_s"][0]) - reader.first / fs
+            codes, counts = np.unique(fixes["iono_params"], return_counts=True)
+            for c, k in zip(codes.tolist(), counts.tolist()):
+                iono_counts[c] = iono_counts.get(c, 0) + k
+            bc = np.flatnonzero(fixes["iono_params"] == IONO_BROADCAST)
+            if iono_from is None and len(bc):
+                iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
+            fix_ecef.append(fixes["ecef"])
+
+    # Scalar tracking on several threads: a chunk's navigation epochs (nav.update, the fixes) are computed
+    # on this thread while the pool tracks the next chunk.  The navigation engine's calls keep their order
+    # (records of chunk k, channel manager, epochs of chunk k, records of chunk k+1, ...) and so do the
+    # writer's: the same run file as one thread computing them in turn.  Not with the vector tracker (its
+    # handover reads the last fix before the chunk).
+    defer = nav is not None and handover is None and threads.threads() > 1
+    pending = None                          # end sample of the chunk whose navigation epochs are due
+    vfixes = None
     start = acq_start
     while start < reader.end:
         interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
@@ -559,8 +593,12 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
             # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
             with stage("tracking"):
                 items = list(channels.items())
-                recs_list = threads.map_ordered(lambda pc: pc[1].process(block, start), items)
-                block_recs = {prn: r for (prn, _), r in zip(items, recs_list)}
+                job = threads.submit_ordered(lambda pc, b=block, s0=start: pc[1].process(b, s0), items)
+            if pending is not None:             # the previous chunk's epochs, while the pool tracks
+                finish_chunk(pending)
+                pending = None
+            with stage("tracking"):
+                block_recs = {prn: r for (prn, _), r in zip(items, job())}
         for prn, ch in list(channels.items()):
             recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
             with stage("write"):
@@ -584,28 +622,15 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
             with stage("re-acquisition"):
                 manager.after_chunk(start, start + chunk)
         if nav is not None:
-            with stage("navigation"):
-                fixes, obs = nav.update(start + chunk)
-            with stage("write"):
-                if vector is None:
-                    writer.append_fixes(fixes)
-                else:
-                    fixes = vfixes          # the summary counts the fixes that were written
-                writer.append_observables(obs)
-            if len(fixes):
-                n_fixes += len(fixes)
-                if first_fix is None:
-                    first_fix = float(fixes["time_s"][0]) - reader.first / fs
-                codes, counts = np.unique(fixes["iono_params"], return_counts=True)
-                for c, k in zip(codes.tolist(), counts.tolist()):
-                    iono_counts[c] = iono_counts.get(c, 0) + k
-                bc = np.flatnonzero(fixes["iono_params"] == IONO_BROADCAST)
-                if iono_from is None and len(bc):
-                    iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
-                fix_ecef.append(fixes["ecef"])
+            if defer:
+                pending = start + chunk
+            else:
+                finish_chunk(start + chunk)
         start += chunk
         if bar is not None:
             bar.update(round(min(chunk, reader.end - start + chunk) / fs, 3))
+    if pending is not None:
+        finish_chunk(pending)
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_wall

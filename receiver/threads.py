@@ -42,16 +42,40 @@ def threads() -> int:
     return cores()
 
 
-def map_ordered(fn, items: list) -> list:
-    """[fn(x) for x in items], on the thread pool when more than one thread is allowed (results in the
-    order of ``items``)."""
+def _get_pool() -> ThreadPoolExecutor:
     global _pool, _pool_n
-    n = min(threads(), len(items))
-    if n <= 1:
-        return [fn(x) for x in items]
     if _pool is None or _pool_n != threads():
         if _pool is not None:
             _pool.shutdown(wait=True)
         _pool_n = threads()
         _pool = ThreadPoolExecutor(max_workers=_pool_n, thread_name_prefix="gnssrx-track")
-    return list(_pool.map(fn, items))
+    return _pool
+
+
+def shutdown() -> None:
+    """Stop the pool's worker threads (a new pool starts on the next use)."""
+    global _pool, _pool_n
+    if _pool is not None:
+        _pool.shutdown(wait=True)
+        _pool, _pool_n = None, 0
+
+
+def map_ordered(fn, items: list) -> list:
+    """[fn(x) for x in items], on the thread pool when more than one thread is allowed (results in the
+    order of ``items``)."""
+    n = min(threads(), len(items))
+    if n <= 1:
+        return [fn(x) for x in items]
+    return list(_get_pool().map(fn, items))
+
+
+def submit_ordered(fn, items: list):
+    """Start [fn(x) for x in items] on the thread pool and return a callable that waits for the list
+    (in the order of ``items``), so that the caller can work meanwhile.  With one thread (or one item)
+    the list is computed here, before returning."""
+    n = min(threads(), len(items))
+    if n <= 1:
+        res = [fn(x) for x in items]
+        return lambda: res
+    futs = [_get_pool().submit(fn, x) for x in items]
+    return lambda: [f.result() for f in futs]

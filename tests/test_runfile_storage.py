@@ -144,3 +144,42 @@ def test_fix_iono_params_column_reads_back_and_old_files_read_unknown(tmp_path):
     with RunFile(tmp_path / "new.h5") as rf:
         old = rf.fixes()
     assert np.all(old["iono_params"] == IONO_UNKNOWN) and np.array_equal(old["time_s"], fixes["time_s"])
+
+
+def test_short_runs_get_small_chunks_and_read_back_alike(tmp_path):
+    """The pipeline sizes the chunks from the run's duration (writer.chunk_rows_for): a 1-s run's datasets
+    hold one 2048-row chunk each, not a 16384-row one padded with fill; the values read back as with the
+    default chunks (rounded columns within half a step, the others exact, a NaN after the first chunks
+    kept)."""
+    from receiver.runfile.writer import CHUNK_ROWS, chunk_rows_for
+    assert chunk_rows_for(1.0) == 2048 and chunk_rows_for(0.5) == 1024
+    assert chunk_rows_for(10.0) == 16384 and chunk_rows_for(3600.0) == CHUNK_ROWS == chunk_rows_for(None)
+    assert chunk_rows_for(60.0, channel_rate_hz=50.0) == 4096     # 3000 stored records per channel
+    r = _records(3000, 3)
+    r["doppler_hz"][2500] = np.nan
+    w = RunWriter(tmp_path / "short.h5", "{}", {"sample_rate_hz": 2.6e6}, compression="gzip", chunk_rows=1024)
+    for k in range(0, 3000, 500):
+        w.append_channel(5, r[k:k + 500])
+    w.close()
+    with h5py.File(tmp_path / "short.h5") as f:
+        g = f["channels/G05"]
+        for name in EPOCH_DTYPE.names:
+            assert g[name].chunks == (1024,), name
+            v = g[name][:]
+            if name in ROUNDED_DIGITS:
+                ok = np.isfinite(r[name])
+                assert np.all(np.abs(v[ok] - r[name][ok]) <= 0.5 * 10.0 ** -ROUNDED_DIGITS[name] * 1.0001), name
+                assert np.isnan(v[2500]) if name == "doppler_hz" else True
+            else:
+                assert np.array_equal(v, r[name], equal_nan=True), name
+
+
+def test_provenance_computed_on_a_thread_is_the_same(tmp_path):
+    """The pipeline starts the provenance attributes (package versions, git commit: subprocesses) on a
+    thread while the input opens: the same attributes as computed in line."""
+    from receiver.runfile.provenance import HASH_BYTES, provenance, provenance_async
+    f = tmp_path / "x.bin"
+    f.write_bytes(bytes(range(256)) * (HASH_BYTES // 128))
+    later = provenance_async()
+    want = provenance(f)
+    assert later(f) == want and want["input_size_bytes"] == 2 * HASH_BYTES

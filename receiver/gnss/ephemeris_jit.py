@@ -119,7 +119,7 @@ def _orbit(p, t, pos, vel, ek_out, edot_out):
         edot_out[i] = e_dot
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)       # holds the GIL: see receiver/navigation/bits_jit.py
 def _states(p, t_sv):
     n_sat = p.shape[0]
     pos = np.empty((n_sat, 3))

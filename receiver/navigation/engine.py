@@ -27,7 +27,7 @@ from ..runfile.record import STATE_BIT_SYNC
 from ..gnss.signals import C_LIGHT, GPS_L1CA
 from ..gnss.lnav import LnavDecoder, SubframeEvent
 from .bits_jit import bit_segments
-from .pvt import Aiding, NavSolver, Observation
+from .pvt import Aiding, NavSolver, Observation, vnorm
 from .pvt_filter import make_pvt_filter
 
 BIT_MS = 20
@@ -645,9 +645,9 @@ class NavigationEngine:
         _, fix = self.last_fix
         pos, vel, _, _ = sat_state(eph, t - 0.075)
         d = np.asarray(pos, float) - np.asarray(fix.ecef, float)
-        rng = float(np.linalg.norm(d))
+        rng = vnorm(d)
         u = d / rng
-        up = np.asarray(fix.ecef, float) / float(np.linalg.norm(fix.ecef))     # geocentric (within 0.2 deg)
+        up = np.asarray(fix.ecef, float) / vnorm(fix.ecef)     # geocentric (within 0.2 deg)
         el = math.degrees(math.asin(max(-1.0, min(1.0, float(u @ up)))))
         return float(u @ np.asarray(vel, float)), el, rng
 
@@ -758,7 +758,7 @@ class NavigationEngine:
             if eph is None:
                 continue
             pos = sat_state(eph, self.gps_time(s) - 0.075)[0]
-            rng = float(np.linalg.norm(pos - fix.ecef))
+            rng = vnorm(np.asarray(pos, float) - np.asarray(fix.ecef, float))
             guess = rx_tow - (rng + fix.clock_bias_m) / C_LIGHT
             off, _ = ch.offset_candidates(s, guess)
             if off is not None:

@@ -24,6 +24,36 @@ from .wls_jit import WEIGHTING, linearise
 from ..gnss.time import normalize_week_tow, wrap_week_seconds
 
 
+def vnorm(v) -> float:
+    """np.linalg.norm of a 1-D vector, the same value (the square root of the same BLAS dot product:
+    ``v @ v``), but without releasing the GIL: ndarray.dot releases it around the BLAS call, and on the
+    main thread, with the writer / read-ahead / tracking threads running, taking it back waited out the
+    interpreter's 5-ms switch interval (~1 ms per call on average, ~1000 calls in a 20-s run)."""
+    v = np.asarray(v, dtype=float)
+    if v.ndim != 1:
+        return float(np.linalg.norm(v))
+    return math.sqrt(v @ v)
+
+
+def _median_small(a) -> float:
+    """np.median of a short 1-D array, the same value (the middle element, or the mean (x + y) / 2 of the
+    two middle ones), computed on a Python list: np.median's partition releases the GIL (see vnorm)."""
+    v = np.asarray(a, dtype=float).ravel().tolist()
+    if not v or any(x != x for x in v):           # empty or NaN: numpy's own answer
+        return float(np.median(a))
+    v.sort()
+    m = len(v) // 2
+    return v[m] if len(v) % 2 else (v[m - 1] + v[m]) / 2
+
+
+def _argmax_abs(a) -> int:
+    """np.argmax(np.abs(a)) of a short 1-D array (the first largest), without releasing the GIL."""
+    v = np.abs(np.asarray(a, dtype=float)).tolist()
+    if any(x != x for x in v):
+        return int(np.argmax(np.abs(a)))
+    return v.index(max(v))
+
+
 @dataclass
 class Observation:
     """One satellite's measurements at a receiver epoch.
@@ -281,7 +311,7 @@ class NavSolver:
         diff = pos - x
         rng = np.linalg.norm(diff, axis=1)
         los = diff / rng[:, None]
-        known = np.linalg.norm(x) > 5.0e6
+        known = vnorm(x) > 5.0e6
         if known:
             az, el = azel(x, pos)
         else:
@@ -338,7 +368,7 @@ class NavSolver:
             x = x + dx[:3]
             b = b + dx[3]
             isb = isb + dx[4:]
-            if np.linalg.norm(dx) < self.CONVERGED_M:
+            if vnorm(dx) < self.CONVERGED_M:
                 break
         else:
             return None
@@ -402,7 +432,7 @@ class NavSolver:
         n = len(s)
         active = np.ones(n, dtype=bool)
         rejected = []
-        if x0 is None or not np.all(np.isfinite(x0)) or np.linalg.norm(x0) < 5e6:
+        if x0 is None or not np.all(np.isfinite(x0)) or vnorm(x0) < 5e6:
             first = self._wls(s, active, np.zeros(3), 0.0, False, iono_utc, rx_tow)
             if first is None:
                 first = self._leave_one_out(s, active, np.zeros(3), 0.0, False, iono_utc, rx_tow, None, rejected)
@@ -412,7 +442,7 @@ class NavSolver:
         else:
             x = np.asarray(x0, dtype=float).copy()
             d = np.linalg.norm(earth_rotation(s.pos, 0.075) - x, axis=1)
-            b = float(np.median(s.rho + C_LIGHT * s.clk - d))
+            b = _median_small(s.rho + C_LIGHT * s.clk - d)
         # elevation mask, from the first position
         _, el0 = azel(x, earth_rotation(s.pos, np.linalg.norm(s.pos - x, axis=1) / C_LIGHT))
         active &= el0 >= np.radians(self.elevation_mask_deg)
@@ -425,7 +455,7 @@ class NavSolver:
             x, b = sol["x"], sol["b"]
             if sol["el"] is None:            # converged far below the Earth's surface: no fix
                 return None
-            k = int(np.argmax(np.abs(sol["norm_res"])))
+            k = _argmax_abs(sol["norm_res"])
             if aid is None:
                 if np.sum(active) > 5 and abs(sol["norm_res"][k]) > self.residual_threshold_m:
                     active[sol["idx"][k]] = False

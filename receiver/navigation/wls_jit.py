@@ -32,7 +32,7 @@ def _polyval(x, c):
     return v
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)       # holds the GIL: see receiver/navigation/bits_jit.py
 def linearise(pos_tx, x, b, rho_c, cn0, ura, known, corr, lat_deg, lon_deg, h_m, iono_on, alpha, beta, tow,
               tropo_on, weighting, tropo_none):
     """-> (tau, los, az, el, iono, tropo, w, resid_without_isb, h4) for the satellites pos_tx (n, 3).

@@ -7,6 +7,7 @@ import hashlib
 import json
 import os
 import subprocess
+import threading
 from importlib import metadata
 
 PACKAGES = ("numpy", "scipy", "numba", "h5py", "pyyaml", "click")
@@ -47,3 +48,28 @@ def input_provenance(path) -> dict:
 
 def provenance(input_path) -> dict:
     return {"package_versions": package_versions(), "git_commit": git_commit(), **input_provenance(input_path)}
+
+
+def provenance_async():
+    """Start :func:`package_versions` and :func:`git_commit` on a thread (git runs as two subprocesses,
+    20-50 ms of wall that the run's start-up need not wait for); returns ``result(input_path)``, which
+    waits for them and gives the :func:`provenance` dict."""
+    out: dict = {}
+
+    def work():
+        try:
+            out["package_versions"] = package_versions()
+            out["git_commit"] = git_commit()
+        except BaseException as exc:  # noqa: BLE001 - raised again in the caller
+            out["error"] = exc
+
+    t = threading.Thread(target=work, name="gnssrx-provenance", daemon=True)
+    t.start()
+
+    def result(input_path) -> dict:
+        t.join()
+        if "error" in out:
+            raise out["error"]
+        return {"package_versions": out["package_versions"], "git_commit": out["git_commit"],
+                **input_provenance(input_path)}
+    return result
