@@ -82,11 +82,13 @@ class ChannelNav:
     (:meth:`NavigationEngine._resolve_from_fix`) or frame sync.
     """
 
-    def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float, signal=None):
-        self.prn = prn
+    def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float, signal=None,
+                 sig_prn: int | None = None):
+        self.prn = prn              # the engine's key (a run over several signals: receiver.gnss.satid.sat_key)
+        self.sig_prn = prn if sig_prn is None else sig_prn     # the signal's PRN (code, message type)
         sig = signal if signal is not None else GPS_L1CA
         self.signal = sig
-        self.bit_ms = sig.bit_ms(prn)             # LNAV / BeiDou D1: 20 ms; BeiDou D2: 2 ms
+        self.bit_ms = sig.bit_ms(self.sig_prn)    # LNAV / BeiDou D1: 20 ms; BeiDou D2: 2 ms
         self.chip_rate = sig.chip_rate
         self.wavelength = C_LIGHT / sig.carrier_hz
         self.decoder = self._new_decoder(week_hint)
@@ -125,8 +127,8 @@ class ChannelNav:
         """LNAV for L1 C/A (GPS, QZSS); D1/D2 for BeiDou B1I (receiver.gnss.bds_nav)."""
         if self.signal.system == "C":
             from ..gnss.bds_nav import BdsDecoder
-            return BdsDecoder(self.prn, week_hint=week_hint, geo=self.bit_ms != BIT_MS)
-        return LnavDecoder(self.prn, week_hint=week_hint)
+            return BdsDecoder(self.sig_prn, week_hint=week_hint, geo=self.bit_ms != BIT_MS)
+        return LnavDecoder(self.sig_prn, week_hint=week_hint)
 
     def suspend(self):
         """The channel lost the signal: keep the memory; the track's records stay for the epochs before the
@@ -452,7 +454,8 @@ class ChannelNav:
 
 class NavigationEngine:
     def __init__(self, nav_cfg, fs: float, if_hz: float, first_sample: int, ephemerides=None,
-                 iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None, signal=None):
+                 iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None, signal=None,
+                 signals=None):
         self.cfg = nav_cfg
         self.fs = fs
         self.if_hz = if_hz
@@ -462,6 +465,9 @@ class NavigationEngine:
         self.pvt_filter = make_pvt_filter(nav_cfg)     # navigation.filter ekf|ckf (None: wls)
         self.channels: dict[int, ChannelNav] = {}
         self.signal = signal                # SignalDef of the channels (None: GPS L1 C/A)
+        # a run over several signals: RINEX letter of the signal -> (SignalDef, IF Hz of its stream); the
+        # channels are then keyed by receiver.gnss.satid.sat_key and the fixes solve an inter-system bias
+        self.signals = dict(signals) if signals else None
         self.assisted = ephemerides is not None
         self.rinex_ephs = ephemerides or {}
         self.iono_utc = iono_utc            # the RINEX header's Klobuchar / UTC set (assisted mode), or None
@@ -491,7 +497,13 @@ class NavigationEngine:
 
     def channel(self, prn: int) -> ChannelNav:
         if prn not in self.channels:
-            ch = self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
+            if self.signals:
+                from ..gnss.satid import split_key
+                letter, sig_prn = split_key(prn)
+                sig, if_hz = self.signals[letter]
+                ch = self.channels[prn] = ChannelNav(prn, self.week_hint, if_hz, self.fs, sig, sig_prn)
+            else:
+                ch = self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
             ch.decoder.first_check = lambda eph, tow, bit_index, ch=ch: self._first_ephemeris_ok(
                 ch, eph, tow, bit_index)
         return self.channels[prn]
@@ -591,7 +603,9 @@ class NavigationEngine:
         by any channel; None while none is known."""
         if self.iono_utc is not None and (any(self.iono_utc.alpha) or any(self.iono_utc.beta)):
             return self.iono_utc
-        for ch in self.channels.values():
+        # (several signals: GPS keys first, so the GPS set wins over BeiDou's once both are decoded)
+        for ch in (self.channels.values() if not self.signals else
+                   (c for _, c in sorted(self.channels.items()))):
             if ch.decoder.iono_utc is not None:
                 return ch.decoder.iono_utc
         return None

@@ -1,0 +1,69 @@
+"""One run over several signals (issue 21): GPS L1 C/A + BeiDou B1I from one wideband recording (complex, 20 MS/s,
+centred between L1 and B1I), satellite keys (BeiDou PRN p -> 400 + p), the config checks."""
+import h5py
+import numpy as np
+import pytest
+
+from receiver.config import load_receiver_config, run_signals, signal_prns
+from receiver.errors import UserError
+from receiver.gnss.satid import MIXED, parse_label, sat_key, sat_label, sat_system, split_key
+
+REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def test_satellite_keys():
+    assert sat_key("C", 12) == 412 and sat_key("G", 12) == 12 and sat_key("G", 193) == 193
+    assert split_key(412) == ("C", 12) and split_key(5) == ("G", 5) and split_key(195) == ("G", 195)
+    assert [sat_label(k, MIXED) for k in (5, 195, 412)] == ["G05", "J03", "C12"]
+    assert [sat_system(k, MIXED) for k in (5, 195, 412)] == ["G", "J", "C"]
+    assert sat_label(12, "C") == "C12" and parse_label("C12") == ("C", 12)
+
+
+def test_signals_config():
+    cfg = load_receiver_config(REPO / "configs/gps_bds_nav.yaml")
+    assert run_signals(cfg) == ["gps_l1ca", "bds_b1i"]
+    assert signal_prns(cfg, "gps_l1ca") == list(range(1, 33))
+    assert signal_prns(cfg, "bds_b1i") == list(range(1, 38))
+    cfg = load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["acquisition.prns_by_signal={bds_b1i: [6, 7]}"])
+    assert signal_prns(cfg, "bds_b1i") == [6, 7]
+    assert run_signals(load_receiver_config(None)) == ["gps_l1ca"]          # `signals` empty: `signal`
+    for bad, msg in ((["signals=[gps_l1ca, gal_e1]"], "signals"), (["signals=[gps_l1ca, gps_l1ca]"], "twice"),
+                     (["acquisition.prns_by_signal={bds_b1i: [40]}"], "prns_by_signal.bds_b1i"),
+                     (["acquisition.prns_by_signal={gal_e1: [1]}"], "not one of the run's signals"),
+                     (["vector.enabled=true"], "vector.enabled")):
+        with pytest.raises(UserError, match=msg):
+            load_receiver_config(REPO / "configs/gps_bds_nav.yaml", bad)
+
+
+@pytest.fixture(scope="module")
+def wideband(tmp_path_factory):
+    """1.5 s of GPS G11, G24 and BeiDou C04 (GEO, D2), C08 (IGSO, D1) in one 20 MS/s recording, and its run."""
+    from receiver.pipeline import run
+    from receiver.sim.simulate import simulate
+    d = tmp_path_factory.mktemp("multi")
+    out = d / "gb.bin"
+    simulate(str(REPO / "configs/scenarios/gps_bds_static_tokyo.yaml"), str(out),
+             overrides=["time.duration_s=1.5", "constellation.prns=[11, 24, 404, 408]"], progress=False)
+    cfg = load_receiver_config(REPO / "configs/gps_bds_nav.yaml",
+                               [f"input.path={out}", f"output.path={d / 'gb.h5'}", "acquisition.prns=[11, 24]",
+                                "acquisition.prns_by_signal={bds_b1i: [4, 8]}", "navigation.enabled=false"])
+    summary = run(cfg, quiet=True, log=lambda *a: None)
+    return d, out, summary
+
+
+def test_one_run_tracks_both_systems(wideband):
+    d, out, summary = wideband
+    assert summary.tracked == [11, 24, 404, 408] and summary.system == MIXED
+    assert "G11(" in summary.text() and "C04(" in summary.text()
+    with h5py.File(d / "gb.h5", "r") as f, h5py.File(str(out)[:-4] + ".truth.h5", "r") as t:
+        assert f.attrs["system"] == "M" and f.attrs["signals"] == "gps_l1ca,bds_b1i"
+        assert sorted(f["channels"]) == ["C04", "C08", "G11", "G24"]
+        assert sorted(set(f["acquisition"]["prn"][:].tolist())) == [11, 24, 404, 408]
+        for name, t_int in (("G11", 5), ("G24", 5), ("C04", 2), ("C08", 5)):
+            g = f["channels"][name]
+            assert g.attrs["prn"] == parse_label(name)[1] + (400 if name[0] == "C" else 0)
+            assert g["integration_ms"][-1] == t_int            # GPS / D1 (NH wiped): 5 ms; D2: 2 ms symbols
+            assert g["cn0_dbhz"][-1] > 41.0                    # 45 dB-Hz simulated
+            # each signal's channels see their own IF: the Doppler is the truth's (GPS at +7.161 MHz,
+            # BeiDou at -7.161 MHz in the file)
+            assert abs(g["doppler_hz"][-1] - t["satellites"][name]["doppler_hz"][-1]) < 5.0
