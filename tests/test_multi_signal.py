@@ -67,3 +67,33 @@ def test_one_run_tracks_both_systems(wideband):
             # each signal's channels see their own IF: the Doppler is the truth's (GPS at +7.161 MHz,
             # BeiDou at -7.161 MHz in the file)
             assert abs(g["doppler_hz"][-1] - t["satellites"][name]["doppler_hz"][-1]) < 5.0
+
+
+def test_mixed_run_file_ephemerides(tmp_path):
+    """A run over several signals stores GPS and BeiDou ephemerides in two tables and reads them back with their
+    classes; their satellite keys are the observables' ones; the RINEX navigation file names both systems."""
+    from receiver.gnss.bds_ephemeris import BdsEphemeris
+    from receiver.gnss.ephemeris import Ephemeris
+    from receiver.gnss.rinex import write_rinex_nav
+    from receiver.runfile.reader import load_run
+    from receiver.runfile.writer import RunWriter
+    from receiver.sim.bds_constellation import bds_nominal_ephemerides
+    from receiver.sim.constellation import load_constellation
+    gps = load_constellation("embedded", None, str(REPO / "data/gps_nominal_constellation.yaml"), 2300, 345600.0,
+                             345620.0).ephemerides
+    bds, _ = bds_nominal_ephemerides(str(REPO / "data/bds_nominal_constellation.yaml"), 2300, 345600.0)
+    ephs = {5: gps[5], 12: gps[12], 405: bds[5], 412: bds[12]}
+    w = RunWriter(tmp_path / "m.h5", "{}", {"sample_rate_hz": 8e6, "system": MIXED})
+    w.write_ephemerides(ephs)
+    w.close()
+    with h5py.File(tmp_path / "m.h5", "r") as f:
+        assert list(f["ephemeris/prn"][:]) == [5, 12] and list(f["ephemeris_bds/prn"][:]) == [5, 12]
+    run = load_run(tmp_path / "m.h5")
+    got = {run.eph_key(e): e for e in run.ephemerides}
+    assert sorted(got) == [5, 12, 405, 412]
+    assert type(got[405]) is BdsEphemeris and type(got[5]) is Ephemeris
+    for k in ephs:
+        assert got[k].sqrt_a == pytest.approx(ephs[k].sqrt_a, rel=1e-12) and got[k].toe == ephs[k].toe
+    write_rinex_nav(tmp_path / "m.nav", run.ephemerides, system=run.system)
+    labels = sorted({ln[:3] for ln in open(tmp_path / "m.nav") if ln[:1] in "GC" and ln[1:3].isdigit()})
+    assert labels == ["C05", "C12", "G05", "G12"] and "M: MIXED" in open(tmp_path / "m.nav").readline()

@@ -96,7 +96,7 @@ def run_info(path) -> dict:
     info["ephemerides"] = sorted({int(run.eph_key(e)) for e in run.ephemerides})
     from ..gnss.satid import SYSTEM_NAMES, sat_system
     prns = set(info["observables"]["prns"]) | {int(p) for p in info.get("acquisition", {}).get("detected_prns", [])}
-    letters = sorted({sat_system(p, run.system) for p in prns} or {run.system}, key="GCEJ".index)
+    letters = sorted({sat_system(p, run.system) for p in prns} or {sat_system(1, run.system)}, key="GCEJ".index)
     info["systems"] = [SYSTEM_NAMES[c] for c in letters]
     info["config"] = run.attrs.get("config", "")
     return info
