@@ -97,3 +97,15 @@ def test_mixed_run_file_ephemerides(tmp_path):
     write_rinex_nav(tmp_path / "m.nav", run.ephemerides, system=run.system)
     labels = sorted({ln[:3] for ln in open(tmp_path / "m.nav") if ln[:1] in "GC" and ln[1:3].isdigit()})
     assert labels == ["C05", "C12", "G05", "G12"] and "M: MIXED" in open(tmp_path / "m.nav").readline()
+
+
+def test_signal_outside_the_band_is_refused(tmp_path):
+    """A second signal that falls outside the recording's band (narrowband L1 file, B1I 14.3 MHz below): one
+    clear error, no run file."""
+    from receiver.pipeline import run
+    (tmp_path / "l1.bin").write_bytes(bytes(2 * 5000 * 20))          # 20 ms of int8 I/Q at 5 MS/s
+    cfg = load_receiver_config(None, [f"input.path={tmp_path / 'l1.bin'}", "input.sample_rate_hz=5e6",
+                                      f"output.path={tmp_path / 'r.h5'}", "signals=[gps_l1ca, bds_b1i]"])
+    with pytest.raises(UserError, match="bds_b1i would sit at IF -14.322 MHz"):
+        run(cfg, quiet=True, log=lambda *a: None)
+    assert not list(tmp_path.glob("r.h5*"))
