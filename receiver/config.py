@@ -281,6 +281,10 @@ RECEIVER_SCHEMA = {
                       choices=("sign_magnitude", "twos_complement", "offset_binary")),
         "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
         "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
+        "signal_files": P({}, "dict", "runs over several signals recorded into one file per signal at the same "
+                                      "instant: signal name -> {path, if_hz} of that signal's file (same format "
+                                      "and sample rate as input.path, which holds the first signal); a signal "
+                                      "not listed is read from input.path"),
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
         "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and decimate by this "
                                      "integer factor before acquisition and tracking (auto: the largest factor "
@@ -780,6 +784,11 @@ def load_receiver_config(path=None, overrides=None) -> Section:
     for sec, key in PATH_KEYS:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
             raw[sec][key] = resolve_path(raw[sec][key], path)
+    files = raw.get("input", {}).get("signal_files") if isinstance(raw.get("input"), dict) else None
+    if isinstance(files, dict):
+        for v in files.values():
+            if isinstance(v, dict) and isinstance(v.get("path"), str):
+                v["path"] = resolve_path(v["path"], path)
     cfg = build(RECEIVER_SCHEMA, raw, overrides)
     validate_receiver(cfg)
     return cfg
@@ -844,6 +853,15 @@ def validate_receiver(cfg: Section) -> Section:
     if bad:
         raise UserError(f"config key 'acquisition.prns': signal {sigs[0]} has no PRN {bad[0]} "
                         f"({_prn_text(sigs[0])})")
+    for name, v in (i.signal_files or {}).items():
+        if name not in sigs[1:]:
+            raise UserError(f"config key 'input.signal_files': {name!r} is not one of the run's signals after the "
+                            f"first ({', '.join(sigs[1:]) or 'none'}; the first is read from input.path)")
+        if not isinstance(v, dict) or set(v) - {"path", "if_hz"} or not isinstance(v.get("path"), str) or \
+                isinstance(v.get("if_hz", 0.0), bool) or not isinstance(v.get("if_hz", 0.0), (int, float)) or \
+                abs(v.get("if_hz", 0.0)) >= half:
+            raise UserError(f"config key 'input.signal_files.{name}' must be {{path: FILE, if_hz: HZ}} with "
+                            f"|if_hz| < sample_rate_hz/2, got {v!r}")
     by = cfg.acquisition.prns_by_signal or {}
     for name, lst in by.items():
         if name not in sigs:

@@ -131,9 +131,13 @@ def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None
     first, sig = get_signal(sigs[0]), get_signal(name or sigs[0])
     apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items() if hasattr(v, "default")},
                    first.carrier_hz)                            # SigMF .sigmf-meta beside the file
-    reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
-                          header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
-    if_hz = i.if_hz + (sig.carrier_hz - first.carrier_hz)
+    own = (i.signal_files or {}).get(sig.name)                  # a file of its own (input.signal_files)
+    reader = SampleReader(own["path"] if own else i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s,
+                          i.iq_swap, header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
+    if own:
+        if_hz = float(own.get("if_hz", 0.0))
+    else:
+        if_hz = i.if_hz + (sig.carrier_hz - first.carrier_hz)
     if sig is not first and not (abs(if_hz) < reader.fs / 2 and (if_hz > 0 or reader.format.complex)):
         raise UserError(f"signal {sig.name} would sit at IF {if_hz / 1e6:+.3f} MHz (input.if_hz + its carrier - "
                         f"{first.name}'s), outside the {reader.fs / 1e6:g} MS/s band: a wider recording "
@@ -510,7 +514,8 @@ def _reads(cfg, out_path, reader, extra) -> list:
     the run file (output.rinex, nmea, ...) must not overwrite one of them either."""
     from .runfile.outputs import KINDS, _enabled, output_paths
     from .safeio import _samefile
-    reads = [reader.path, cfg.navigation.ephemeris, *extra]
+    reads = [reader.path, cfg.navigation.ephemeris, *extra,
+             *(v.get("path") for v in (cfg.input.signal_files or {}).values() if isinstance(v, dict))]
     paths = output_paths(out_path)
     for kind in KINDS:
         if _enabled(cfg.output, kind):

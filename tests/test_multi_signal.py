@@ -109,3 +109,30 @@ def test_signal_outside_the_band_is_refused(tmp_path):
     with pytest.raises(UserError, match="bds_b1i would sit at IF -14.322 MHz"):
         run(cfg, quiet=True, log=lambda *a: None)
     assert not list(tmp_path.glob("r.h5*"))
+
+
+def test_one_file_per_signal(tmp_path):
+    """GPS and BeiDou recorded into two files at the same instant (same clock, 5 MS/s complex baseband each):
+    input.signal_files gives the B1I file; both systems are tracked in one run at their own Dopplers."""
+    from receiver.pipeline import run
+    from receiver.sim.simulate import simulate
+    common = ["time.duration_s=1.5", "frontend.sample_rate_hz=5e6", "frontend.if_hz=0.0"]
+    simulate(str(REPO / "configs/scenarios/gps_bds_static_tokyo.yaml"), str(tmp_path / "l1.bin"),
+             overrides=common + ["signals=[]", "constellation.prns=[11, 24]"], progress=False)
+    simulate(str(REPO / "configs/scenarios/bds_static_tokyo.yaml"), str(tmp_path / "b1.bin"),
+             overrides=common + ["constellation.prns=[4, 8]"], progress=False)
+    cfg = load_receiver_config(REPO / "configs/gps_bds_nav.yaml", [
+        f"input.path={tmp_path / 'l1.bin'}", "input.sample_rate_hz=5e6", "input.if_hz=0.0",
+        f"input.signal_files={{bds_b1i: {{path: {tmp_path / 'b1.bin'}, if_hz: 0.0}}}}",
+        f"output.path={tmp_path / 'r.h5'}", "acquisition.prns=[11, 24]", "acquisition.prns_by_signal={bds_b1i: [4, 8]}",
+        "navigation.enabled=false"])
+    summary = run(cfg, quiet=True, log=lambda *a: None)
+    assert summary.tracked == [11, 24, 404, 408]
+    with h5py.File(tmp_path / "r.h5", "r") as f:
+        for name, truth in (("G11", "l1"), ("G24", "l1"), ("C04", "b1"), ("C08", "b1")):
+            with h5py.File(tmp_path / f"{truth}.truth.h5", "r") as t:
+                g = f["channels"][name]
+                assert g["cn0_dbhz"][-1] > 41.0
+                assert abs(g["doppler_hz"][-1] - t["satellites"][name]["doppler_hz"][-1]) < 5.0
+    with pytest.raises(UserError, match="signal_files"):
+        load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["input.signal_files={gps_l1ca: {path: x}}"])
