@@ -136,3 +136,15 @@ def test_one_file_per_signal(tmp_path):
                 assert abs(g["doppler_hz"][-1] - t["satellites"][name]["doppler_hz"][-1]) < 5.0
     with pytest.raises(UserError, match="signal_files"):
         load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["input.signal_files={gps_l1ca: {path: x}}"])
+
+
+def test_common_slope_ignores_a_cross_correlation_lock():
+    """The carrier smoothing's common code-minus-carrier drift: a channel locked on a cross-correlation (its own
+    drift -67 m/s, as B1I C08 at the GEO Doppler in the 40-s GPS+BeiDou recording) must not move it."""
+    from receiver.navigation.engine import common_slope
+    good = [(0.02 * k - 0.1, 50.0 + k) for k in range(10)]
+    ref = sum(s * w for s, w in good) / sum(w for _, w in good)
+    assert common_slope(good) == pytest.approx(ref, abs=1e-12)
+    assert common_slope(good + [(-67.0, 120.0)]) == pytest.approx(ref, abs=1e-12)     # (a plain mean: -11 m/s)
+    assert common_slope([(0.5, 1.0), (0.7, 2.0)]) == pytest.approx((0.5 + 1.4) / 3.0)   # two: no median test
+    assert common_slope([]) is None

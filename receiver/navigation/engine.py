@@ -34,6 +34,7 @@ BIT_MS = 20
 LOCK_GUARD_S = 0.1           # a measurement needs lock this long after its epoch too (detector lag)
 LOCK_GUARD_PRESENT_S = 0.04  # the same for a channel judged by the signal-presence test (lock gone <= 35 ms)
 PRESENCE_MARGIN_DB = 3.0     # ... i.e. its C/N0 this far above tracking.presence.min_cn0_dbhz
+SLOPE_OUTLIER_MPS = 2.0     # channels' code-minus-carrier drifts this far from the weighted median: not common
 ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
 MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
 AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
@@ -57,6 +58,24 @@ def first_ephemeris_range_error(eph, tx_tow: float, rx_gps_tow: float, rx_ecef) 
         rho = float(np.linalg.norm(earth_rotation(np.asarray(pos, float), tau) - rx))
         tau = rho / C_LIGHT
     return measured - rho
+
+
+def common_slope(info):
+    """The common code-minus-carrier drift (m/s) from the channels' (slope, weight) pairs: their weighted mean,
+    without the channels whose own drift is more than SLOPE_OUTLIER_MPS from the weighted median (when more
+    than two): such a channel does not measure the common clock-rate mismatch -- a cross-correlation lock, whose
+    code and carrier follow different signals (a B1I IGSO channel held at the GEO satellites' Doppler drifted
+    -67 m/s and pulled every smoothed pseudorange of the run by up to 60 m).  None without channels."""
+    if not info:
+        return None
+    w = np.array([i[1] for i in info], float)
+    v = np.array([i[0] for i in info], float)
+    if len(v) > 2:
+        o = np.argsort(v, kind="stable")
+        med = float(v[o][min(int(np.searchsorted(np.cumsum(w[o]), 0.5 * np.sum(w))), len(v) - 1)])
+        keep = np.abs(v - med) <= SLOPE_OUTLIER_MPS
+        w, v = w[keep], v[keep]
+    return float(np.sum(w * v) / np.sum(w))
 
 
 def _columns(recs) -> tuple:
@@ -854,11 +873,7 @@ class NavigationEngine:
             dop = (m[2] - prev[2]) / dt if prev is not None and prev[3] == m[3] else m[1]
             meas[prn] = (m, dop, ch)
         # common code-minus-carrier drift (clock-rate mismatch between code and carrier), weighted
-        info = [i for i in (ch.slope_info() for ch in self.channels.values()) if i is not None]
-        slope = None
-        if info:
-            w = np.array([i[1] for i in info])
-            slope = float(np.sum(w * np.array([i[0] for i in info])) / np.sum(w))
+        slope = common_slope([i for i in (ch.slope_info() for ch in self.channels.values()) if i is not None])
         unsmoothed = {}             # unsmoothed minus smoothed pseudorange (m), for navigation.filter ekf/ckf
         for prn, (m, dop, ch) in list(meas.items()):
             txrel = ch.smooth_value(s, m[0], m[2], slope)
