@@ -260,6 +260,8 @@ INPUT_FORMATS = ("int8_iq", "int16_iq", "uint8_iq", "complex64", "float32_real",
 INPUT_FORMAT_ALIASES = ("gr_complex", "cshort", "ishort", "cbyte", "ibyte", "byte", "short", "float",
                         "cf32_le", "ci16_le", "ci8", "cu8", "rf32_le", "ri16_le", "ri8")
 REAL_FORMAT_ALIASES = ("byte", "short", "float", "rf32_le", "ri16_le", "ri8")
+#: the signal names of receiver.gnss.registry (a lower layer may not import it; tests/test_registries.py)
+SIGNAL_CHOICES = ("gps_l1ca", "bds_b1i")
 CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
 
 RECEIVER_SCHEMA = {
@@ -279,6 +281,10 @@ RECEIVER_SCHEMA = {
                       choices=("sign_magnitude", "twos_complement", "offset_binary")),
         "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
         "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
+        "signal_files": P({}, "dict", "runs over several signals recorded into one file per signal at the same "
+                                      "instant: signal name -> {path, if_hz} of that signal's file (same format "
+                                      "and sample rate as input.path, which holds the first signal); a signal "
+                                      "not listed is read from input.path"),
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
         "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and decimate by this "
                                      "integer factor before acquisition and tracking (auto: the largest factor "
@@ -317,10 +323,17 @@ RECEIVER_SCHEMA = {
     },
     "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
                                    "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages)",
-                choices=("gps_l1ca", "bds_b1i")),
+                choices=SIGNAL_CHOICES),
+    "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
+                             "every signal is acquired and tracked from the same input (input.if_hz is the IF "
+                             "of the first; the others sit at if_hz + their carrier - the first's), and the "
+                             "fixes use all systems with an inter-system clock bias; README \"Multi-GNSS\""),
     "acquisition": {
         "prns": P(list(range(1, 33)), "list_int", "PRNs searched (gps_l1ca: GPS 1-32 and QZSS 193-202 = "
                                                   "J01-J10; bds_b1i: 1-37)", lo=1, hi=202),
+        "prns_by_signal": P({}, "dict", "runs over several signals: PRNs searched per signal name (e.g. "
+                                        "{bds_b1i: [6, 7, 8]}); a signal not listed searches acquisition.prns "
+                                        "when it is the first of `signals`, else all its PRNs"),
         "coherent_ms": P(4, "int", "coherent integration per non-coherent step (ms)", lo=1, hi=10),
         "noncoherent": P(10, "int", "number of non-coherent sums", lo=1, hi=100),
         "doppler_max_hz": P(10000.0, "float", "Doppler search half-range", lo=0.0),
@@ -774,6 +787,11 @@ def load_receiver_config(path=None, overrides=None) -> Section:
     for sec, key in PATH_KEYS:
         if isinstance(raw.get(sec), dict) and isinstance(raw[sec].get(key), str):
             raw[sec][key] = resolve_path(raw[sec][key], path)
+    files = raw.get("input", {}).get("signal_files") if isinstance(raw.get("input"), dict) else None
+    if isinstance(files, dict):
+        for v in files.values():
+            if isinstance(v, dict) and isinstance(v.get("path"), str):
+                v["path"] = resolve_path(v["path"], path)
     cfg = build(RECEIVER_SCHEMA, raw, overrides)
     validate_receiver(cfg)
     return cfg
@@ -781,6 +799,34 @@ def load_receiver_config(path=None, overrides=None) -> Section:
 
 #: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/test_registries.py)
 SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 38))}
+
+
+def _prn_text(name: str) -> str:
+    return "1-32 (GPS) and 193-202 (QZSS)" if name == "gps_l1ca" else "1-37"
+
+
+def run_signals(cfg: Section) -> list:
+    """The run's signal names: ``signals`` when set (checked: known names, no repeats), else [``signal``]."""
+    sigs = list(cfg.signals or [])
+    if not sigs:
+        return [cfg.signal]
+    for s in sigs:
+        if s not in SIGNAL_CHOICES:
+            raise UserError(f"config key 'signals' must list names of {', '.join(SIGNAL_CHOICES)}; got {s!r}")
+    if len(set(sigs)) < len(sigs):
+        raise UserError(f"config key 'signals' names a signal twice: {sigs}")
+    return sigs
+
+
+def signal_prns(cfg: Section, name: str) -> list:
+    """The PRNs searched for signal ``name`` of the run (acquisition.prns_by_signal, else acquisition.prns
+    for the first signal, else all of the signal's PRNs)."""
+    by = cfg.acquisition.prns_by_signal or {}
+    if name in by:
+        return list(by[name])
+    if name == run_signals(cfg)[0]:
+        return list(cfg.acquisition.prns)
+    return list(SIGNAL_PRNS[name])
 
 
 def validate_receiver(cfg: Section) -> Section:
@@ -801,13 +847,33 @@ def validate_receiver(cfg: Section) -> Section:
     prns = cfg.acquisition.prns
     if not prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
-    if cfg.vector.enabled and cfg.signal != "gps_l1ca":
-        raise UserError(f"config key 'vector.enabled': the vector loops track gps_l1ca only, not {cfg.signal}")
-    known = SIGNAL_PRNS.get(cfg.signal)
+    sigs = run_signals(cfg)
+    if cfg.vector.enabled and sigs != ["gps_l1ca"]:
+        raise UserError(f"config key 'vector.enabled': the vector loops track gps_l1ca only, not "
+                        f"{', '.join(s for s in sigs if s != 'gps_l1ca')}")
+    known = SIGNAL_PRNS.get(sigs[0])
     bad = [p for p in prns if known is not None and p not in known]
     if bad:
-        raise UserError(f"config key 'acquisition.prns': signal {cfg.signal} has no PRN {bad[0]} "
-                        f"({'1-32 (GPS) and 193-202 (QZSS)' if cfg.signal == 'gps_l1ca' else '1-37'})")
+        raise UserError(f"config key 'acquisition.prns': signal {sigs[0]} has no PRN {bad[0]} "
+                        f"({_prn_text(sigs[0])})")
+    for name, v in (i.signal_files or {}).items():
+        if name not in sigs[1:]:
+            raise UserError(f"config key 'input.signal_files': {name!r} is not one of the run's signals after the "
+                            f"first ({', '.join(sigs[1:]) or 'none'}; the first is read from input.path)")
+        if not isinstance(v, dict) or set(v) - {"path", "if_hz"} or not isinstance(v.get("path"), str) or \
+                isinstance(v.get("if_hz", 0.0), bool) or not isinstance(v.get("if_hz", 0.0), (int, float)) or \
+                abs(v.get("if_hz", 0.0)) >= half:
+            raise UserError(f"config key 'input.signal_files.{name}' must be {{path: FILE, if_hz: HZ}} with "
+                            f"|if_hz| < sample_rate_hz/2, got {v!r}")
+    by = cfg.acquisition.prns_by_signal or {}
+    for name, lst in by.items():
+        if name not in sigs:
+            raise UserError(f"config key 'acquisition.prns_by_signal': {name!r} is not one of the run's signals "
+                            f"({', '.join(sigs)})")
+        if not isinstance(lst, list) or not lst or any(isinstance(p, bool) or not isinstance(p, int) or
+                                                      p not in SIGNAL_PRNS[name] for p in lst):
+            raise UserError(f"config key 'acquisition.prns_by_signal.{name}' must be a non-empty list of PRNs "
+                            f"of {name} ({_prn_text(name)}), got {lst!r}")
     unique = list(dict.fromkeys(prns))
     if len(unique) < len(prns):
         from .errors import warn

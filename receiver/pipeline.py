@@ -9,6 +9,7 @@ the navigation engine keeps each satellite's memory (ephemeris, transmit-time re
 """
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import queue
@@ -26,12 +27,12 @@ from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
-from .config import RECEIVER_SCHEMA
+from .config import RECEIVER_SCHEMA, run_signals, signal_prns
 from .runfile.provenance import provenance_async
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
-from .gnss.satid import sat_label
+from .gnss.satid import MIXED, sat_key, sat_label
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
 from . import _numba_start
@@ -118,19 +119,34 @@ def _progress(total_s: float, quiet: bool):
                 bar_format="{desc} {bar} {n:.1f}/{total:.1f} s [{elapsed}<{remaining}]")
 
 
-def open_input(cfg) -> SampleReader:
+def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None) -> SampleReader:
+    """The input stages of signal ``name`` (default: the run's first signal).  A run over several signals
+    opens one per signal over the same file: the first signal is at input.if_hz, every other at if_hz + its
+    carrier - the first's (one front-end LO); ``plan_chip_rate`` (the fastest signal's chip rate) gives every
+    signal's resampling stage the same rate, so sample indices mean the same instant in all of them."""
     i = cfg.input
     if not i.path:
         raise UserError("no input file: set input.path in the config or pass --input")
+    sigs = run_signals(cfg)
+    first, sig = get_signal(sigs[0]), get_signal(name or sigs[0])
     apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items() if hasattr(v, "default")},
-                   get_signal(cfg.signal).carrier_hz)           # SigMF .sigmf-meta beside the file
-    reader = SampleReader(i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s, i.iq_swap,
-                          header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
-    reader.if_hz = i.if_hz            # the IF the stages below see (0 after the decimating stage)
-    chip_rate = get_signal(cfg.signal).chip_rate
-    l, m = plan(i.decimate, reader.fs, chip_rate)
+                   first.carrier_hz)                            # SigMF .sigmf-meta beside the file
+    own = (i.signal_files or {}).get(sig.name)                  # a file of its own (input.signal_files)
+    reader = SampleReader(own["path"] if own else i.path, i.format, i.sample_rate_hz, i.skip_s, i.duration_s,
+                          i.iq_swap, header_bytes=i.header_bytes, bit_order=i.bit_order, encoding=i.encoding)
+    if own:
+        if_hz = float(own.get("if_hz", 0.0))
+    else:
+        if_hz = i.if_hz + (sig.carrier_hz - first.carrier_hz)
+    if sig is not first and not (abs(if_hz) < reader.fs / 2 and (if_hz > 0 or reader.format.complex)):
+        raise UserError(f"signal {sig.name} would sit at IF {if_hz / 1e6:+.3f} MHz (input.if_hz + its carrier - "
+                        f"{first.name}'s), outside the {reader.fs / 1e6:g} MS/s band: a wider recording "
+                        f"(input.sample_rate_hz) centred between the signals is needed")
+    reader.if_hz = if_hz              # the IF the stages below see (0 after the decimating stage)
+    chip_rate = sig.chip_rate
+    l, m = plan(i.decimate, reader.fs, plan_chip_rate or chip_rate)
     if (l, m) != (1, 1):                                          # mix to 0 Hz, filter, resample
-        reader = DecimatingReader(reader, l, m, i.if_hz, chip_rate)
+        reader = DecimatingReader(reader, l, m, if_hz, chip_rate)
     c = i.conditioning
     if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
         from .source.conditioning import ConditionedReader
@@ -139,7 +155,7 @@ def open_input(cfg) -> SampleReader:
 
 
 def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
-            sensitive: bool = False, known_hz=(), doppler_window=None) -> list:
+            sensitive: bool = False, known_hz=(), doppler_window=None, signal=None) -> list:
     """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
     (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
     found, search the others again over +/- acquisition.lo_search_hz; when fewer than
@@ -148,9 +164,10 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     (cold searches while few channels track; ``known_hz``: their Dopplers narrow its range).  Lines for
     the user are appended to ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched
     instead of the configured +/- acquisition.doppler_max_hz (the channel manager's cold searches once a
-    fix gives the clock drift)."""
+    fix gives the clock drift).  ``signal``: the SignalDef searched (default: the run's first signal)."""
     a = cfg.acquisition
-    fs, if_hz, sig = reader.fs, reader.if_hz, get_signal(cfg.signal)
+    fs, if_hz = reader.fs, reader.if_hz
+    sig = signal if signal is not None else get_signal(run_signals(cfg)[0])
     notes = [] if notes is None else notes
     # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
     # uses up to 200 ms (20 blocks of 10 ms) where the file has them
@@ -234,7 +251,13 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
     prov = provenance_async()           # git / package versions on a thread while the input opens
     with stage("open input"):
-        reader = open_input(cfg)
+        sigs = run_signals(cfg)
+        if len(sigs) > 1 and cfg.navigation.enabled and cfg.navigation.ephemeris:
+            raise UserError("config key 'navigation.ephemeris' (assisted mode) is not supported in a run over "
+                            "several signals")
+        plan_chip = max(get_signal(n).chip_rate for n in sigs)
+        readers = [open_input(cfg, n, plan_chip if len(sigs) > 1 else None) for n in sigs]
+        reader = readers[0]
         out_path = default_output_path(cfg, cfg.input.path)
         check_meaning(cfg, reader)
         ephemerides, iono = None, None
@@ -248,7 +271,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         writer = BackgroundWriter(writer)      # HDF5 appends overlap tracking (same file, same order)
     ok = False
     try:
-        summary = _run(cfg, reader, writer, ephemerides, iono, quiet, log)
+        summary = _run(cfg, readers, writer, ephemerides, iono, quiet, log)
         summary.output = out_path
         _nonfinite(reader, writer, summary)
         ok = True
@@ -463,11 +486,18 @@ def _writer(cfg, reader, out_path, fs, if_hz, reads, prov):
         "first_sample": reader.first, "n_samples": reader.n_samples,
         "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
         "input_if_hz": cfg.input.if_hz,
-        "command": " ".join(sys.argv), "system": get_signal(cfg.signal).system,
+        "command": " ".join(sys.argv), "system": _run_system(cfg), "signals": ",".join(run_signals(cfg)),
         **prov(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
         compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
         round_columns=cfg.output.round_columns,
         chunk_rows=chunk_rows_for(reader.duration_s, cfg.output.channel_rate_hz))
+
+
+def _run_system(cfg) -> str:
+    """Run-file ``system``: the RINEX letter of the run's signal, or M for several signals (satellite keys,
+    receiver.gnss.satid.sat_key)."""
+    sigs = run_signals(cfg)
+    return get_signal(sigs[0]).system if len(sigs) == 1 else MIXED
 
 
 def check_meaning(cfg, reader):
@@ -486,7 +516,8 @@ def _reads(cfg, out_path, reader, extra) -> list:
     the run file (output.rinex, nmea, ...) must not overwrite one of them either."""
     from .runfile.outputs import KINDS, _enabled, output_paths
     from .safeio import _samefile
-    reads = [reader.path, cfg.navigation.ephemeris, *extra]
+    reads = [reader.path, cfg.navigation.ephemeris, *extra,
+             *(v.get("path") for v in (cfg.input.signal_files or {}).values() if isinstance(v, dict))]
     paths = output_paths(out_path)
     for kind in KINDS:
         if _enabled(cfg.output, kind):
@@ -505,33 +536,112 @@ def _nonfinite(reader, writer, summary):
         warn(f"{reader.n_nonfinite} non-finite input samples (NaN/Inf) were replaced by zeros")
 
 
-def _run(cfg, reader, writer, ephemerides, iono, quiet, log) -> RunSummary:
+def _run(cfg, readers, writer, ephemerides, iono, quiet, log) -> RunSummary:
+    reader = readers[0]
     fs, if_hz = reader.fs, reader.if_hz
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
-    reader = PrefetchingReader(reader)
+    readers = [PrefetchingReader(r) for r in readers]
     try:
-        return _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, iono)
+        return _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono)
     finally:
-        reader.close()
+        for r in readers:
+            r.close()
 
 
-def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, iono) -> RunSummary:
+class _Keyed:
+    """What one signal's channel manager sees of the run's navigation engine or run writer in a run over
+    several signals: the signal's PRNs become satellite keys (receiver.gnss.satid.sat_key)."""
+
+    def __init__(self, target, system: str):
+        self._t, self._sys = target, system
+
+    def _k(self, prn):
+        return sat_key(self._sys, prn)
+
+    def __getattr__(self, name):
+        return getattr(self._t, name)
+
+    # navigation engine
+    @property
+    def channels(self):
+        return {p - self._k(0): c for p, c in self._t.channels.items()
+                if (p > sat_key("C", 0)) == (self._sys == "C")}
+
+    def add_records(self, prn, recs, bit_offset):
+        self._t.add_records(self._k(prn), recs, bit_offset)
+
+    def suspend(self, prn):
+        self._t.suspend(self._k(prn))
+
+    def resume(self, prn, *a, **k):
+        self._t.resume(self._k(prn), *a, **k)
+
+    def satellite_los(self, prn, s):
+        return self._t.satellite_los(self._k(prn), s)
+
+    def set_noncoherent(self, prn, from_sample):
+        self._t.set_noncoherent(self._k(prn), from_sample)
+
+    # run writer
+    def append_channel(self, prn, recs):
+        self._t.append_channel(self._k(prn), recs)
+
+    def write_acquisition(self, results, attrs=None):
+        import copy
+        out = []
+        for r in results:
+            r = copy.copy(r)
+            r.prn = self._k(r.prn)
+            out.append(r)
+        self._t.write_acquisition(out, attrs)
+
+
+@dataclass
+class _Part:
+    """One signal of the run: its input stages and channel manager; ``key`` maps its PRNs to the run's
+    satellite keys (identity in a one-signal run)."""
+    signal: object
+    reader: object
+    multi: bool = False
+    manager: object = None
+
+    def key(self, prn: int) -> int:
+        return sat_key(self.signal.system, prn) if self.multi else prn
+
+
+def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono) -> RunSummary:
     from .navigation.engine import NavigationEngine
+    reader = readers[0]
     fs, if_hz = reader.fs, reader.if_hz
     notes = []
     week_hint = cfg.input.start_gps_week
+    sigs = [get_signal(n) for n in run_signals(cfg)]
+    multi = len(sigs) > 1
     nav = None
     if cfg.navigation.enabled:                  # L1 C/A: LNAV; B1I: D1/D2 (gnss/bds_nav.py)
         nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
-                               cfg.input.start_gps_tow_s, signal=get_signal(cfg.signal))
+                               cfg.input.start_gps_tow_s, signal=sigs[0],
+                               signals={g.system: (g, r.if_hz) for g, r in zip(sigs, readers)} if multi else None)
         pres = cfg.tracking.presence
         if pres.window_ms > 0:
             from .navigation.engine import PRESENCE_MARGIN_DB
             nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
-    manager = ChannelManager(cfg, reader, nav, fs, if_hz, get_signal(cfg.signal), acquire, writer)
+    parts = []
+    for sig, rd in zip(sigs, readers):
+        part = _Part(sig, rd, multi)
+        p_nav = _Keyed(nav, sig.system) if multi and nav is not None else nav
+        p_writer = _Keyed(writer, sig.system) if multi else writer
+        part.manager = ChannelManager(cfg, rd, p_nav, fs, rd.if_hz, sig,
+                                      functools.partial(acquire, signal=sig), p_writer,
+                                      prns=signal_prns(cfg, sig.name))
+        parts.append(part)
     with stage("acquisition"):
-        manager.start(acq_start, notes)
+        for part in parts:
+            p_notes = [] if multi else notes
+            part.manager.start(acq_start, p_notes)
+            notes += [f"{ln} [{part.signal.name}]" for ln in p_notes] if multi else []
+    manager = parts[0].manager
     channels = manager.channels             # prn -> Channel (shared with the vector tracker)
     cn0_sum: dict[int, list] = {}
     n_fixes, first_fix, fix_ecef = 0, None, []
@@ -576,11 +686,12 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
     start = acq_start
     while start < reader.end:
         interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
-        with stage("read input"):
+        with stage("read input"):               # (one input stage per signal: the same span of samples)
             if threads.threads() > 1:           # the next chunk is read ahead on a background thread
-                block = reader.chunk(start, chunk + overlap, start + chunk)
+                blocks = [r.chunk(start, chunk + overlap, start + chunk) for r in readers]
             else:
-                block = reader.read(start, chunk + overlap)
+                blocks = [r.read(start, chunk + overlap) for r in readers]
+        block = blocks[0]
         if vector is None and handover is not None:
             vector = handover.step(start)
         if vector is not None:
@@ -592,27 +703,30 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
         else:
             # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
             with stage("tracking"):
-                items = list(channels.items())
-                job = threads.submit_ordered(lambda pc, b=block, s0=start: pc[1].process(b, s0), items)
+                items = [(part.key(prn), ch, blk) for part, blk in zip(parts, blocks)
+                         for prn, ch in part.manager.channels.items()]
+                job = threads.submit_ordered(lambda it, s0=start: it[1].process(it[2], s0), items)
             if pending is not None:             # the previous chunk's epochs, while the pool tracks
                 finish_chunk(pending)
                 pending = None
             with stage("tracking"):
-                block_recs = {prn: r for (prn, _), r in zip(items, job())}
-        for prn, ch in list(channels.items()):
-            recs = block_recs.get(prn, np.zeros(0, EPOCH_DTYPE))
-            with stage("write"):
-                writer.append_channel(prn, recs)
-            if len(recs):
-                c = recs["cn0_dbhz"][recs["pll_lock"] > 0]
-                if len(c):
-                    acc = cn0_sum.setdefault(prn, [0.0, 0])
-                    acc[0] += float(c.sum())
-                    acc[1] += len(c)
-            manager.note(prn, recs)
-            if nav is not None:
-                with stage("navigation"):
-                    nav.add_records(prn, recs, ch.bit_offset)
+                block_recs = {key: r for (key, _, _), r in zip(items, job())}
+        for part in parts:
+            for prn, ch in list(part.manager.channels.items()):
+                key = part.key(prn)
+                recs = block_recs.get(key, np.zeros(0, EPOCH_DTYPE))
+                with stage("write"):
+                    writer.append_channel(key, recs)
+                if len(recs):
+                    c = recs["cn0_dbhz"][recs["pll_lock"] > 0]
+                    if len(c):
+                        acc = cn0_sum.setdefault(key, [0.0, 0])
+                        acc[0] += float(c.sum())
+                        acc[1] += len(c)
+                part.manager.note(prn, recs)
+                if nav is not None:
+                    with stage("navigation"):
+                        nav.add_records(key, recs, ch.bit_offset)
         if vector is not None and vector.reinit_needed:
             vector = handover.fall_back(vector, start + chunk)      # scalar channels, hand over again
         # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest.
@@ -620,7 +734,8 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
         # channel catches up to the chunk end) enters the epochs after its pull-in, not only the next chunk's
         if start + chunk + overlap < reader.end:
             with stage("re-acquisition"):
-                manager.after_chunk(start, start + chunk)
+                for part in parts:
+                    part.manager.after_chunk(start, start + chunk)
         if nav is not None:
             if defer:
                 pending = start + chunk
@@ -634,15 +749,16 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_wall
-    s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall, system=get_signal(cfg.signal).system)
+    s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall, system=_run_system(cfg))
     s.mean_cn0 = {p: v[0] / v[1] for p, v in sorted(cn0_sum.items()) if v[1]}
     s.tracked = sorted(s.mean_cn0)
     s.n_fixes = n_fixes
     s.first_fix_s = first_fix
     s.iono_counts, s.iono_broadcast_from_s = iono_counts, iono_from
-    s.reacquisitions = sum(v["reacquisitions"] for v in manager.summary().values())
-    if hasattr(reader, "resample"):               # the decimating input stage
-        s.notes.append(reader.describe())
+    s.reacquisitions = sum(v["reacquisitions"] for part in parts for v in part.manager.summary().values())
+    for part in parts:
+        if hasattr(part.reader, "resample"):      # the decimating input stage
+            s.notes.append(part.reader.describe() + (f" [{part.signal.name}]" if multi else ""))
     if hasattr(reader, "summary_lines"):         # the input conditioning stage
         s.notes += reader.summary_lines()
         reader.write(writer)
@@ -652,9 +768,10 @@ def _chunks(cfg, reader, writer, quiet, log, acq_start, t_wall, ephemerides, ion
         # every satellite decoded during the run (navigation memory, not only the channels still tracking)
         writer.write_ephemerides(nav.decoded_ephemerides())
         # the RINEX header's set (its GPS-UTC terms even without ION ALPHA / BETA), else the decoded one
-        writer.write_iono_utc(iono if iono is not None else nav.broadcast_iono(),
-                              "rinex" if iono is not None else
-                              ("d1/d2" if get_signal(cfg.signal).system == "C" else "lnav"))
+        bc = nav.broadcast_iono()
+        from_bds = any(ch.decoder.iono_utc is bc and ch.signal.system == "C" for ch in nav.channels.values())
+        writer.write_iono_utc(iono if iono is not None else bc,
+                              "rinex" if iono is not None else ("d1/d2" if from_bds else "lnav"))
         if nav.iono_fallback is not None:               # /navigation/iono_params 2: this set
             from .gnss.atmosphere import FALLBACK_KLOBUCHAR_SOURCE
             writer.set_attrs("navigation", {"iono_fallback_alpha": np.asarray(nav.iono_fallback.alpha, float),

@@ -93,10 +93,10 @@ def run_info(path) -> dict:
     ob = run.obs
     info["observables"] = {"rows": int(len(ob)), "epochs": int(len(np.unique(ob["time_s"]))) if len(ob) else 0,
                            "prns": sorted({int(p) for p in ob["prn"]})}
-    info["ephemerides"] = sorted({int(e.prn) for e in run.ephemerides})
+    info["ephemerides"] = sorted({int(run.eph_key(e)) for e in run.ephemerides})
     from ..gnss.satid import SYSTEM_NAMES, sat_system
     prns = set(info["observables"]["prns"]) | {int(p) for p in info.get("acquisition", {}).get("detected_prns", [])}
-    letters = sorted({sat_system(p, run.system) for p in prns} or {run.system}, key="GCEJ".index)
+    letters = sorted({sat_system(p, run.system) for p in prns} or {sat_system(1, run.system)}, key="GCEJ".index)
     info["systems"] = [SYSTEM_NAMES[c] for c in letters]
     info["config"] = run.attrs.get("config", "")
     return info

@@ -180,7 +180,7 @@ def write_nav(path, run: RunData) -> dict:
     if not ephs:
         raise ValueError("the run has no ephemerides")
     write_rinex_nav(path, ephs, run.iono(), system=run.system)
-    return {"ephemerides": len(ephs), "satellites": sorted({e.prn for e in ephs}),
+    return {"ephemerides": len(ephs), "satellites": sorted({run.eph_key(e) for e in ephs}),
             "iono": run.iono() is not None}
 
 

@@ -1,6 +1,7 @@
 """Satellite names: (system letter, PRN) <-> RINEX 3 labels ``G05``, ``J01``, ``C12``.
 
-A run tracks one signal, and its channels are keyed by the signal's PRN numbers (``SignalDef.prns``).
+A run over one signal keys its channels by the signal's PRN numbers (``SignalDef.prns``); a run over several
+signals (``signals: [gps_l1ca, bds_b1i]``, run-file ``system`` ``M``) by satellite keys (:func:`sat_key`).
 The L1 C/A signal carries GPS (PRN 1..32) and QZSS (PRN 193..202) satellites: QZSS PRN 193 is RINEX
 ``J01`` (PRN - 192).  BeiDou B1I PRNs are ``Cnn``; in an epoch combining systems BeiDou PRN p is 400 + p.  ``system`` is the signal's RINEX letter
 (``SignalDef.system``).
@@ -14,13 +15,30 @@ BDS_KEY = 400
 SYSTEM_NAMES = {"G": "GPS", "J": "QZSS", "C": "BeiDou", "E": "Galileo"}
 
 
+#: the run-file ``system`` of a run over several signals (satellite keys as in an epoch combining systems)
+MIXED = "M"
+
+
+def sat_key(signal_system: str, prn: int) -> int:
+    """The satellite key of PRN ``prn`` of a signal whose RINEX letter is ``signal_system`` in a run or epoch
+    combining systems: BeiDou PRN p -> BDS_KEY + p; GPS and QZSS keep their PRN (1-32, 193-202)."""
+    return BDS_KEY + prn if signal_system == "C" else prn
+
+
+def split_key(key: int) -> tuple[str, int]:
+    """(RINEX letter of the signal, signal PRN) of a satellite key (:func:`sat_key`): ("C", 12) or ("G", 5);
+    QZSS keys are signal "G" (L1 C/A) PRNs 193-202."""
+    return ("C", key - BDS_KEY) if key > BDS_KEY else ("G", key)
+
+
 def sat_system(prn: int, system: str = "G") -> str:
-    """The RINEX system letter of a satellite of a signal whose letter is ``system``."""
-    if system == "G" and prn > BDS_KEY:
+    """The RINEX system letter of a satellite of a signal whose letter is ``system`` (``M``: a run over several
+    signals, satellites keyed by :func:`sat_key`)."""
+    if system in ("G", MIXED) and prn > BDS_KEY:
         return "C"
-    if system == "G" and prn >= QZSS_FIRST_PRN:
+    if system in ("G", MIXED) and prn >= QZSS_FIRST_PRN:
         return "J"
-    return system
+    return "G" if system == MIXED else system
 
 
 def sat_label(prn: int, system: str = "G") -> str:

@@ -34,6 +34,7 @@ BIT_MS = 20
 LOCK_GUARD_S = 0.1           # a measurement needs lock this long after its epoch too (detector lag)
 LOCK_GUARD_PRESENT_S = 0.04  # the same for a channel judged by the signal-presence test (lock gone <= 35 ms)
 PRESENCE_MARGIN_DB = 3.0     # ... i.e. its C/N0 this far above tracking.presence.min_cn0_dbhz
+SLOPE_OUTLIER_MPS = 2.0     # channels' code-minus-carrier drifts this far from the weighted median: not common
 ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
 MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
 AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
@@ -59,6 +60,24 @@ def first_ephemeris_range_error(eph, tx_tow: float, rx_gps_tow: float, rx_ecef) 
     return measured - rho
 
 
+def common_slope(info):
+    """The common code-minus-carrier drift (m/s) from the channels' (slope, weight) pairs: their weighted mean,
+    without the channels whose own drift is more than SLOPE_OUTLIER_MPS from the weighted median (when more
+    than two): such a channel does not measure the common clock-rate mismatch -- a cross-correlation lock, whose
+    code and carrier follow different signals (a B1I IGSO channel held at the GEO satellites' Doppler drifted
+    -67 m/s and pulled every smoothed pseudorange of the run by up to 60 m).  None without channels."""
+    if not info:
+        return None
+    w = np.array([i[1] for i in info], float)
+    v = np.array([i[0] for i in info], float)
+    if len(v) > 2:
+        o = np.argsort(v, kind="stable")
+        med = float(v[o][min(int(np.searchsorted(np.cumsum(w[o]), 0.5 * np.sum(w))), len(v) - 1)])
+        keep = np.abs(v - med) <= SLOPE_OUTLIER_MPS
+        w, v = w[keep], v[keep]
+    return float(np.sum(w * v) / np.sum(w))
+
+
 def _columns(recs) -> tuple:
     """(recs, sample_index, code_period, code_phase_chips, code_rate_hz, doppler_hz, carrier_phase_cycles,
     pll_lock, cn0_dbhz) of channel records, the columns as Python lists (exact: int64 -> int, float64 ->
@@ -82,11 +101,13 @@ class ChannelNav:
     (:meth:`NavigationEngine._resolve_from_fix`) or frame sync.
     """
 
-    def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float, signal=None):
-        self.prn = prn
+    def __init__(self, prn: int, week_hint: int | None, if_hz: float, fs: float, signal=None,
+                 sig_prn: int | None = None):
+        self.prn = prn              # the engine's key (a run over several signals: receiver.gnss.satid.sat_key)
+        self.sig_prn = prn if sig_prn is None else sig_prn     # the signal's PRN (code, message type)
         sig = signal if signal is not None else GPS_L1CA
         self.signal = sig
-        self.bit_ms = sig.bit_ms(prn)             # LNAV / BeiDou D1: 20 ms; BeiDou D2: 2 ms
+        self.bit_ms = sig.bit_ms(self.sig_prn)    # LNAV / BeiDou D1: 20 ms; BeiDou D2: 2 ms
         self.chip_rate = sig.chip_rate
         self.wavelength = C_LIGHT / sig.carrier_hz
         self.decoder = self._new_decoder(week_hint)
@@ -125,8 +146,8 @@ class ChannelNav:
         """LNAV for L1 C/A (GPS, QZSS); D1/D2 for BeiDou B1I (receiver.gnss.bds_nav)."""
         if self.signal.system == "C":
             from ..gnss.bds_nav import BdsDecoder
-            return BdsDecoder(self.prn, week_hint=week_hint, geo=self.bit_ms != BIT_MS)
-        return LnavDecoder(self.prn, week_hint=week_hint)
+            return BdsDecoder(self.sig_prn, week_hint=week_hint, geo=self.bit_ms != BIT_MS)
+        return LnavDecoder(self.sig_prn, week_hint=week_hint)
 
     def suspend(self):
         """The channel lost the signal: keep the memory; the track's records stay for the epochs before the
@@ -457,7 +478,8 @@ class ChannelNav:
 
 class NavigationEngine:
     def __init__(self, nav_cfg, fs: float, if_hz: float, first_sample: int, ephemerides=None,
-                 iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None, signal=None):
+                 iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None, signal=None,
+                 signals=None):
         self.cfg = nav_cfg
         self.fs = fs
         self.if_hz = if_hz
@@ -467,6 +489,9 @@ class NavigationEngine:
         self.pvt_filter = make_pvt_filter(nav_cfg)     # navigation.filter ekf|ckf (None: wls)
         self.channels: dict[int, ChannelNav] = {}
         self.signal = signal                # SignalDef of the channels (None: GPS L1 C/A)
+        # a run over several signals: RINEX letter of the signal -> (SignalDef, IF Hz of its stream); the
+        # channels are then keyed by receiver.gnss.satid.sat_key and the fixes solve an inter-system bias
+        self.signals = dict(signals) if signals else None
         self.assisted = ephemerides is not None
         self.rinex_ephs = ephemerides or {}
         self.iono_utc = iono_utc            # the RINEX header's Klobuchar / UTC set (assisted mode), or None
@@ -496,7 +521,13 @@ class NavigationEngine:
 
     def channel(self, prn: int) -> ChannelNav:
         if prn not in self.channels:
-            ch = self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
+            if self.signals:
+                from ..gnss.satid import split_key
+                letter, sig_prn = split_key(prn)
+                sig, if_hz = self.signals[letter]
+                ch = self.channels[prn] = ChannelNav(prn, self.week_hint, if_hz, self.fs, sig, sig_prn)
+            else:
+                ch = self.channels[prn] = ChannelNav(prn, self.week_hint, self.if_hz, self.fs, self.signal)
             ch.decoder.first_check = lambda eph, tow, bit_index, ch=ch: self._first_ephemeris_ok(
                 ch, eph, tow, bit_index)
         return self.channels[prn]
@@ -596,7 +627,9 @@ class NavigationEngine:
         by any channel; None while none is known."""
         if self.iono_utc is not None and (any(self.iono_utc.alpha) or any(self.iono_utc.beta)):
             return self.iono_utc
-        for ch in self.channels.values():
+        # (several signals: GPS keys first, so the GPS set wins over BeiDou's once both are decoded)
+        for ch in (self.channels.values() if not self.signals else
+                   (c for _, c in sorted(self.channels.items()))):
             if ch.decoder.iono_utc is not None:
                 return ch.decoder.iono_utc
         return None
@@ -846,11 +879,7 @@ class NavigationEngine:
             dop = (m[2] - prev[2]) / dt if prev is not None and prev[3] == m[3] else m[1]
             meas[prn] = (m, dop, ch)
         # common code-minus-carrier drift (clock-rate mismatch between code and carrier), weighted
-        info = [i for i in (ch.slope_info() for ch in self.channels.values()) if i is not None]
-        slope = None
-        if info:
-            w = np.array([i[1] for i in info])
-            slope = float(np.sum(w * np.array([i[0] for i in info])) / np.sum(w))
+        slope = common_slope([i for i in (ch.slope_info() for ch in self.channels.values()) if i is not None])
         unsmoothed = {}             # unsmoothed minus smoothed pseudorange (m), for navigation.filter ekf/ckf
         for prn, (m, dop, ch) in list(meas.items()):
             txrel = ch.smooth_value(s, m[0], m[2], slope)

@@ -175,8 +175,9 @@ class RunFile(H5Input):
         return self.columns("acquisition", names)
 
     def ephemerides(self) -> list:
-        """The decoded ephemerides stored in ``/ephemeris``."""
-        return _ephemerides(self.f["ephemeris"]) if "ephemeris" in self.f else []
+        """The decoded ephemerides stored in ``/ephemeris`` (and ``/ephemeris_bds``: the BeiDou ones of a run
+        over several signals)."""
+        return [e for g in ("ephemeris", "ephemeris_bds") if g in self.f for e in _ephemerides(self.f[g])]
 
     def iono_utc_attrs(self) -> dict | None:
         return self.group_attrs("iono_utc")
@@ -328,16 +329,22 @@ class RunData:
                         e = select(rinex[0].get(prn, []), tow)
                         if e is not None:
                             ephs.append(e)
-        covered = {e.prn for e in ephs}
-        ephs += [e for e in decoded if e.prn not in covered]
+        covered = {self.eph_key(e) for e in ephs}
+        ephs += [e for e in decoded if self.eph_key(e) not in covered]
         seen, out = set(), []
         for e in ephs:
-            key = (e.prn, e.week, round(e.toe), e.iode)
+            key = (self.eph_key(e), e.week, round(e.toe), e.iode)
             if key not in seen:
                 seen.add(key)
                 out.append(e)
         self._used = out
         return out
+
+    def eph_key(self, e) -> int:
+        """The observables' ``prn`` of an ephemeris' satellite: its PRN, or in a run over several signals
+        (system M) its satellite key (receiver.gnss.satid.sat_key: BeiDou PRN p -> 400 + p)."""
+        from ..gnss.satid import MIXED, sat_key
+        return sat_key(getattr(e, "system", "G"), e.prn) if self.system == MIXED else e.prn
 
     def rx_tow(self) -> np.ndarray:
         """Receiver clock reading (s of week) of every observable row: GPS time + clock bias / c."""
@@ -363,7 +370,7 @@ class RunData:
         from ..gnss.ephemeris import earth_rotation, sat_state
         order = np.argsort(fx["time_s"])
         ft = fx["time_s"][order]
-        ephs = {e.prn: e for e in self.used_ephemerides()}
+        ephs = {self.eph_key(e): e for e in self.used_ephemerides()}
         for prn in np.unique(obs["prn"][miss]):
             if int(prn) not in ephs:
                 continue

@@ -371,10 +371,22 @@ class RunWriter:
         self._append_table("observables", obs)              # OBS_DTYPE
 
     def write_ephemerides(self, ephs: dict):
-        """ephs: prn -> Ephemeris (dataclass); stored as one compound-free table of fields."""
+        """ephs: prn -> Ephemeris (dataclass); stored as one compound-free table of fields.  A run over
+        several signals (system M) keeps the BeiDou ones (BDT, field tgd2) in a table of their own,
+        ``/ephemeris_bds``, the GPS/QZSS ones in ``/ephemeris``."""
         if not ephs:
             return
-        g = self.f.require_group("ephemeris")
+        if self.system == "M":
+            bds = {k: e for k, e in ephs.items() if getattr(e, "system", "G") == "C"}
+            self._write_ephemeris_table("ephemeris", {k: e for k, e in ephs.items() if k not in bds})
+            self._write_ephemeris_table("ephemeris_bds", bds)
+        else:
+            self._write_ephemeris_table("ephemeris", ephs)
+
+    def _write_ephemeris_table(self, name: str, ephs: dict):
+        if not ephs:
+            return
+        g = self.f.require_group(name)
         items = sorted(ephs.items())
         fields = list(vars(items[0][1]).keys())
         for name in fields:

@@ -25,6 +25,12 @@ SCENARIO_SCHEMA = {
                                    "genuine D1/D2 messages, otherwise pseudo-random message bits on the orbits "
                                    "of the same PRN numbers of the constellation source)",
                 choices=("gps_l1ca", "bds_b1i")),
+    "signals": P([], "list", "several signals in one recording: [gps_l1ca, bds_b1i] puts the GPS satellites of "
+                             "constellation.source (embedded or rinex) and the nominal BeiDou constellation "
+                             "(constellation.bds_file, D1/D2 messages) in one file; frontend.if_hz is the IF "
+                             "of the first signal, the other sits at if_hz + its carrier - the first's (one "
+                             "LO: complex samples centred between L1 and B1I need >= ~20 MS/s); "
+                             "constellation.prns / exclude_prns select GPS PRNs.  Empty: `signal` alone"),
     "time": {
         "gps_week": P(2190, "int", "full GPS week of the first sample", lo=0),
         "tow_s": P(525584.0, "float", "GPS time of week of the first sample as read by the receiver clock "
@@ -46,10 +52,12 @@ SCENARIO_SCHEMA = {
                                 "source bds_rinex); per PRN the healthy set whose toe is nearest to the "
                                 "middle of the run", nullable=True),
         "nominal_file": P(NOMINAL_CONSTELLATION, "str", "the embedded constellation file (source: embedded)"),
-        "prns": P(None, "list_int", "simulate only these PRNs (empty: all; QZSS: 193-202; BeiDou 1-63)",
+        "prns": P(None, "list_int", "simulate only these PRNs (empty: all; QZSS: 193-202; BeiDou 1-63; in a "
+                                    "recording of several signals BeiDou PRN p is 400 + p)",
                   nullable=True,
-                  lo=1, hi=202),
-        "exclude_prns": P([], "list_int", "PRNs never simulated", lo=1, hi=202),
+                  lo=1, hi=463),
+        "exclude_prns": P([], "list_int", "PRNs never simulated (several signals: BeiDou PRN p is 400 + p)",
+                          lo=1, hi=463),
         "qzss": P(False, "bool", "add the QZSS satellites of qzss_file (PRN 193-202, on the L1 C/A signal; "
                                  "source: embedded)"),
         "qzss_file": P("data/qzss_nominal_constellation.yaml", "str", "nominal QZSS orbits (same format "

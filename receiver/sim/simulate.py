@@ -50,7 +50,7 @@ from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import IonoUtc, earth_rotation, sat_state
 from ..gnss.lnav import encode_subframes
 from ..gnss.registry import get_signal
-from ..gnss.satid import sat_label
+from ..gnss.satid import MIXED, sat_key, sat_label, split_key
 from ..gnss.signals import CA_CHIP_RATE, C_LIGHT, L1_HZ, OMEGA_E, ca_code  # noqa: F401
 from ..gnss.signals_bds import data_signs
 from ..gnss.time import WEEK_S
@@ -460,8 +460,18 @@ class _Simulator:
             raise UserError(f"trajectory CSV covers {traj.t_first:.3f}..{traj.t_last:.3f} s but the run "
                             f"needs 0..{duration:.3f} s after the first sample")
         con, atm = sc.constellation, sc.atmosphere
+        names = list(sc.signals or []) or [sc.signal]
+        self.multi = len(names) > 1
+        if self.multi and (sorted(names) != ["bds_b1i", "gps_l1ca"] or
+                           con.source not in ("embedded", "rinex")):
+            raise UserError("config key 'signals': a recording of several signals is [gps_l1ca, bds_b1i] (either "
+                            "order) with constellation.source embedded or rinex (GPS; BeiDou: "
+                            "constellation.bds_file)")
+        if not self.multi and names[0] not in ("gps_l1ca", "bds_b1i"):
+            raise UserError(f"config key 'signals': unknown signal {names[0]!r}")
+        self.signals = [get_signal(n) for n in names]
         bds_src = con.source in ("bds_nominal", "bds_rinex")
-        if bds_src and sc.signal != "bds_b1i":
+        if bds_src and names[0] != "bds_b1i":
             raise UserError(f"constellation.source '{con.source}' needs signal: bds_b1i")
         if bds_src:                             # BeiDou orbits + D1/D2 messages (sim/bds_constellation.py)
             from .bds_constellation import bds_nominal_ephemerides, bds_rinex_ephemerides, source_name
@@ -497,6 +507,10 @@ class _Simulator:
         self.tropo = atm.troposphere == "saastamoinen"
 
         ephs = dict(cons.ephemerides)
+        if self.multi:                          # + the nominal BeiDou constellation, keyed 400 + PRN
+            from .bds_constellation import bds_nominal_ephemerides
+            b_multi, _ = bds_nominal_ephemerides(resolve_path(con.bds_file, "constellation file"), week, t_ref)
+            ephs.update({sat_key("C", p): e for p, e in b_multi.items()})
         if con.prns:
             missing = [p for p in con.prns if p not in ephs]
             if missing:
@@ -519,16 +533,31 @@ class _Simulator:
         self.cn0 = _Cn0(sc.cn0)
         self.impair = Impairments(sc.impairments, self.fs, self.if_hz, self.sigma, self.cplx)
         self.blockage = Blockage(sc.blockage, self.prns, duration, tm.seed, el_scan, self.mask)
-        if bds_src:
-            from ..gnss.bds_nav import BdsNavBits
-            from ..gnss.signals_bds import is_geo
-            self.nav = {p: BdsNavBits(self.ephs[p], iono_b, week, is_geo(p), sc.navigation.data)
-                        for p in self.prns}
-        else:
-            self.nav = {p: _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
-                                    sc.navigation.data) for p in self.prns}
-        self.signal = get_signal(sc.signal)
-        self.codes = {p: self.signal.code(p) for p in self.prns}
+        # per satellite (key): its signal, the signal's PRN and IF (several signals: one LO, the first
+        # signal at frontend.if_hz)
+        first = self.signals[0]
+        self.signal = first
+        self.sat_sig = {}
+        for p in self.prns:
+            letter, q = split_key(p) if self.multi else (first.system, p)
+            sig = next(g for g in self.signals if g.system == ("C" if letter == "C" else "G"))
+            self.sat_sig[p] = (sig, q, self.if_hz + (sig.carrier_hz - first.carrier_hz))
+        for sig in self.signals[1:]:
+            f_if = self.if_hz + (sig.carrier_hz - first.carrier_hz)
+            if not (abs(f_if) < self.fs / 2 and (self.cplx or f_if > 0)):
+                raise UserError(f"signal {sig.name} would sit at IF {f_if / 1e6:+.3f} MHz (frontend.if_hz + its "
+                                f"carrier - {first.name}'s), outside the {self.fs / 1e6:g} MS/s band")
+        self.nav = {}
+        for p in self.prns:
+            sig, q, _ = self.sat_sig[p]
+            if bds_src or (self.multi and sig.system == "C"):
+                from ..gnss.bds_nav import BdsNavBits
+                from ..gnss.signals_bds import is_geo
+                self.nav[p] = BdsNavBits(self.ephs[p], iono_b, week, is_geo(q), sc.navigation.data)
+            else:
+                self.nav[p] = _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
+                                       sc.navigation.data)
+        self.codes = {p: self.sat_sig[p][0].code(self.sat_sig[p][1]) for p in self.prns}
         self.amp_k = (2.0 if self.cplx else 4.0) * self.sigma ** 2 / self.fs     # A^2 = amp_k * C/N0
         self.node_step = math.gcd(NODE_STEPS, self.decim)   # geometry nodes (grid steps), on truth rows
         self._tracks = {}
@@ -566,6 +595,7 @@ class _Simulator:
             "gps_week": self.week, "start_gps_tow_s": self.t_ref, "sample_rate_hz": self.fs,
             "if_hz": self.if_hz, "format": self.fmt, "duration_s": self.duration, "n_samples": self.n_total,
             "noise_sigma": self.sigma, "ephemeris_source": self.source,
+            "signals": ",".join(g.name for g in self.signals), "system": MIXED if self.multi else self.signal.system,
             "truth_rate_hz": 1000.0 / self.decim,
             "conventions": (
                 "time_s = sample_index / sample_rate_hz; receiver clock reading = start_gps_tow_s + time_s; "
@@ -582,7 +612,8 @@ class _Simulator:
         sat_attrs = {p: {"toe": e.toe, "iode": e.iode, "week": e.week} for p, e in self.ephs.items()}
         self.writer = None
         self.fh = open(tmp["if"], "wb")
-        self.writer = _TruthWriter(tmp["truth"], self.attrs(), self.prns, sat_attrs, system=self.signal.system)
+        self.writer = _TruthWriter(tmp["truth"], self.attrs(), self.prns, sat_attrs,
+                                   system=MIXED if self.multi else self.signal.system)
         fe = self.sc.frontend
         self.encoder = None if self.fmt in _FAST_FORMATS else Encoder(self.fmt, 1.0, fe.bit_order, fe.encoding)
         bar = None
@@ -612,7 +643,9 @@ class _Simulator:
         frag = {"input": {"path": os.path.basename(paths["if"]), "format": self.fmt, **packed,
                           "sample_rate_hz": self.fs, "if_hz": self.if_hz, "start_gps_week": self.week,
                           "start_gps_tow_s": self.t_ref}}
-        if self.signal.name != "gps_l1ca":            # the run config's default signal is GPS L1 C/A
+        if self.multi:
+            frag = {"signals": [g.name for g in self.signals], **frag}
+        elif self.signal.name != "gps_l1ca":            # the run config's default signal is GPS L1 C/A
             frag = {"signal": self.signal.name, **frag}
         write_sigmf(tmp["if"], self.fmt, self.fs, self.if_hz, self.signal.carrier_hz, self.week, self.t_ref,
                     description="gnssrx simulator output; truth: " + os.path.basename(paths["truth"]),
@@ -693,8 +726,9 @@ class _Simulator:
                 d_carr = bias + hermite(tn_rel, gp, gp_dot, t_rel)
             else:
                 d_code, d_carr = bias + gc, bias + gp
-            chips_total = (self.r_ref + t_rel - d_code) * self.signal.chip_rate  # since ms m_ref, sat. time
-            f_carr, CODE_N = self.signal.carrier_hz, float(self.signal.code_len)
+            sig_p, _, if_p = self.sat_sig[p]
+            chips_total = (self.r_ref + t_rel - d_code) * sig_p.chip_rate  # since ms m_ref, sat. time
+            f_carr, CODE_N = sig_p.carrier_hz, float(sig_p.code_len)
             if p in self.scint:
                 s_amp, s_ph = self.scint[p].get(n)
             else:
@@ -705,12 +739,12 @@ class _Simulator:
             if n_samp > 0 and np.any(amp > 0):
                 ms0 = int(math.floor(chips_total[0] / CODE_N))
                 chips_blk = chips_total - ms0 * CODE_N
-                if self.signal.name == "bds_b1i" and con_src not in ("bds_nominal", "bds_rinex"):
+                if sig_p.name == "bds_b1i" and not self.multi and con_src not in ("bds_nominal", "bds_rinex"):
                     dsign = data_signs(p, self.m_ref + ms0, int(chips_blk[-1] // CODE_N) + 2,
                                        self.sc.time.seed, self.sc.navigation.data)
                 else:
                     dsign = self.nav[p].signs(self.m_ref + ms0, int(chips_blk[-1] // CODE_N) + 2)
-                sig.append((p, chips_blk, self.if_hz * t_rel + carr, amp.astype(np.float32), dsign))
+                sig.append((p, chips_blk, if_p * t_rel + carr, amp.astype(np.float32), dsign))
             if rows.size:
                 r = rows
                 gr = nodes[r]                                # grid indices of the truth rows
@@ -727,15 +761,16 @@ class _Simulator:
 
         if n_samp > 0:
             out = np.zeros(n_samp, np.complex64)
-            if sig:
-                n_ms = max(r[4].size for r in sig)
-                dsign = np.ones((len(sig), n_ms), np.float32)
-                for k, r in enumerate(sig):
+            for code_len in sorted({self.codes[r[0]].size for r in sig}):    # (one call per code length)
+                grp = [r for r in sig if self.codes[r[0]].size == code_len]
+                n_ms = max(r[4].size for r in grp)
+                dsign = np.ones((len(grp), n_ms), np.float32)
+                for k, r in enumerate(grp):
                     dsign[k, :r[4].size] = r[4]
-                phase = np.stack([r[2] for r in sig])
+                phase = np.stack([r[2] for r in grp])
                 synth_block(out, seg_start, seg_x0, 1.0 / self.spg,
-                            np.stack([self.codes[r[0]] for r in sig]), np.stack([r[1] for r in sig]),
-                            np.mod(phase, 1.0), np.diff(phase, axis=1), np.stack([r[3] for r in sig]), dsign)
+                            np.stack([self.codes[r[0]] for r in grp]), np.stack([r[1] for r in grp]),
+                            np.mod(phase, 1.0), np.diff(phase, axis=1), np.stack([r[3] for r in grp]), dsign)
             if self.noise:
                 view = out.view(np.float32)
                 if self.cplx:

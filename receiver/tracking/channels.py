@@ -73,7 +73,7 @@ class SatTrack:
 
 
 class ChannelManager:
-    def __init__(self, cfg, reader, nav, fs, if_hz, signal, acquire, writer=None, log=None):
+    def __init__(self, cfg, reader, nav, fs, if_hz, signal, acquire, writer=None, log=None, prns=None):
         self.cfg = cfg
         self.rc = cfg.tracking.reacquisition
         self.reader = reader
@@ -82,6 +82,7 @@ class ChannelManager:
         self.if_hz = float(if_hz)
         self.signal = signal
         self.acquire = acquire          # acquire(cfg, reader, start, prns) -> [AcqResult] (cold search)
+        self.prns = list(prns) if prns is not None else list(cfg.acquisition.prns)     # the PRNs searched
         self.writer = writer
         self.log = log or (lambda msg: None)
         self.channels: dict[int, Channel] = {}
@@ -123,7 +124,7 @@ class ChannelManager:
         """The initial cold acquisition (widened when fewer than 4 satellites are found); lines for the user
         go to notes."""
         notes = [] if notes is None else notes
-        results = self.acquire(self.cfg, self.reader, acq_start, self.cfg.acquisition.prns, widen=True,
+        results = self.acquire(self.cfg, self.reader, acq_start, self.prns, widen=True,
                                notes=notes)
         if self.writer is not None:
             self.writer.write_acquisition(results, {"fs": self.fs, "pfa": self.cfg.acquisition.pfa,
@@ -138,7 +139,7 @@ class ChannelManager:
         if start < self._next_cold or len(self.channels) >= self.max_ch:
             return
         self._next_cold = start + int(self.cfg.tracking.reacquire_s * self.fs)
-        missing = [p for p in self.cfg.acquisition.prns if p not in self.channels
+        missing = [p for p in self.prns if p not in self.channels
                    and self._sat(p).state != "reacquiring"]
         missing = [p for p in missing if not self._below_mask(p, next_start)]
         if not missing:
