@@ -117,11 +117,11 @@ def pack(loop):
 @njit(cache=True, nogil=True)
 def _nwpr(lp, ls, p1i, p1q, p2i, p2q, T):
     """NWPR C/N0 (common.NWPR.update)."""
-    wbp = (p1i * p1i + p1q * p1q) + (p2i * p2i + p2q * p2q)
+    # |p|^2 as abs(complex) ** 2 (hypot, then squared), as the Python NWPR: the same rounding
+    wbp = math.hypot(p1i, p1q) ** 2 + math.hypot(p2i, p2q) ** 2
     if wbp <= 0:
         return ls[L_NW_CN0]
-    si, sq = p1i + p2i, p1q + p2q
-    r = (si * si + sq * sq) / wbp
+    r = math.hypot(p1i + p2i, p1q + p2q) ** 2 / wbp
     ts = T / 2.0
     if ls[L_NW_MU_SET] == 0.0:
         c = ls[L_NW_CN0] * ts
