@@ -14,6 +14,8 @@ simulator + receiver runs in tests/test_carrier_corrsim.py):
     C/N0 45 dB-Hz for 5 s then -1 dB per 5 s to 15 dB-Hz (+10 s), loops cpll_atan (15 Hz), kf, adaptive_kf
     at T = 1, 5, 10, 20 ms (data wiped off); tracking threshold = true C/N0 at the end of the last 1 s
     window in lock (Costas-folded phase-error std < 30 deg).
+Runs: receiver.sim.corrsim.run(compiled=True) (all epochs in one numba function with the loops' compiled
+twins); --engine python runs the numpy + Python-loop reference path (the same numbers: tests/test_corrsim_compiled.py).
 Outputs in --out: fig1_theory.png, fig2_pli.png, fig4_cn0_phase.png, fig5_phase_std.png, fig6_loss_of_lock.png,
 fig_weak_threshold.png, carrier.h5 (all numbers), table.md, carrier_results.json (the table's numbers per seed).
 """
@@ -73,14 +75,14 @@ def lost_lock(t, err_cycles, t_from=2.0, window_s=1.0, max_std_deg=30.0):
 
 # ------------------------------------------------------------------------------------------ scintillation
 def scint_job(args):
-    i_sc, seed, duration, extra = args
+    i_sc, seed, duration, extra, compiled = args
     s4, sp = SCENARIOS[i_sc]
     sc = CorrScenario(duration_s=duration, t_coh_ms=5, carrier_hz=B1I_HZ, cn0_dbhz=40.0, s4=s4, sigma_phi=sp,
                       tau0_s=TAU0, h0=H0, h_2=H_2, seed=1000 * i_sc + seed)
     truth = make_truth(sc)
     res = {}
     for name in SCINT_LOOPS:
-        out = run(_loop(name, extra), sc, truth)
+        out = run(_loop(name, extra), sc, truth, compiled=compiled)
         sel = out["t"] >= 2.0
         std = phase_error_std_deg(out["err_cycles"], per_s=60.0 if duration >= 60 else duration - 2.0,
                                   t=out["t"])
@@ -99,11 +101,11 @@ def scint_job(args):
 
 
 def weak_job(args):
-    dyn, T, seed, loop, extra = args
+    dyn, T, seed, loop, extra, compiled = args
     sc = CorrScenario(duration_s=165.0, t_coh_ms=T, carrier_hz=L1_HZ, cn0_schedule=((0, 5, 155, 165),
                                                                                   (45, 45, 15, 15)),
                       h0=H0, h_2=H_2, dynamics=dyn, seed=500 + seed)
-    out = run(_loop(loop, extra), sc)
+    out = run(_loop(loop, extra), sc, compiled=compiled)
     thr, locked = tracking_threshold(out["t"], out["err_cycles"], out["cn0_true"])
     return dyn, T, seed, loop, thr
 
@@ -158,6 +160,9 @@ def main(argv=None):
                                                                  "(default 120, FULL=1: 600)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--skip-weak", action="store_true")
+    ap.add_argument("--engine", choices=("compiled", "python"), default="compiled",
+                    help="corrsim.run path: compiled (default; every epoch in one numba function) or python (the "
+                         "numpy + Python-loop reference; the same numbers to float rounding, ~30-60x slower)")
     args = ap.parse_args(argv)
     full = os.environ.get("FULL", "") not in ("", "0")
     duration = args.duration or (600.0 if full else 120.0)
@@ -172,7 +177,8 @@ def main(argv=None):
     import h5py
 
     t0 = time.time()
-    jobs = [(i, s, duration, extra) for i in scen_idx for s in range(args.seeds)]
+    compiled = args.engine == "compiled"
+    jobs = [(i, s, duration, extra, compiled) for i in scen_idx for s in range(args.seeds)]
     with Pool(args.jobs) as pool:
         results = pool.map(scint_job, jobs)
     print(f"scintillation runs: {len(jobs)} x {len(SCINT_LOOPS)} loops, {time.time() - t0:.0f} s", flush=True)
@@ -198,7 +204,7 @@ def main(argv=None):
     weak = {}
     if not args.skip_weak:
         t1 = time.time()
-        wj = [(d, T, s, lp, extra) for d in ("static", "manoeuvre") for T in weak_T for s in range(wseeds)
+        wj = [(d, T, s, lp, extra, compiled) for d in ("static", "manoeuvre") for T in weak_T for s in range(wseeds)
               for lp in WEAK_LOOPS]
         wj.sort(key=lambda x: x[1])          # long runs (T = 1 ms) first for load balance
         by_seed = {}

@@ -49,12 +49,12 @@ def run(cmd, log):
     log(f"    {time.perf_counter() - t0:.0f} s")
 
 
-def measure(tmp, sets, jobs, log, parts=("carrier", "leo", "vector")):
+def measure(tmp, sets, jobs, log, parts=("carrier", "leo", "vector"), carrier_engine="compiled"):
     """The subset's numbers: {name: (value, tolerance class)}."""
     py = sys.executable
     out = {}
     if "carrier" in parts:
-        _carrier(py, tmp, sets, jobs, log, out)
+        _carrier(py, tmp, sets, jobs, log, out, carrier_engine)
     if "leo" in parts:
         _leo(py, tmp, log, out)
     if "vector" in parts:
@@ -62,11 +62,11 @@ def measure(tmp, sets, jobs, log, parts=("carrier", "leo", "vector")):
     return out
 
 
-def _carrier(py, tmp, sets, jobs, log, out):
+def _carrier(py, tmp, sets, jobs, log, out, engine="compiled"):
     cj = os.path.join(tmp, "carrier.json")
     run([py, os.path.join(ROOT, "scripts", "figures_carrier.py"), "--out", os.path.join(tmp, "carrier"),
          "--seeds", "3", "--duration", "20", "--scenarios", "3", "--skip-weak", "--jobs", str(jobs),
-         "--json", cj] + sum((["--set", s] for s in sets), []), log)
+         "--json", cj, "--engine", engine] + sum((["--set", s] for s in sets), []), log)
     with open(cj) as fh:
         c = json.load(fh)
     for k, v in c["scint"].items():
@@ -130,6 +130,8 @@ def main(argv=None):
                     help="receiver override for the carrier loops and the vector runs (perturbation demo)")
     ap.add_argument("--jobs", "-j", type=int, default=2)
     ap.add_argument("--only", default=None, help="comma-separated parts to run: carrier, leo, vector (default: all)")
+    ap.add_argument("--carrier-engine", choices=("compiled", "python"), default="compiled",
+                    help="corrsim path of the carrier part (figures_carrier.py --engine; python = the reference)")
     args = ap.parse_args(argv)
     parts = tuple(args.only.split(",")) if args.only else ("carrier", "leo", "vector")
     if set(parts) - {"carrier", "leo", "vector"}:
@@ -144,7 +146,7 @@ def main(argv=None):
     log = lambda m: print(m, flush=True)      # noqa: E731
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="figures_check_") as tmp:
-        measured = measure(tmp, args.sets, args.jobs, log, parts)
+        measured = measure(tmp, args.sets, args.jobs, log, parts, args.carrier_engine)
     wall = time.perf_counter() - t0
     if args.update:
         doc = {"about": "reference numbers of `make figures-check` (scripts/figures_check.py): value and tolerance "

@@ -15,11 +15,14 @@ import os
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 
-#: module (path relative to receiver/tracking) -> the modules whose compiled functions it calls
+#: module (path relative to receiver/tracking) -> the modules whose compiled functions it calls (directly or
+#: through another listed module: the cached machine code holds every callee)
 DEPENDS = {
     "kernel.py": ["correlator.py"],
     "loops/compiled.py": ["kernel.py", "correlator.py", "loops/ekf.py", "loops/kfpll.py"],
     "vector/loop.py": ["kernel.py", "correlator.py", "vector/discriminators.py", "vector/kalman.py"],
+    # outside the package: the correlator-level simulator's compiled run calls the loops' compiled twins
+    "../sim/corrsim.py": ["loops/compiled.py", "loops/ekf.py", "loops/kfpll.py"],
 }
 
 

@@ -40,7 +40,8 @@ P_A = 6               # cpll: bn; kf: jerk PSD; ekf: q
 P_B = 7               # cpll: order; kf: window; ekf: amp_tau
 P_C = 8               # ekf: pli_tau
 P_D = 9               # ekf: pli_min
-N_PARAM = 10
+P_TWO = 10            # 2.0: the exponent of NWPR's |p| ** 2 (see _nwpr)
+N_PARAM = 11
 
 # ---- state (ls)
 L_STARTED = 0
@@ -89,6 +90,7 @@ def pack(loop):
     kind = KINDS[loop.name]
     lp = np.zeros(N_PARAM)
     lp[P_KIND] = kind
+    lp[P_TWO] = 2.0
     if kind == KIND_CPLL:
         lp[P_A] = loop.bn
         lp[P_B] = loop.order
@@ -117,11 +119,14 @@ def pack(loop):
 @njit(cache=True, nogil=True)
 def _nwpr(lp, ls, p1i, p1q, p2i, p2q, T):
     """NWPR C/N0 (common.NWPR.update)."""
-    wbp = (p1i * p1i + p1q * p1q) + (p2i * p2i + p2q * p2q)
+    # |p|^2 rounded as the Python NWPR's abs(p) ** 2: hypot, then libm pow(x, 2.0) (not always x * x: glibc's
+    # pow is not correctly rounded).  The exponent comes from lp so that LLVM cannot rewrite pow(x, 2.0) as
+    # x * x; a last-bit difference here would be amplified by chaotic runs (tests/test_corrsim_compiled.py).
+    two = lp[P_TWO]
+    wbp = math.hypot(p1i, p1q) ** two + math.hypot(p2i, p2q) ** two
     if wbp <= 0:
         return ls[L_NW_CN0]
-    si, sq = p1i + p2i, p1q + p2q
-    r = (si * si + sq * sq) / wbp
+    r = math.hypot(p1i + p2i, p1q + p2q) ** two / wbp
     ts = T / 2.0
     if ls[L_NW_MU_SET] == 0.0:
         c = ls[L_NW_CN0] * ts
