@@ -33,7 +33,7 @@ class _Group(click.Group):
         try:
             return self._main(*args, **kwargs)
         except SystemExit as exc:
-            if process_entry:
+            if process_entry and _finished_run:
                 _exit_now(exc.code)
             raise
 
@@ -69,10 +69,15 @@ class _Group(click.Group):
             ctx.exit(sig.exit_code)
 
 
+#: set when ``gnssrx run`` has written all its outputs: only then does the process skip the teardown
+_finished_run = False
+
+
 def _exit_now(code) -> None:
     """End the process with ``sys.exit(code)``'s status without the interpreter's teardown of every module
     (with numpy, numba / llvmlite and h5py loaded that teardown took 0.2-0.25 s of a quiet 1-s run, ~0.5 s
-    at load 9).  The command has finished: its files are closed and renamed.  The atexit handlers still run
+    at load 9).  Only after a completed ``gnssrx run`` (its files are closed and renamed; other commands
+    and error exits end as usual).  The atexit handlers still run
     (logging, HDF5, multiprocessing), the receiver's thread pool is shut down and stdout / stderr are
     flushed first.  Returns (the caller raises SystemExit as usual) when another non-daemon thread is still
     alive, or under a profiler, tracer or coverage (their results are written at the interpreter's exit)."""
@@ -169,6 +174,8 @@ def run(config, input_path, output, sets, quiet, n_threads, timings):
         import time
         wall, _ = _since_process_start()
         click.echo(stagetimes.text(wall, time.process_time()), err=True)
+    global _finished_run
+    _finished_run = True            # run file closed, standard outputs written: exit without the teardown
 
 
 def _since_process_start() -> tuple[float, float]:

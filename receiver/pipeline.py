@@ -426,7 +426,10 @@ class PrefetchingReader:
         if self._ok and next_start < self._r.end:
             if self._pool is None:
                 from concurrent.futures import ThreadPoolExecutor
-                object.__setattr__(self, "_pool", ThreadPoolExecutor(1, thread_name_prefix="gnssrx-read"))
+                # the read-ahead's resampling runs on this thread beside the tracking pool (not queued
+                # behind the chunk's tracking jobs, which the main thread submits right after this)
+                object.__setattr__(self, "_pool", ThreadPoolExecutor(1, thread_name_prefix="gnssrx-read",
+                                                                     initializer=threads.serial_here))
             fork = _fork_stage(self._r)
             snap = dict(self._r.__dict__)
             object.__setattr__(self, "_spec", (next_start, n, self.reads,

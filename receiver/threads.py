@@ -9,11 +9,13 @@ parallelises over runs).
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 _threads: int | None = None
 _pool: ThreadPoolExecutor | None = None
 _pool_n = 0
+_local = threading.local()
 
 
 def cores() -> int:
@@ -60,11 +62,18 @@ def shutdown() -> None:
         _pool, _pool_n = None, 0
 
 
+def serial_here() -> None:
+    """On the calling thread, map_ordered runs its items itself instead of on the pool: for a helper
+    thread (the pipeline's read-ahead) whose work should run beside the pool's, not queue behind the
+    tracking jobs (the same items in the same order: the same results)."""
+    _local.serial = True
+
+
 def map_ordered(fn, items: list) -> list:
     """[fn(x) for x in items], on the thread pool when more than one thread is allowed (results in the
-    order of ``items``)."""
+    order of ``items``); in line on a thread marked by :func:`serial_here`."""
     n = min(threads(), len(items))
-    if n <= 1:
+    if n <= 1 or getattr(_local, "serial", False):
         return [fn(x) for x in items]
     return list(_get_pool().map(fn, items))
 

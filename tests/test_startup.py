@@ -58,6 +58,7 @@ def test_run_path_imports_no_heavy_scipy_module(tmp_path):
     assert out["dot_ok"]                   # numba compiles and runs np.dot (BLAS) after the light start
 
 
+
 FAST_EXIT = r"""
 import atexit, sys
 from receiver.cli import main
@@ -72,16 +73,29 @@ main()
 """
 
 
-def test_the_command_line_exits_without_teardown_but_with_atexit_and_status(tmp_path):
-    """The process's own command line ends with os._exit after the atexit handlers and flushing stdout
-    (receiver/cli.py _exit_now): the status is the command's, pending output is not lost, and the
-    interpreter's teardown of the modules (0.2-0.5 s with numba loaded) does not run."""
+def test_a_finished_run_exits_without_teardown_but_with_atexit_and_status(tmp_path):
+    """After a completed ``gnssrx run`` the process ends with os._exit once the atexit handlers ran and
+    stdout was flushed (receiver/cli.py _exit_now): status 0, pending output kept, the run file in place,
+    and the interpreter's teardown of the modules (0.2-0.5 s with numba loaded) skipped.  An error exit
+    (status 2) ends as usual."""
+    x = make_signal(SATS, duration_s=0.5, seed=4) * 20.0
+    iq = np.empty(2 * x.size, np.int8)
+    iq[0::2] = np.clip(np.rint(x.real), -127, 127)
+    iq[1::2] = np.clip(np.rint(x.imag), -127, 127)
+    iq.tofile(tmp_path / "x.bin")
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    ok = subprocess.run([sys.executable, "-c", FAST_EXIT, "--version"], capture_output=True, text=True,
-                        env=env, cwd=tmp_path, timeout=120)
-    assert ok.returncode == 0 and ok.stdout.startswith("beforegnssrx, version")
-    assert "atexit handler ran" in ok.stdout and "module teardown" not in ok.stdout
+    ok = subprocess.run([sys.executable, "-c", FAST_EXIT, "run", str(ROOT / "configs" / "default.yaml"),
+                         "--input", str(tmp_path / "x.bin"), "-o", str(tmp_path / "x.h5"), "-q",
+                         "--set", "input.format=int8_iq", "--set", "input.sample_rate_hz=2600000",
+                         "--set", "input.if_hz=0", "--set", "acquisition.prns=[3,7,11,17,22,28]"],
+                        capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.startswith("beforeoutput") and "atexit handler ran" in ok.stdout
+    assert "module teardown" not in ok.stdout
+    import h5py
+    with h5py.File(tmp_path / "x.h5", "r") as h:
+        assert int(h["acquisition/detected"][:].sum()) == 6
     bad = subprocess.run([sys.executable, "-c", FAST_EXIT, "run", str(tmp_path / "none.yaml")],
                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
     assert bad.returncode == 2 and "config file not found" in bad.stderr and "Traceback" not in bad.stderr
-    assert "atexit handler ran" in bad.stdout
+    assert "atexit handler ran" in bad.stdout and "module teardown" in bad.stdout

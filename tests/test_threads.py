@@ -28,6 +28,28 @@ def test_map_ordered_keeps_the_order_and_uses_the_pool():
         [threading.current_thread().name] * 2
 
 
+def test_submit_ordered_and_serial_threads():
+    """submit_ordered returns at once and gives the list in order; a thread marked serial_here (the
+    read-ahead) runs map_ordered's items itself, other threads still use the pool."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+    threads.set_threads(2)
+    import time
+    gate = threading.Event()
+    t0 = time.perf_counter()
+    job = threads.submit_ordered(lambda i: (gate.wait(5), i), list(range(6)))
+    assert time.perf_counter() - t0 < 2.0       # returned while the items wait (else >= 15 s)
+    gate.set()
+    assert job() == [(True, i) for i in range(6)]
+    with ThreadPoolExecutor(1, initializer=threads.serial_here) as ex:
+        me, names = ex.submit(lambda: (threading.current_thread().name,
+                                       threads.map_ordered(lambda i: threading.current_thread().name,
+                                                           [0, 1, 2]))).result()
+    assert names == [me] * 3 and not me.startswith("gnssrx-track")
+    assert all(n.startswith("gnssrx-track") for n in threads.map_ordered(
+        lambda i: threading.current_thread().name, [0, 1, 2]))
+
+
 def test_thread_count_from_the_environment(monkeypatch):
     threads.set_threads(None)
     monkeypatch.setenv("GNSSRX_THREADS", "3")

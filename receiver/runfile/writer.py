@@ -310,9 +310,16 @@ class RunWriter:
                 todo.append((name, col))
         if not todo:
             return {}
-        from ..threads import map_ordered
+        from ..threads import map_ordered, threads
         r = self.chunk_rows
-        done = map_ordered(lambda nc: [_gzip_chunk(nc[1][a:a + r], r) for a in range(0, len(nc[1]), r)], todo)
+
+        def batch(cols):
+            return [[_gzip_chunk(c[a:a + r], r) for a in range(0, len(c), r)] for _, c in cols]
+        # a few batches of columns, one per thread: a short run's columns are one small chunk each, and a
+        # pool job per column cost as much as compressing it (future, locks, GIL hand-offs)
+        k = max(1, min(threads(), len(todo)))
+        groups = [todo[i * len(todo) // k:(i + 1) * len(todo) // k] for i in range(k)]
+        done = [z for g in map_ordered(batch, groups) for z in g]
         return {name: z for (name, _), z in zip(todo, done)}
 
     def _take(self, buffers: dict, key, final: bool):
