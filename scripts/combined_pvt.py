@@ -1,6 +1,7 @@
 """Combined GPS + BeiDou single-point fixes from two runs over simultaneous recordings (issue 21, step 3).
 
-gnssrx runs one signal per run; this script combines the observables of a GPS L1 C/A run and a BeiDou B1I run
+(One run can now track both signals: `signals: [gps_l1ca, bds_b1i]`, scripts/multi_acceptance.py.)  This
+script combines the observables of a GPS L1 C/A run and a BeiDou B1I run
 of the same receiver and clock (e.g. two simulations with the same time, clock and seed) epoch by epoch and
 solves them with receiver.navigation.pvt.NavSolver, which estimates one receiver clock plus an inter-system
 bias for BeiDou (Observation.system).  The BeiDou pseudoranges are referred to the GPS run's receiver clock

@@ -87,3 +87,38 @@ def test_one_system_fix_is_unchanged_by_the_system_field(sky):
     b = NavSolver(CFG).fix(WEEK, T, [Observation(prn=o.prn, tx_tow=o.tx_tow, system="C") for _, o in g], ephs)
     np.testing.assert_array_equal(a.ecef, b.ecef)
     assert a.clock_bias_m == b.clock_bias_m and a.pdop == b.pdop
+
+
+def test_klobuchar_delay_scaled_to_the_signal_carrier(sky):
+    """The broadcast Klobuchar model gives the delay on its reference carrier (GPS set: L1, BeiDou set: B1I,
+    IonoUtc.ref_hz); a B1I pseudorange corrected with the GPS set sees (f_L1 / f_B1I)^2 = 1.0184 of it."""
+    from dataclasses import replace
+    from receiver.gnss.atmosphere import klobuchar_delay_s
+    from receiver.gnss.ephemeris import IonoUtc
+    from receiver.gnss.geodesy import azel
+    from receiver.gnss.signals import L1_HZ
+    from receiver.gnss.signals_bds import B1I_HZ
+    g, c, ephs = sky
+    gps_set = IonoUtc(alpha=(1.2e-8, 1.5e-8, -6e-8, -1.2e-7), beta=(1.0e5, 1.2e5, -6.5e4, -4.0e5))
+    lat, lon, _ = (np.radians(v) for v in ecef2lla(X))
+
+    def delayed(obs, scale):
+        out = []
+        for o in obs:
+            pos = sat_state(ephs[o.prn], o.tx_tow)[0]
+            az, el = azel(X, pos)
+            d = C_LIGHT * float(klobuchar_delay_s(gps_set, lat, lon, np.array([az]), np.array([el]), T)[0])
+            out.append(Observation(prn=o.prn, tx_tow=o.tx_tow - scale * d / C_LIGHT, system=o.system))
+        return out
+    cfg = types.SimpleNamespace(**{**vars(CFG), "ionosphere": "klobuchar"})
+    k = (L1_HZ / B1I_HZ) ** 2
+    obs = delayed([o for _, o in g], 1.0) + delayed([o for _, o in c], k)
+    fix = NavSolver(cfg).fix(WEEK, T, obs, ephs, gps_set, x0=X + 100.0)
+    assert np.linalg.norm(fix.ecef - X) < 0.05 and abs(fix.isb_m["C"]) < 0.05
+    # a BeiDou set (B1I reference) applies to B1I as it is: B1I-only ranges delayed by the model itself
+    bds_set = replace(gps_set, ref_hz=B1I_HZ)
+    only_c = delayed([o for _, o in c], 1.0)
+    fix = NavSolver(cfg).fix(WEEK, T, only_c, ephs, bds_set, x0=X + 100.0)
+    assert np.linalg.norm(fix.ecef - X) < 0.05
+    wrong = NavSolver(cfg).fix(WEEK, T, only_c, ephs, gps_set, x0=X + 100.0)     # L1 set: 1.8 % too much
+    assert np.linalg.norm(wrong.ecef - X) > 0.07                                   # (0.09 m; right: 0.02 m)

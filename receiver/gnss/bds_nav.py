@@ -35,6 +35,7 @@ import numpy as np
 
 from .bds_ephemeris import BDS_PI, BdsEphemeris, BDT_GPS_OFFSET_S, BDT_WEEK_OFFSET, bds_sat_state
 from .ephemeris import IonoUtc
+from .signals_bds import B1I_HZ
 from .lnav import SubframeEvent, hard_bits
 from .time import WEEK_S
 
@@ -527,7 +528,7 @@ class BdsDecoder:
     def _set_iono(self, f):
         self.iono_utc = IonoUtc(alpha=tuple(f[f"alpha{k}"] for k in range(4)),
                                 beta=tuple(f[f"beta{k}"] for k in range(4)),
-                                wnt=self.week or 0, dt_ls=GPS_UTC_LEAP_S)
+                                wnt=self.week or 0, dt_ls=GPS_UTC_LEAP_S, ref_hz=B1I_HZ)
 
     def _assemble_d1(self):
         s1, s2, s3 = self._sub[1], self._sub[2], self._sub[3]

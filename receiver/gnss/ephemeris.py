@@ -76,6 +76,7 @@ class IonoUtc:
     wn_lsf: int | None = None
     dn: int | None = None
     dt_lsf: int | None = None
+    ref_hz: float = 1575.42e6   # the carrier whose delay the model gives: GPS L1; a BeiDou D1/D2 set B1I
 
 
 _FLOAT_FIELDS = ("toe", "toc", "af0", "af1", "af2", "tgd", "sqrt_a", "e", "i0", "omega0", "omega",

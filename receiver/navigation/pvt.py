@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..gnss.geodesy import azel, ecef2lla, enu_matrix
-from ..gnss.signals import C_LIGHT, LAMBDA_L1
+from ..gnss.signals import C_LIGHT, L1_HZ, LAMBDA_L1
+from ..gnss.signals_bds import B1I_HZ
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import earth_rotation, sat_state, select
 from ..gnss.ephemeris_jit import sat_states
@@ -183,6 +184,8 @@ class _Sats:
         self.drift = np.asarray(drift, float)
         self.cn0 = np.asarray(cn0, float)
         self.doppler = np.asarray(doppler, float)
+        # carrier of each satellite's signal (the Klobuchar delay is scaled from the model's reference carrier)
+        self.carrier_hz = np.array([B1I_HZ if c == "C" else L1_HZ for c in sy], float)
 
     def __len__(self):
         return len(self.prn)
@@ -302,7 +305,8 @@ class NavSolver:
             az = el = None
         return known, tau, los, az, el, iono, tropo, w, resid, hm
 
-    def _linearise_numpy(self, pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow):
+    def _linearise_numpy(self, pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow,
+                         iono_scale=None):
         """(known, tau, los, az, el, iono, tropo, w, resid, h) at position x, clock b (numpy; any number
         of clock groups: e_cols / isb)."""
         n = len(pos_tx)
@@ -318,6 +322,8 @@ class NavSolver:
             az = el = None
         if corrections and known:
             iono, tropo = self._atmosphere(x, az, el, iono_utc, tow)
+            if iono_scale is not None:
+                iono = iono * iono_scale
         else:
             iono = tropo = np.zeros(n)
         w = self._weights(el if (corrections and known) else None, cn0, iono, ura)
@@ -342,14 +348,21 @@ class NavSolver:
         rho_c = s.rho[idx] + C_LIGHT * s.clk[idx]
         pos_tx = s.pos[idx]
         cn0, ura = s.cn0[idx], s.ura_m[idx]
-        compiled = self._compiled_ok(extra, iono_utc)
+        # the Klobuchar model gives the delay on its reference carrier (GPS set: L1; BeiDou set: B1I); a signal
+        # on another carrier sees (f_ref / f)^2 of it -- 1 exactly for every satellite of one-system fixes
+        iono_scale = None
+        if iono_utc is not None:
+            ratio = (float(getattr(iono_utc, "ref_hz", L1_HZ)) / s.carrier_hz[idx]) ** 2
+            if np.any(ratio != 1.0):
+                iono_scale = ratio
+        compiled = self._compiled_ok(extra, iono_utc) and iono_scale is None
         for it in range(1, self.MAX_ITER + 1):
             if compiled:
                 known, tau, los, az, el, iono, tropo, w, resid, h = self._linearise(
                     pos_tx, x, b, rho_c, cn0, ura, corrections, iono_utc, tow)
             else:
                 known, tau, los, az, el, iono, tropo, w, resid, h = self._linearise_numpy(
-                    pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow)
+                    pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow, iono_scale)
             if n_aid:
                 if not known:
                     return None

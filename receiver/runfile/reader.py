@@ -262,7 +262,7 @@ class RunData:
                            tot=float(a.get("tot", 0.0)), wnt=int(a.get("wnt", 0)),
                            dt_ls=int(a.get("dt_ls", 0)),
                            wn_lsf=_opt_int(a.get("wn_lsf")), dn=_opt_int(a.get("dn")),
-                           dt_lsf=_opt_int(a.get("dt_lsf")))
+                           dt_lsf=_opt_int(a.get("dt_lsf")), ref_hz=float(a.get("ref_hz", 1575.42e6)))
         except (KeyError, TypeError, ValueError):
             return None
 

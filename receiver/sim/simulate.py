@@ -221,13 +221,14 @@ class SatelliteTrack:
                 hermite(self.tn, self.clk, self.drift, t, True))
 
 
-def satellite_geometry(track, t_rx, rx_pos, rx_vel, lat_deg, lon_deg, h_m, iono, tropo):
+def satellite_geometry(track, t_rx, rx_pos, rx_vel, lat_deg, lon_deg, h_m, iono, tropo, iono_scale=1.0):
     """Propagation quantities of one satellite at reception times t_rx (true GPS s of week, array).
 
     track: a :class:`SatelliteTrack` (or any callable t_true -> pos, vel, clk, clk_dot).
     Returns a dict of arrays: rho (m, geometric incl. Sagnac), rho_dot (m/s, d rho/dt), iono_m, tropo_m
     (group delays, m), clk (s, satellite clock offset incl. relativity - TGD), clk_dot, el, az (rad),
-    tau (s, total code propagation time).
+    tau (s, total code propagation time).  iono_scale: the Klobuchar delay is the model's times this factor
+    ((f_ref / f)^2 for a signal on another frequency than the model's reference).
     """
     n = t_rx.size
     tau = np.full(n, 0.075)
@@ -246,6 +247,8 @@ def satellite_geometry(track, t_rx, rx_pos, rx_vel, lat_deg, lon_deg, h_m, iono,
             az = np.arctan2(e, nn) % (2 * np.pi)
             if iono is not None:
                 iono_m = C_LIGHT * klobuchar_delay_s(iono, lat_r, lon_r, az, el_c, t_rx)
+                if iono_scale != 1.0:
+                    iono_m = iono_m * iono_scale
             if tropo:
                 tropo_m = saastamoinen_m(lat_r, h_m, el_c)
             atm = iono_m + tropo_m
@@ -547,6 +550,11 @@ class _Simulator:
             if not (abs(f_if) < self.fs / 2 and (self.cplx or f_if > 0)):
                 raise UserError(f"signal {sig.name} would sit at IF {f_if / 1e6:+.3f} MHz (frontend.if_hz + its "
                                 f"carrier - {first.name}'s), outside the {self.fs / 1e6:g} MS/s band")
+        # several signals: the one Klobuchar model (the GPS set, L1 delays) is the ionosphere of all; a signal
+        # on another carrier is delayed (f_L1 / f)^2 times as much (B1I: +1.84 %).  One signal: the model's
+        # delay as it is (a BeiDou set gives B1I delays, BDS-SIS-ICD-B1I)
+        self.iono_scale = {p: (first.carrier_hz / self.sat_sig[p][0].carrier_hz) ** 2 if self.multi else 1.0
+                           for p in self.prns}
         self.nav = {}
         for p in self.prns:
             sig, q, _ = self.sat_sig[p]
@@ -687,7 +695,8 @@ class _Simulator:
         geo = {}
         for p in self.prns:
             track = self._track(p, tn_abs[0] - 0.2, tn_abs[-1])
-            geo[p] = satellite_geometry(track, tn_abs, rx_pos, rx_vel, lat, lon, hgt, self.iono, self.tropo)
+            geo[p] = satellite_geometry(track, tn_abs, rx_pos, rx_vel, lat, lon, hgt, self.iono, self.tropo,
+                                        self.iono_scale[p])
         el_n = np.array([np.degrees(geo[p]["el"]) for p in self.prns])
         el_deg = np.array([np.interp(t_rel, tn_rel, e) for e in el_n]) if nodes.size < n + 1 else el_n
         visible = self._visibility(t_rel, el_deg)
