@@ -83,6 +83,8 @@ def test_compiled_path_limits():
     with pytest.raises(ValueError, match="t_coh_ms"):
         run(make_carrier_loop("cpll_atan", cfg.tracking), CorrScenario(duration_s=0.5, t_coh_ms=80),
             compiled=True)
+    with pytest.raises(ValueError, match="no compiled twin"):
+        run(object(), CorrScenario(duration_s=0.5), compiled=True)
 
 
 def test_jit_cache_table_covers_corrsim():

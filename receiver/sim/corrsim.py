@@ -137,7 +137,9 @@ def run(loop, sc: CorrScenario, truth=None, record_pli=True, compiled=False):
     if compiled:
         if m > 64:
             raise ValueError("corrsim.run(compiled=True): t_coh_ms > 64 (the numpy-order sum covers <= 64 steps)")
-        from ..tracking.loops.compiled import KIND_CPLL, P_KIND, loop_start, pack
+        from ..tracking.loops.compiled import KIND_CPLL, KINDS, P_KIND, loop_start, pack
+        if getattr(loop, "name", None) not in KINDS:
+            raise ValueError(f"corrsim.run(compiled=True): no compiled twin of the loop {getattr(loop, 'name', loop)!r}")
         lp, ls = pack(loop)
         loop_start(lp, ls, f_true0 + sc.init_doppler_err_hz, T, 0.0, sc.carrier_hz)
         res = np.empty((len(OUT_KEYS), n_ep))
