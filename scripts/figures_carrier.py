@@ -14,8 +14,8 @@ simulator + receiver runs in tests/test_carrier_corrsim.py):
     C/N0 45 dB-Hz for 5 s then -1 dB per 5 s to 15 dB-Hz (+10 s), loops cpll_atan (15 Hz), kf, adaptive_kf
     at T = 1, 5, 10, 20 ms (data wiped off); tracking threshold = true C/N0 at the end of the last 1 s
     window in lock (Costas-folded phase-error std < 30 deg).
-Runs: receiver.sim.corrsim.run(compiled=True) (all epochs in one numba function with the loops' compiled
-twins); --engine python runs the numpy + Python-loop reference path (the same numbers: tests/test_corrsim_compiled.py).
+Runs: receiver.evaluate.corrloop.run (all epochs in one numba function with the loops' compiled
+twins); --engine python runs the numpy + Python-loop reference path receiver.sim.corrsim.run (the same numbers: tests/test_corrsim_compiled.py).
 Outputs in --out: fig1_theory.png, fig2_pli.png, fig4_cn0_phase.png, fig5_phase_std.png, fig6_loss_of_lock.png,
 fig_weak_threshold.png, carrier.h5 (all numbers), table.md, carrier_results.json (the table's numbers per seed).
 """
@@ -33,6 +33,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from receiver.config import load_receiver_config  # noqa: E402
+from receiver.evaluate import corrloop  # noqa: E402
 from receiver.sim.corrsim import (CorrScenario, loss_of_lock_probability, make_truth, phase_error_std_deg,  # noqa: E402
                               run, tracking_threshold, windowed_pli, wrap_costas)
 from receiver.gnss.signals import L1_HZ  # noqa: E402
@@ -73,6 +74,11 @@ def lost_lock(t, err_cycles, t_from=2.0, window_s=1.0, max_std_deg=30.0):
     return bool(not locked.all())
 
 
+def _run(compiled):
+    """The run function of the chosen engine: the compiled driver or corrsim's reference path."""
+    return corrloop.run if compiled else run
+
+
 # ------------------------------------------------------------------------------------------ scintillation
 def scint_job(args):
     i_sc, seed, duration, extra, compiled = args
@@ -82,7 +88,7 @@ def scint_job(args):
     truth = make_truth(sc)
     res = {}
     for name in SCINT_LOOPS:
-        out = run(_loop(name, extra), sc, truth, compiled=compiled)
+        out = _run(compiled)(_loop(name, extra), sc, truth)
         sel = out["t"] >= 2.0
         std = phase_error_std_deg(out["err_cycles"], per_s=60.0 if duration >= 60 else duration - 2.0,
                                   t=out["t"])
@@ -105,7 +111,7 @@ def weak_job(args):
     sc = CorrScenario(duration_s=165.0, t_coh_ms=T, carrier_hz=L1_HZ, cn0_schedule=((0, 5, 155, 165),
                                                                                   (45, 45, 15, 15)),
                       h0=H0, h_2=H_2, dynamics=dyn, seed=500 + seed)
-    out = run(_loop(loop, extra), sc, compiled=compiled)
+    out = _run(compiled)(_loop(loop, extra), sc)
     thr, locked = tracking_threshold(out["t"], out["err_cycles"], out["cn0_true"])
     return dyn, T, seed, loop, thr
 

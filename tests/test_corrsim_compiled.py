@@ -1,4 +1,4 @@
-"""The correlator-level simulator's compiled path (receiver.sim.corrsim.run(compiled=True): every epoch in one
+"""The correlator-level simulator's compiled driver (receiver.evaluate.corrloop.run: every epoch in one
 numba function with the loops' compiled twins) against its numpy + Python-loop reference path, for every
 loop variant and setting the paper figures use (scripts/figures_carrier.py).
 
@@ -15,6 +15,7 @@ import pytest
 from receiver.config import load_receiver_config
 from receiver.gnss.signals import L1_HZ
 from receiver.gnss.signals_bds import B1I_HZ
+from receiver.evaluate.corrloop import run as run_compiled
 from receiver.sim.corrsim import OUT_KEYS, CorrScenario, make_truth, run
 from receiver.tracking.carrier import make_carrier_loop
 
@@ -50,7 +51,7 @@ def scint_truth():
 def test_scintillation_loops_compiled_equals_python(scint_truth, name):
     sc, truth = scint_truth
     ref = run(_loop(name), sc, truth)
-    fast = run(_loop(name), sc, truth, compiled=True)
+    fast = run_compiled(_loop(name), sc, truth)
     _assert_same(ref, fast)
     # not a trivial run: the loop moved the NCO, the noise is there, and the C/N0 estimate is the loop's
     assert np.ptp(ref["doppler"]) > 1.0
@@ -64,16 +65,16 @@ def test_weak_signal_loops_compiled_equals_python(name, T):
     sc = CorrScenario(duration_s=3.0, t_coh_ms=T, carrier_hz=L1_HZ, cn0_schedule=((0, 0.5, 3), (45, 45, 25)),
                       h0=FC.H0, h_2=FC.H_2, dynamics="manoeuvre", accel_g=2.0, seed=500 + T)
     ref = run(_loop(name), sc)
-    fast = run(_loop(name), sc, compiled=True)
+    fast = run_compiled(_loop(name), sc)
     _assert_same(ref, fast)
 
 
 def test_compiled_path_reads_the_loop_parameters(scint_truth):
     """A perturbed loop gives another record in the compiled path too, the one the reference gives."""
     sc, truth = scint_truth
-    base = run(_loop("ekf"), sc, truth, compiled=True)
+    base = run_compiled(_loop("ekf"), sc, truth)
     ovr = ["tracking.carrier.ekf.bn_hz=8.0"]
-    pert_fast = run(_loop("ekf", ovr), sc, truth, compiled=True)
+    pert_fast = run_compiled(_loop("ekf", ovr), sc, truth)
     assert not np.allclose(base["doppler"], pert_fast["doppler"], rtol=1e-6)
     _assert_same(run(_loop("ekf", ovr), sc, truth), pert_fast)
 
@@ -81,17 +82,16 @@ def test_compiled_path_reads_the_loop_parameters(scint_truth):
 def test_compiled_path_limits():
     cfg = load_receiver_config(overrides=["tracking.carrier.bn_hz=15.0"])
     with pytest.raises(ValueError, match="t_coh_ms"):
-        run(make_carrier_loop("cpll_atan", cfg.tracking), CorrScenario(duration_s=0.5, t_coh_ms=80),
-            compiled=True)
+        run_compiled(make_carrier_loop("cpll_atan", cfg.tracking), CorrScenario(duration_s=0.5, t_coh_ms=80))
     with pytest.raises(ValueError, match="no compiled twin"):
-        run(object(), CorrScenario(duration_s=0.5), compiled=True)
+        run_compiled(object(), CorrScenario(duration_s=0.5))
 
 
 def test_jit_cache_table_covers_corrsim():
-    """corrsim's compiled run calls the loops' compiled twins: the stale-cache table lists it with existing
-    files, so a change of a loop drops corrsim's cached machine code (receiver/tracking/_jitcache.py)."""
+    """the compiled corrsim driver calls the loops' compiled twins: the stale-cache table lists it with existing
+    files, so a change of a loop drops its cached machine code (receiver/tracking/_jitcache.py)."""
     from receiver.tracking import _jitcache as J
-    deps = J.DEPENDS["../sim/corrsim.py"]
+    deps = J.DEPENDS["../evaluate/corrloop.py"]
     assert {"loops/compiled.py", "loops/ekf.py", "loops/kfpll.py"} <= set(deps)
     for mod, ds in J.DEPENDS.items():
         for f in [mod] + ds:

@@ -22,11 +22,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from ..gnss.clock import OSCILLATORS
 from ..gnss.signals import C_LIGHT
-from ..tracking.loops.compiled import L_CN0, L_NCO_FREQ, L_NCO_PHASE, TWO_PI, loop_update
 
 DT = 0.5e-3
 G0 = 9.80665
@@ -108,45 +106,42 @@ def make_truth(sc: CorrScenario):
 OUT_KEYS = ("t", "ip", "qp", "err_cycles", "cn0_true", "cn0_est", "doppler", "doppler_true")
 
 
-def run(loop, sc: CorrScenario, truth=None, record_pli=True, compiled=False):
-    """Close `loop` (a started-or-not PythonLoop) around the correlator model.  Returns a dict of per-epoch
-    arrays: t (epoch midpoint), ip, qp, err_cycles (truth phase - NCO phase at the midpoint), cn0_true,
-    cn0_est (loop's estimate when it has one), doppler (NCO), doppler_true.
-
-    compiled=False (the reference): numpy per epoch and the Python loop's ``step``.  compiled=True: every
-    epoch in one compiled function (:func:`_run_compiled`) with the loop's compiled twin
-    (receiver/tracking/loops/compiled.py, packed from `loop`); the same noise draw and the same arithmetic
-    (numpy's pairwise sums included), so the records equal the reference to float rounding
-    (tests/test_corrsim_compiled.py); `loop` itself is only read, not stepped."""
+def prepare(sc: CorrScenario, truth=None):
+    """The arrays one run of :func:`run` works on (shared with the compiled driver
+    receiver.evaluate.corrloop): a dict with the truth arrays t, theta, cn0, the half-step midpoints th_mid,
+    fr (true frequency), a_mid, the per-epoch complex noise (n_ep x 2m, drawn from the scenario's seed),
+    tau (step midpoints in an epoch), m (steps per half epoch = t_coh_ms), T, n_ep, f_true0 and the phase
+    offset that starts the loop's NCO model at zero phase error."""
     if truth is None:
         truth = make_truth(sc)
     t, theta, a, s_amp, s_ph, cn0 = truth
     m = int(sc.t_coh_ms)
     steps = 2 * m
-    T = m * 1e-3
     n_ep = (len(t) - 2) // steps
     rng = np.random.default_rng(np.random.SeedSequence([sc.seed, 13]))
     noise = (rng.standard_normal((n_ep, steps)) + 1j * rng.standard_normal((n_ep, steps)))
-    th_mid = 0.5 * (theta[1:] + theta[:-1])
     fr = np.diff(theta) / DT
-    a_mid = 0.5 * (a[1:] + a[:-1])
-    tau = (np.arange(steps) + 0.5) * DT
-    f_true0 = fr[0]
-    # the loop's NCO model starts at phase 0; align the truth so that the initial phase error is 0
-    offset = theta[0]
-    if compiled:
-        if m > 64:
-            raise ValueError("corrsim.run(compiled=True): t_coh_ms > 64 (the numpy-order sum covers <= 64 steps)")
-        from ..tracking.loops.compiled import KIND_CPLL, KINDS, P_KIND, loop_start, pack
-        if getattr(loop, "name", None) not in KINDS:
-            raise ValueError(f"corrsim.run(compiled=True): no compiled twin of the loop {getattr(loop, 'name', loop)!r}")
-        lp, ls = pack(loop)
-        loop_start(lp, ls, f_true0 + sc.init_doppler_err_hz, T, 0.0, sc.carrier_hz)
-        res = np.empty((len(OUT_KEYS), n_ep))
-        _run_compiled(np.asarray(t, float), np.asarray(theta, float), th_mid, fr, a_mid,
-                      np.asarray(cn0, float), noise, tau, m, T, float(offset), lp, ls,
-                      int(lp[P_KIND]) != KIND_CPLL, res)
-        return {k: res[i] for i, k in enumerate(OUT_KEYS)}
+    return {"t": t, "theta": theta, "cn0": cn0, "th_mid": 0.5 * (theta[1:] + theta[:-1]), "fr": fr,
+            "a_mid": 0.5 * (a[1:] + a[:-1]), "noise": noise, "tau": (np.arange(steps) + 0.5) * DT, "m": m,
+            "T": m * 1e-3, "n_ep": n_ep, "f_true0": fr[0],
+            # the loop's NCO model starts at phase 0; align the truth so that the initial phase error is 0
+            "offset": theta[0]}
+
+
+def run(loop, sc: CorrScenario, truth=None, record_pli=True):
+    """Close `loop` (a started-or-not PythonLoop) around the correlator model.  Returns a dict of per-epoch
+    arrays (OUT_KEYS): t (epoch midpoint), ip, qp, err_cycles (truth phase - NCO phase at the midpoint),
+    cn0_true, cn0_est (loop's estimate when it has one), doppler (NCO), doppler_true.
+
+    This is the reference path: numpy per epoch and the Python loop's ``step``.  The figure scripts run the
+    same model compiled (receiver.evaluate.corrloop.run: the loops' compiled twins, the same noise and the
+    same arithmetic; equal records, tests/test_corrsim_compiled.py) — it lives above the receiver stages
+    because the simulator must not depend on them."""
+    P = prepare(sc, truth)
+    t, theta, cn0, th_mid, fr, a_mid = P["t"], P["theta"], P["cn0"], P["th_mid"], P["fr"], P["a_mid"]
+    noise, tau, m, T, n_ep, f_true0, offset = (P["noise"], P["tau"], P["m"], P["T"], P["n_ep"], P["f_true0"],
+                                               P["offset"])
+    steps = 2 * m
     loop.start(f_true0 + sc.init_doppler_err_hz, T, rate_hz_s=0.0, carrier_hz=sc.carrier_hz)
     out = {k: np.empty(n_ep) for k in OUT_KEYS}
     two_pi_j = 2j * math.pi
@@ -172,82 +167,6 @@ def run(loop, sc: CorrScenario, truth=None, record_pli=True, compiled=False):
         est = getattr(loop, "cn0", None)
         out["cn0_est"][k] = 10 * math.log10(est) if est else np.nan
     return out
-
-
-@njit(cache=True, nogil=True)
-def _pairwise_sum(re, im, s, n):
-    """Sum of the n complex values re[s:s+n] + j im[s:s+n] in numpy's order (its pairwise summation of a
-    complex array's reduce, for n <= 64: sequential below 4 values, else four running partial sums combined
-    as (r0 + r1) + (r2 + r3), then the remainder), so that the compiled path adds exactly as ``c.sum()``."""
-    if n < 4:
-        rr = -0.0
-        ri = -0.0
-        for i in range(n):
-            rr += re[s + i]
-            ri += im[s + i]
-        return rr, ri
-    r0, r1, r2, r3 = re[s], re[s + 1], re[s + 2], re[s + 3]
-    q0, q1, q2, q3 = im[s], im[s + 1], im[s + 2], im[s + 3]
-    i = 4
-    lim = n - (n % 4)
-    while i < lim:
-        r0 += re[s + i]
-        r1 += re[s + i + 1]
-        r2 += re[s + i + 2]
-        r3 += re[s + i + 3]
-        q0 += im[s + i]
-        q1 += im[s + i + 1]
-        q2 += im[s + i + 2]
-        q3 += im[s + i + 3]
-        i += 4
-    rr = (r0 + r1) + (r2 + r3)
-    ri = (q0 + q1) + (q2 + q3)
-    while i < n:
-        rr += re[s + i]
-        ri += im[s + i]
-        i += 1
-    return rr, ri
-
-
-@njit(cache=True, nogil=True)
-def _run_compiled(t, theta, th_mid, fr, a_mid, cn0, noise, tau, m, T, offset, lp, ls, has_cn0, out):
-    """All epochs of :func:`run` (compiled=True): the correlator model of each epoch from the truth arrays,
-    then the loop's compiled update (receiver.tracking.loops.compiled.loop_update) sets the next NCO.  The
-    operations are those of the numpy path in the same order (exp(j y) as cos y + j sin y, np.sinc as
-    sin(pi x) / (pi x) with x = 0 -> 1e-20); out rows in the order of OUT_KEYS."""
-    steps = 2 * m
-    n_ep = noise.shape[0]
-    cre = np.empty(steps)
-    cim = np.empty(steps)
-    for k in range(n_ep):
-        i0 = k * steps
-        p = ls[L_NCO_PHASE]
-        f = ls[L_NCO_FREQ]
-        for j in range(steps):
-            i = i0 + j
-            y = TWO_PI * (th_mid[i] - offset - p - f * tau[j])
-            x = (fr[i] - f) * DT
-            if x == 0.0:
-                x = 1.0e-20
-            x = math.pi * x
-            sc = math.sin(x) / x
-            nz = noise[k, j]
-            cre[j] = a_mid[i] * math.cos(y) * sc + nz.real
-            cim[j] = a_mid[i] * math.sin(y) * sc + nz.imag
-        p1i, p1q = _pairwise_sum(cre, cim, 0, m)
-        p2i, p2q = _pairwise_sum(cre, cim, m, m)
-        ip = p1i + p2i
-        qp = p1q + p2q
-        im = i0 + m
-        out[0, k] = t[im]
-        out[1, k] = ip
-        out[2, k] = qp
-        out[3, k] = theta[im] - offset - (p + f * T / 2.0)
-        out[4, k] = cn0[im]
-        out[6, k] = f
-        out[7, k] = fr[im]
-        loop_update(lp, ls, ip, qp, T, p1i, p1q, p2i, p2q)
-        out[5, k] = 10 * math.log10(ls[L_CN0]) if has_cn0 else np.nan
 
 
 # ---------------------------------------------------------------------------------------------- metrics

@@ -21,8 +21,9 @@ DEPENDS = {
     "kernel.py": ["correlator.py"],
     "loops/compiled.py": ["kernel.py", "correlator.py", "loops/ekf.py", "loops/kfpll.py"],
     "vector/loop.py": ["kernel.py", "correlator.py", "vector/discriminators.py", "vector/kalman.py"],
-    # outside the package: the correlator-level simulator's compiled run calls the loops' compiled twins
-    "../sim/corrsim.py": ["loops/compiled.py", "loops/ekf.py", "loops/kfpll.py"],
+    # outside the package: the correlator-level simulator's compiled driver calls the loops' compiled twins
+    "../evaluate/corrloop.py": ["loops/compiled.py", "loops/ekf.py", "loops/kfpll.py", "kernel.py",
+                                "correlator.py"],
 }
 
 
