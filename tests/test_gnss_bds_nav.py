@@ -186,14 +186,15 @@ def test_rinex3_beidou_records_round_trip(nominal, tmp_path):
 def test_far_replacement_ephemeris_needs_a_second_reception(nominal):
     """A BCH block with two errors is 'corrected' into a wrong codeword, so a corrupted set can decode:
     a replacement that moves the satellite by more than JUMP_M is used only when a second reception
-    decodes the same set; a genuine update (metres) replaces at once."""
+    decodes the same set; a genuine update (metres, new AODE) replaces at once."""
     from dataclasses import replace
 
     from receiver.gnss.bds_nav import quantize_bds
     ephs, iono = nominal
     good = ephs[11]
     far = quantize_bds(replace(good, omega0=good.omega0 + 1e-3))           # ~ 27 km along the orbit
-    near = quantize_bds(replace(far, af0=far.af0 + 2e-9))                   # 0.6 m of clock
+    # a genuine update: metres, and a new issue of data (the same AODE with other contents is held too)
+    near = quantize_bds(replace(far, af0=far.af0 + 2e-9, iode=far.iode + 1, iodc=far.iodc + 1))
     ms0 = int(TOW * 1000)                                                  # a D1 bit edge (BDT ms % 20 == 0)
     dec = BdsDecoder(11)
     pieces = [(good, 40000), (far, 30000), (far, 30000), (near, 30000)]
@@ -209,3 +210,34 @@ def test_far_replacement_ephemeris_needs_a_second_reception(nominal):
     assert seen[1] == (good, 1)          # first reception of the far set: held
     assert seen[2] == (far, 1)           # the same set again: used
     assert seen[3] == (near, 1)          # a near update: at once
+
+
+def test_held_set_assembled_again_with_the_same_corrupted_subframe_is_not_a_second_reception(nominal):
+    """A subframe 2 corrupted into a valid-looking one (two errors in a BCH block) gives a far set when the
+    next subframe 3 completes it; the next frame's subframe 1 completes the *same* set again from the same
+    corrupted subframe 2 — that is not a second reception: the set must never be used."""
+    from dataclasses import replace
+
+    from receiver.gnss.bds_nav import quantize_bds
+    ephs, iono = nominal
+    good = ephs[11]
+    bad = quantize_bds(replace(good, m0=good.m0 + 1e-3))           # subframe 2 field: ~27 km along the orbit
+    ms0 = int(TOW * 1000)
+    n = 100000
+    soft_good, _ = _stream(good, iono, False, ms0, n, invert=False)
+    soft_bad, _ = _stream(bad, iono, False, ms0, n, invert=False)
+    evs = BdsDecoder(11).feed(soft_good, 0)
+    sf2 = [e.bit_index for e in evs if e.subframe_id == 2]
+    assert len(sf2) >= 2
+    b = sf2[1]                                        # the second frame's subframe 2 (the first set is good)
+    mixed = soft_good.copy()
+    mixed[b:b + 300] = soft_bad[b:b + 300]
+    dec = BdsDecoder(11)
+    used = []
+    for i in range(0, mixed.size, 50):                # fed in 1-s pieces, as the navigation engine does
+        dec.feed(mixed[i:i + 50], i)
+        used.append(dec.ephemeris)
+    mixed_set = quantize_bds(replace(good, m0=bad.m0))
+    assert dec.ephemerides_held >= 1                  # the corrupted set was seen ...
+    assert all(e is None or e == good for e in used)  # ... and never used
+    assert used[-1] == good and mixed_set != good

@@ -369,7 +369,10 @@ class BdsDecoder:
     c x clock, at the new set's toe) replaces it only when a second reception decodes the same set: the
     BCH(15,11) decoder corrects one error per block, so two errors in a block are "corrected" into a third
     and a corrupted set can pass at low C/N0 (as with GPS LNAV's single-bit correction); a genuine update
-    moves the satellite by metres.
+    moves the satellite by metres.  A set with the current issue of data (toe, AODE, AODC) and other contents
+    is held the same way (the data is uploaded with a new toe).  A second reception means every subframe
+    (D1) or page (D2) of the set received after those the held set was built from: the held set assembled
+    again when the next subframe completes it with the same corrupted part is not one.
     """
     MAX_MISSES = 3
     JUMP_M = 300.0
@@ -384,6 +387,8 @@ class BdsDecoder:
         self.parity_failures = 0
         self.ephemerides_held = 0
         self._held: BdsEphemeris | None = None   # a far replacement waiting for a second reception
+        self._held_src = -1                      # the latest reception number of the parts it was built from
+        self._seq = 0                            # reception number of the last stored subframe / page
         self.synced = False
         self.polarity = 0
         self._bits = np.zeros(0, np.uint8)
@@ -393,6 +398,7 @@ class BdsDecoder:
         self._sf_start = None
         self._sub: dict = {}          # D1: fraid -> fields; D2: page -> fields
         self._sub_sow: dict = {}
+        self._sub_seq: dict = {}      # its reception number (self._seq)
 
     def feed(self, bits, first_bit_index: int) -> list:
         hard = hard_bits(bits)
@@ -503,6 +509,8 @@ class BdsDecoder:
                 return
             self._sub[page] = _unpack(d2_page_fields(page), info)
             self._sub_sow[page] = sow
+            self._seq += 1
+            self._sub_seq[page] = self._seq
             if page == 2:
                 self._set_iono(self._sub[2])
             if len(self._sub) == 10:
@@ -512,6 +520,8 @@ class BdsDecoder:
                 return
             self._sub[fraid] = _unpack({1: D1_SF1, 2: D1_SF2, 3: D1_SF3}[fraid], info)
             self._sub_sow[fraid] = sow
+            self._seq += 1
+            self._sub_seq[fraid] = self._seq
             if fraid == 1:
                 self._set_iono(self._sub[1])
             if len(self._sub) == 3:
@@ -568,10 +578,18 @@ class BdsDecoder:
             health=int(clk["sath1"]), ura_index=int(clk["urai"]), tgd2=clk["tgd2"])
         if eph == self.ephemeris:
             return
-        if self.ephemeris is not None and not self._near(self.ephemeris, eph):
+        cur = self.ephemeris
+        src = list(self._sub_seq.values())           # reception numbers of the parts it was built from
+        if cur is not None and ((eph.toe, eph.iode, eph.iodc) == (cur.toe, cur.iode, cur.iodc)
+                                or not self._near(cur, eph)):
             if eph != self._held:
                 self._held = eph                       # wait for a second reception of the same set
+                self._held_src = max(src)
                 self.ephemerides_held += 1
+                return
+            if min(src) <= self._held_src:
+                # assembled again with a part it was built from (the next subframe completing the set with
+                # the same corrupted subframe): not a second reception
                 return
         self._held = None
         self.week = wn + BDT_WEEK_OFFSET
