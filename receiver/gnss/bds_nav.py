@@ -29,6 +29,7 @@ into GPS time of week for the navigation engine.
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,7 +37,7 @@ import numpy as np
 from .bds_ephemeris import BDS_PI, BdsEphemeris, BDT_GPS_OFFSET_S, BDT_WEEK_OFFSET, bds_sat_state
 from .ephemeris import IonoUtc
 from .signals_bds import B1I_HZ
-from .lnav import SubframeEvent, hard_bits
+from .lnav import HeldSet, SubframeEvent, hard_bits
 from .time import WEEK_S
 
 PREAMBLE = (1, 1, 1, 0, 0, 0, 1, 0, 0, 1, 0)
@@ -385,9 +386,7 @@ class BdsDecoder:
         self.iono_utc: IonoUtc | None = None
         self.week: int | None = None
         self.parity_failures = 0
-        self.ephemerides_held = 0
-        self._held: BdsEphemeris | None = None   # a far replacement waiting for a second reception
-        self._held_src = -1                      # the latest reception number of the parts it was built from
+        self._held = HeldSet()                   # a suspect replacement waiting for a second reception
         self._seq = 0                            # reception number of the last stored subframe / page
         self.synced = False
         self.polarity = 0
@@ -399,6 +398,10 @@ class BdsDecoder:
         self._sub: dict = {}          # D1: fraid -> fields; D2: page -> fields
         self._sub_sow: dict = {}
         self._sub_seq: dict = {}      # its reception number (self._seq)
+
+    @property
+    def ephemerides_held(self) -> int:
+        return self._held.count
 
     def feed(self, bits, first_bit_index: int) -> list:
         hard = hard_bits(bits)
@@ -580,18 +583,11 @@ class BdsDecoder:
             return
         cur = self.ephemeris
         src = list(self._sub_seq.values())           # reception numbers of the parts it was built from
-        if cur is not None and ((eph.toe, eph.iode, eph.iodc) == (cur.toe, cur.iode, cur.iodc)
-                                or not self._near(cur, eph)):
-            if eph != self._held:
-                self._held = eph                       # wait for a second reception of the same set
-                self._held_src = max(src)
-                self.ephemerides_held += 1
-                return
-            if min(src) <= self._held_src:
-                # assembled again with a part it was built from (the next subframe completing the set with
-                # the same corrupted subframe): not a second reception
-                return
-        self._held = None
+        suspect = cur is not None and ((eph.toe, eph.iode, eph.iodc) == (cur.toe, cur.iode, cur.iodc)
+                                       or not self._near(cur, eph))
+        if suspect and not self._held.offer(eph, src, operator.eq):
+            return
+        self._held.clear()
         self.week = wn + BDT_WEEK_OFFSET
         self.ephemeris = eph
         if self.iono_utc is not None:

@@ -468,6 +468,30 @@ def _tow_from_count(count: int) -> float:
     return float((count * 6 - 6) % int(WEEK_S))
 
 
+class HeldSet:
+    """A suspect ephemeris set waiting for a second reception (the LNAV and BeiDou D1/D2 decoders).
+    ``offer(eph, src, same)`` with the reception numbers ``src`` (e.g. bit indices) of the parts the set was
+    assembled from: True when the set may be used now — it is the held set again (``same(held, eph)``),
+    assembled only from parts received after those of the held one (the next subframe completing the held
+    set again with the same corrupted part is no second reception); otherwise ``eph`` is held (a new set:
+    ``count`` + 1) or kept waiting, and False is returned.  ``clear()`` once a set is used."""
+
+    def __init__(self):
+        self.eph = None
+        self.src = -1
+        self.count = 0
+
+    def offer(self, eph, src, same) -> bool:
+        if self.eph is None or not same(self.eph, eph):
+            self.eph, self.src = eph, max(src)
+            self.count += 1
+            return False
+        return min(src) > self.src
+
+    def clear(self) -> None:
+        self.eph = None
+
+
 class LnavDecoder:
     """Per-channel LNAV decoder.
 
@@ -526,10 +550,12 @@ class LnavDecoder:
         self._sub = {}                  # sfid -> (words, tow, bit_index) of last good subframe 1..3
         self._partial = {}              # sfid -> (issue of data, words with None) of an incomplete 1..3
         self.words_corrected = 0
-        self.ephemerides_held = 0
-        self._held: Ephemeris | None = None   # a far replacement waiting for a second reception
-        self._held_src = -1                   # the latest bit index of the subframes the held set came from
+        self._held = HeldSet()                # a suspect replacement waiting for a second reception
         self.first_check = None               # callable(eph, tow_s, bit_index) -> bool | None (see above)
+
+    @property
+    def ephemerides_held(self) -> int:
+        return self._held.count
 
     # -- input ---------------------------------------------------------------------------
     def feed(self, bits, first_bit_index: int) -> list:
@@ -776,17 +802,9 @@ class LnavDecoder:
                     not self._near(cur, eph, tow1)
             else:
                 suspect = self.first_check is not None and self.first_check(eph, tow, bit_index) is False
-            if suspect:
-                if self._held is None or replace(self._held, tx_time=tow1) != eph:
-                    self._held = eph                    # wait for a second reception of the same set
-                    self._held_src = max(src)
-                    self.ephemerides_held += 1
-                    return
-                if min(src) <= self._held_src:
-                    # the held set assembled again with a subframe it was built from (the next subframe 1
-                    # or 3 completing the set with the same corrupted subframe 2): not a second reception
-                    return
-            self._held = None
+            if suspect and not self._held.offer(eph, src, lambda h, e: replace(h, tx_time=e.tx_time) == e):
+                return
+            self._held.clear()
             self.ephemeris = eph
             events.append(EphemerisEvent(bit_index, eph))
 
