@@ -181,3 +181,22 @@ def test_fused_packed_path_equals_the_generic_one(tmp_path, fmt, swap):
         assert all(np.array_equal(outs[0], o) for o in outs[1:])
     finally:
         T.set_threads(None)
+
+
+@pytest.mark.parametrize("fmt", ["packed2_real", "packed4_real", "packed1_real"])
+def test_unpack_kernel_gives_the_table_values_at_any_field_and_offset(fmt):
+    """The compiled unpacking of whole bytes (a four-copy path for 2-bit fields) writes exactly the byte
+    table's values of fields first_field .. first_field + n - 1, and nothing outside x[off:off + n]."""
+    from receiver.source.decimate import _unpack_real
+    from receiver.source.io import FORMATS, byte_table
+    f = FORMATS[fmt] if isinstance(FORMATS, dict) else next(x for x in FORMATS if x.name == fmt)
+    table = byte_table(f)
+    k = table.shape[1]
+    raw = np.random.default_rng(5).integers(0, 256, 700).astype(np.uint8)
+    fields = table[raw].ravel()
+    for first in range(k):
+        for n in (0, 1, k - 1, k, k + 1, 3 * k + 2, (raw.size - 1) * k - first):
+            x = np.full(n + 9, -7.0, np.float32)
+            _unpack_real(raw, table, first, x, 4, n)
+            assert np.array_equal(x[4:4 + n], fields[first:first + n]), (first, n)
+            assert np.all(x[:4] == -7.0) and np.all(x[4 + n:] == -7.0)

@@ -246,7 +246,19 @@ def _unpack_real(raw, table, first_field, x, off, n):
         fi += 1
         i += 1
     bi = 1
-    while i + k <= n:                              # whole bytes
+    if k == 4:                                     # whole bytes, 2-bit fields: four 32-bit copies
+        xv = x.view(np.uint32)
+        tv = table.view(np.uint32).ravel()         # (the table is C-contiguous float32 (256, 4))
+        while i + 4 <= n:
+            v = 4 * np.int64(raw[bi])
+            o = off + i
+            xv[o] = tv[v]
+            xv[o + 1] = tv[v + 1]
+            xv[o + 2] = tv[v + 2]
+            xv[o + 3] = tv[v + 3]
+            i += 4
+            bi += 1
+    while i + k <= n:                              # whole bytes (other field counts)
         row = table[raw[bi]]
         for t in range(k):
             x[off + i + t] = row[t]
