@@ -743,6 +743,7 @@ class NavigationEngine:
         if week is None:
             return
         best = None
+        tried = set()          # travel times that give the same 20-ms assignments give the same fix
         for c in np.arange(0.060, 0.0955, 0.001):
             offs, obs = {}, []
             for ch in pending:
@@ -754,8 +755,10 @@ class NavigationEngine:
                     continue
                 offs[ch.prn] = off
                 obs.append(Observation(prn=ch.prn, tx_tow=off + txrel, cn0_dbhz=ch.cn0))
-            if len(obs) < 5:
+            key = tuple(offs.items())
+            if len(obs) < 5 or key in tried:
                 continue
+            tried.add(key)
             ephs = {o.prn: select(self.rinex_ephs[o.prn], T) for o in obs}
             fix = self.solver.fix(week, T, obs, ephs, self.iono())
             # a common 20 ms shift of every transmit time fits almost as well (only the satellites'
