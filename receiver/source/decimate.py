@@ -145,10 +145,10 @@ def design(fs_in: float, l: int, m: int, chip_rate: float, stop_db: float = STOP
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _resample(x, lo, step, lut, shift, hp, c, l, m, k0, real, out):
-    """out[i] = sum_j hp[r, j] xm[nmax - j] for stream index k = k0 + i, where top = k m + c,
+def _resample(x, lo, step, lut, shift, hp, inv, c, l, m, k0, real, out):
+    """out[i] = sum_j h[r, j] xm[nmax - j] for stream index k = k0 + i, where top = k m + c,
     nmax = top // l, r = top - nmax l, xm = x mixed by exp(-j 2 pi IF n / fs_in) (n = file index;
-    x[0] is file index lo)."""
+    x[0] is file index lo).  ``hp``: the polyphase rows h in visiting order (:func:`visit_order`, ``inv``)."""
     J = hp.shape[1]
     n_in = x.size
     xv = x.view(np.float32)
@@ -176,9 +176,10 @@ def _resample(x, lo, step, lut, shift, hp, c, l, m, k0, real, out):
     nmax = top // l
     r = top - nmax * l
     q, rr = m // l, m % l
+    t = (r * inv) % l                          # row of phase r in visiting order
     for i in range(out.size):
         b = nmax - lo - J + 1                  # hp rows are stored reversed: a forward dot product
-        h = hp[r]
+        h = hp[t]
         x1 = re[b:b + J]                       # (1-D views: numba vectorises these, not hp[r, j])
         x2 = im[b:b + J]
         ar = np.float32(0.0)
@@ -193,15 +194,19 @@ def _resample(x, lo, step, lut, shift, hp, c, l, m, k0, real, out):
         if r >= l:
             r -= l
             nmax += 1
+        t += 1
+        if t == l:
+            t = 0
     return out
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _filter_real(x, lo, step, lut, lut_fine, hr, hi, c, l, m, k0, out):
+def _filter_real(x, lo, step, lut, lut_fine, hr, hi, inv, c, l, m, k0, out):
     """Real input x (x[0] is file index lo): out[i] = e^{-j w nmax} sum_j (hr + j hi)[r, j] x[nmax - J + 1 + j]
     for stream index k = k0 + i (top = k m + c, nmax = top // l, r = top - nmax l); the complex taps carry
     the mixer's phase over the window (module docstring), e^{-j w nmax} comes from the phase accumulator
-    nmax * step (top 12 bits: ``lut``, next 12: ``lut_fine``)."""
+    nmax * step (top 12 bits: ``lut``, next 12: ``lut_fine``).  ``hr``, ``hi``: rows in visiting order
+    (:func:`visit_order`, ``inv``)."""
     J = hr.shape[1]
     ov = out.view(np.float32)
     top = k0 * m + c
@@ -211,10 +216,11 @@ def _filter_real(x, lo, step, lut, lut_fine, hr, hi, c, l, m, k0, out):
     s1 = np.uint64(64 - LUT_BITS)
     s2 = np.uint64(64 - 2 * LUT_BITS)
     mask = np.uint64((1 << LUT_BITS) - 1)
+    t = (r * inv) % l
     for i in range(out.size):
         b = nmax - lo - J + 1
-        h1 = hr[r]
-        h2 = hi[r]
+        h1 = hr[t]
+        h2 = hi[t]
         xx = x[b:b + J]
         ar = np.float32(0.0)
         ai = np.float32(0.0)
@@ -230,6 +236,9 @@ def _filter_real(x, lo, step, lut, lut_fine, hr, hi, c, l, m, k0, out):
         if r >= l:
             r -= l
             nmax += 1
+        t += 1
+        if t == l:
+            t = 0
     return out
 
 
@@ -272,8 +281,8 @@ def _unpack_real(raw, table, first_field, x, off, n):
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _resample_packed_real(raw, table, first_field, a, e, lo, hi_, step, lut, lut_fine, hr, hi, c, l, m, k0,
-                          out):
+def _resample_packed_real(raw, table, first_field, a, e, lo, hi_, step, lut, lut_fine, hr, hi, inv, c, l, m,
+                          k0, out):
     """Unpack file samples [a, e) of a packed real format (``raw`` from the byte holding sample a;
     zeros for the rest of [lo, hi_)) into a float32 scratch and filter it (:func:`_filter_real`)."""
     x = np.empty(hi_ - lo, np.float32)
@@ -283,7 +292,19 @@ def _resample_packed_real(raw, table, first_field, a, e, lo, hi_, step, lut, lut
         x[i] = 0.0
     if e > a:
         _unpack_real(raw, table, first_field, x, a - lo, e - a)
-    return _filter_real(x, lo, step, lut, lut_fine, hr, hi, c, l, m, k0, out)
+    return _filter_real(x, lo, step, lut, lut_fine, hr, hi, inv, c, l, m, k0, out)
+
+
+def visit_order(l: int, m: int) -> tuple:
+    """(perm, inv): the polyphase rows in the order consecutive outputs use them.  Output k uses phase
+    r = (k m + c) mod l, which advances by m mod l per output; m / l in lowest terms makes that step
+    invertible mod l (``inv``), so row t of the permuted table (phase perm[t] = t (m mod l) mod l) serves
+    output k0 + i at t = (r0 inv + i) mod l: the kernels walk the table row after row instead of jumping
+    m mod l rows per output (the same taps, the same samples)."""
+    if l == 1:
+        return np.zeros(1, np.int64), 0
+    rr = m % l
+    return (np.arange(l) * rr) % l, pow(rr, -1, l)
 
 
 def complex_taps(hp: np.ndarray, step) -> tuple:
@@ -325,8 +346,11 @@ class DecimatingReader:
             real_step = np.uint64((int(self._step) + (1 << 63)) % (1 << 64))
         self._real_step = real_step
         self._hp, self._c = design(self.input_fs, self.l, self.m, chip_rate)
+        perm, self._inv = visit_order(self.l, self.m)
+        self._hv = np.ascontiguousarray(self._hp[perm])              # rows in visiting order
         if self._real:
-            self._hr, self._hi = complex_taps(self._hp, real_step)
+            hr, hi = complex_taps(self._hp, real_step)
+            self._hr, self._hi = np.ascontiguousarray(hr[perm]), np.ascontiguousarray(hi[perm])
         # pieces may run on the thread pool unless the wrapped reader keeps state (NaN counting of float
         # formats) or is not a plain file reader
         self._parallel = self._packed or (fmt is not None and getattr(fmt, "kind", "") == "int"
@@ -382,19 +406,19 @@ class DecimatingReader:
             b0 = a // k
             raw = np.asarray(r._raw[b0:-(-e // k)]) if e > a else np.zeros(1, np.uint8)
             _resample_packed_real(raw, r._table, a - b0 * k, a, e, lo, hi, self._real_step, _LUT, _LUT_FINE,
-                                  self._hr, self._hi, c, l, m, k0, out)
+                                  self._hr, self._hi, self._inv, c, l, m, k0, out)
             return
         raw = self._reader.read(a, hi - a)
         if self._real:
             x = np.zeros(hi - lo, np.float32)
             x[a - lo:a - lo + raw.size] = raw.real
-            _filter_real(x, lo, self._step, _LUT, _LUT_FINE, self._hr, self._hi, c, l, m, k0, out)
+            _filter_real(x, lo, self._step, _LUT, _LUT_FINE, self._hr, self._hi, self._inv, c, l, m, k0, out)
             return
         if a != lo or raw.size != hi - lo:
             x = np.zeros(hi - lo, np.complex64)
             x[a - lo:a - lo + raw.size] = raw
             raw = x
-        _resample(raw, lo, self._step, _LUT, self._shift, self._hp, c, l, m, k0, self._real, out)
+        _resample(raw, lo, self._step, _LUT, self._shift, self._hv, self._inv, c, l, m, k0, self._real, out)
 
     def describe(self) -> str:
         return (f"resampling      {self.input_fs / 1e6:g} MS/s" + (f" (IF {self.input_if_hz / 1e6:g} MHz)"
