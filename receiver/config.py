@@ -299,7 +299,8 @@ RECEIVER_SCHEMA = {
                              nullable=True),
         "conditioning": {
             "dc_removal": P(True, "bool", "remove the DC offset / LO leakage (a ~dc_bw_hz wide notch at 0 Hz "
-                                          "that follows a drifting offset)"),
+                                          "that follows a drifting offset; not run when the decimating input "
+                                          "stage mixes a nonzero IF down, which moves the DC to -IF)"),
             "tone_detection": P(True, "bool", "detect CW tones / spurs in the spectrum of the first detect_ms "
                                               "(reported in the run summary and /conditioning)"),
             "tone_excision": P(True, "bool", "cancel the detected tones (one adaptive notch of notch_bw_hz "

@@ -150,7 +150,9 @@ def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None
     c = i.conditioning
     if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
         from .source.conditioning import ConditionedReader
-        reader = ConditionedReader(reader, c)
+        # the decimating stage mixed input.if_hz to 0 Hz: the front end's DC is now at -IF
+        reader = ConditionedReader(reader, c, dc_hz=-reader.input_if_hz if isinstance(reader, DecimatingReader)
+                                   else 0.0)
     return reader
 
 

@@ -138,3 +138,34 @@ def test_pulse_blanking_zeroes_pulses_only():
     assert np.all(y[hit] == 0)
     assert np.count_nonzero(y[~hit] == 0) < 1e-4 * len(x)
     assert any("pulse blanking" in line for line in r.summary_lines())
+
+
+@pytest.mark.parametrize("fmt, if_hz", [("packed2_real", 4.1304e6), ("int8_iq", 0.0)])
+def test_dc_removal_runs_only_where_the_front_ends_dc_is_at_0_hz(tmp_path, fmt, if_hz):
+    """A decimating input stage that mixes a nonzero IF down moves the front end's DC offset to -IF: the
+    stage skips the DC canceller there (the stream passes unchanged, /conditioning says where the DC is).
+    A zero-IF I/Q input keeps its DC at 0 Hz through the stage, and DC removal takes it out."""
+    from receiver import pipeline
+    from receiver.config import load_receiver_config
+    from receiver.source.io import quantize
+    fs = 16.368e6
+    rng = np.random.default_rng(7)
+    n = int(0.12 * fs)
+    x = rng.normal(0, 1, n) + (0.0 if fmt.endswith("real") else 1j * rng.normal(0, 1, n)) + (0.4 + 0.3j)
+    if fmt.endswith("real"):
+        x = x.real + 0.4
+    p = tmp_path / "x.bin"
+    quantize(np.asarray(x, np.complex64) * (1.5 if fmt.endswith("real") else 20.0), fmt).tofile(p)
+    cfg = load_receiver_config(None, [f"input.path={p}", f"input.format={fmt}", f"input.sample_rate_hz={fs}",
+                                      f"input.if_hz={if_hz}"])
+    r = pipeline.open_input(cfg)
+    assert isinstance(r, ConditionedReader)
+    y = r.read(r.first, 200_000)
+    if if_hz:
+        assert not r.dc_removal and r.dc_hz == -if_hz and not r.active
+        assert np.array_equal(y, r._reader.read(r.first, 200_000))          # passed through unchanged
+        assert any("no DC removal" in ln for ln in r.summary_lines())
+    else:
+        assert r.dc_removal and r.dc_hz == 0.0
+        raw = r._reader.read(r.first, 200_000)
+        assert abs(np.mean(raw)) > 5 * abs(np.mean(y[20_000:]))            # the DC is removed

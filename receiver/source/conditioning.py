@@ -252,10 +252,16 @@ class ConditionedReader:
     anywhere else restarts the stream there.  Every other attribute is the wrapped reader's.
     """
 
-    def __init__(self, reader, cfg, detect_start: int | None = None, log=None):
+    def __init__(self, reader, cfg, detect_start: int | None = None, log=None, dc_hz: float = 0.0):
         self._reader = reader
         self.cfg = cfg
         fs = reader.fs
+        # dc_hz: where the front end's DC offset / LO leakage lies in this stream.  An input stage that mixes
+        # a nonzero IF down (receiver/source/decimate.py) moves it to -IF, out of the notch's reach and, for
+        # a real IF, out of the band (what little its filter passes is a tone for the tone detector): the
+        # DC canceller would only track noise there, so it is not run.
+        self.dc_hz = float(dc_hz)
+        self.dc_removal = bool(cfg.dc_removal) and abs(self.dc_hz) <= cfg.dc_bw_hz
         start = reader.first if detect_start is None else detect_start
         n = int(round(cfg.detect_ms * 1e-3 * fs))
         span = reader.read(start, n)
@@ -264,19 +270,19 @@ class ConditionedReader:
         cancel_f = []
         dc_bin = self.detection.bin_hz if self.detection.bin_hz else 0.0
         for t in self.detection.tones:                # strongest first
-            t.dc = bool(cfg.dc_removal and abs(t.freq_hz) <= dc_bin)    # the DC canceller takes it
+            t.dc = bool(self.dc_removal and abs(t.freq_hz) <= dc_bin)   # the DC canceller takes it
             if not t.dc and cfg.tone_excision and len(cancel_f) < cfg.max_tones:
                 cancel_f.append(t.freq_hz)
             else:
                 t.cancelled = False
         self._make = lambda level: Canceller(cancel_f, fs, cfg.notch_bw_hz,
-                                             cfg.dc_bw_hz if cfg.dc_removal else None, level)
+                                             cfg.dc_bw_hz if self.dc_removal else None, level)
         self.canceller = self._make(0.0)
         self.blank_level = 0.0
         if len(span) and self.canceller.active:       # one pass over the span: DC estimate, blanking RMS
             self.canceller.reset(span)
             y = self.canceller.process(span)
-            if cfg.dc_removal:
+            if self.dc_removal:
                 self.detection.dc = complex(self.canceller.amp[0])   # free of the tones
         if cfg.pulse_blanking and len(span):
             rms = math.sqrt(float(np.median(np.abs(y) ** 2)) / math.log(2.0))    # robust (complex Gaussian)
@@ -328,7 +334,10 @@ class ConditionedReader:
         d, c = self.detection, self.cfg
         lines = []
         parts = []
-        if c.dc_removal:
+        if c.dc_removal and not self.dc_removal:
+            parts.append(f"no DC removal (the input stage mixed the front end's DC to "
+                         f"{self.dc_hz / 1e6:+.4g} MHz)")
+        if self.dc_removal:
             p = abs(d.dc) ** 2 / d.noise_power if d.noise_power else 0.0
             parts.append(f"DC removal (offset {d.dc.real:.3g}{d.dc.imag:+.3g}j"
                          + (f", {10 * np.log10(p):.1f} dB re noise" if p > 0 else "") + ")")
@@ -357,7 +366,8 @@ class ConditionedReader:
         g.create_dataset("jnr_db", data=np.array([t.jnr_db for t in d.tones], float))
         g.create_dataset("snr_bin_db", data=np.array([t.snr_bin_db for t in d.tones], float))
         g.create_dataset("cancelled", data=np.array([t.cancelled for t in d.tones], bool))
-        attrs = {"dc_removal": bool(self.cfg.dc_removal), "tone_detection": bool(self.cfg.tone_detection),
+        attrs = {"dc_removal": self.dc_removal, "dc_hz": self.dc_hz,
+                 "tone_detection": bool(self.cfg.tone_detection),
                  "tone_excision": bool(self.cfg.tone_excision), "fft_size": d.fft_size,
                  "segments": d.segments, "bin_hz": d.bin_hz, "threshold_db": d.threshold_db,
                  "pfa": self.cfg.pfa, "noise_power": d.noise_power, "dc_i": d.dc.real, "dc_q": d.dc.imag,
