@@ -41,9 +41,11 @@ def test_b1i_acquire_and_track(b1i_file, variant):
 
 @pytest.fixture(scope="module")
 def b1i_false_lock(tmp_path_factory):
-    """5.5 s of the static Tokyo BeiDou scenario, seed 2: C32 (MEO, 45 dB-Hz, NH code) is acquired ~100 Hz
-    off and its 5-ms carrier loop settles at +100 Hz = 1/(2 T) from the truth while the DLL keeps the code
-    on C32 (code-minus-carrier -19 m/s); 4 other satellites to give the common code-minus-carrier rate."""
+    """5.5 s of the static Tokyo BeiDou scenario, seed 2, with the acquisition's fine Doppler limited to its
+    1-ms stage (the squared-block stage off, as before it existed): C32 (MEO, 45 dB-Hz, NH code) is acquired
+    98 Hz off and its 5-ms carrier loop settles at +100 Hz = 1/(2 T) from the truth while the DLL keeps the
+    code on C32 (code-minus-carrier -19 m/s); 4 GEO satellites give the common code-minus-carrier rate."""
+    import receiver.acquisition as acq
     d = tmp_path_factory.mktemp("b1i_fl")
     out = d / "bds.bin"
     simulate(str(REPO / "configs/scenarios/bds_static_tokyo.yaml"), str(out),
@@ -51,7 +53,10 @@ def b1i_false_lock(tmp_path_factory):
     cfg = load_receiver_config(REPO / "configs/bds_b1i_nav.yaml",
                                [f"input.path={out}", f"output.path={d / 'run.h5'}", "navigation.enabled=false",
                                 "acquisition.prns=[1, 2, 3, 4, 32]"])
-    return run(cfg, quiet=True, log=lambda *a: None), d / "run.h5", str(out)[:-4] + ".truth.h5"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(acq, "refine_doppler_squared", lambda *a, **k: a[5])     # the 1-ms estimate unchanged
+        summary = run(cfg, quiet=True, log=lambda *a: None)
+    return summary, d / "run.h5", str(out)[:-4] + ".truth.h5"
 
 
 def test_b1i_carrier_false_lock_restarted_at_code_doppler(b1i_false_lock):
