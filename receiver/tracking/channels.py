@@ -295,7 +295,9 @@ class ChannelManager:
         moves every carrier Doppler, not the code rates: the GPS reference recording reads +150 m/s on every
         satellite); a channel is judged by its difference to the median over the channels with a full
         window, so at least 3 of them are needed."""
-        win = {prn: self._cc_window(self._sat(prn)) for prn, ch in self.channels.items() if not ch.lost}
+        # scalar channels only: under the vector loop both NCOs follow the navigation solution
+        win = {prn: self._cc_window(self._sat(prn)) for prn, ch in self.channels.items()
+               if not ch.lost and not (ch.vector_carrier or ch.vector_code)}
         win = {p: w for p, w in win.items() if w is not None}
         if len(win) < 3:
             return
