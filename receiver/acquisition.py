@@ -339,11 +339,12 @@ def refine_doppler_squared(samples: np.ndarray, fs: float, if_hz: float, prn: in
     nb = min(n_blocks, len(samples) // n)
     if nb < 20:
         return doppler_hz
-    m = np.arange(nb * n)
     y = _code_wipe(samples[:nb * n], sig.code(prn), float(code_phase_chips),
-                   sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz) / fs)
-    y = y * np.exp(-2j * np.pi * m * (if_hz + doppler_hz) / fs)
-    z = y.reshape(nb, n).sum(axis=1)
+                   sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz) / fs).reshape(nb, n)
+    f0 = (if_hz + doppler_hz) / fs                                    # cycles per sample
+    m = np.arange(n)
+    # the carrier wipe-off within a block (one row of exponentials), then the block's own start phase
+    z = (y @ np.exp(-2j * np.pi * f0 * m)) * np.exp(-2j * np.pi * ((f0 * n * np.arange(nb)) % 1.0))
     w = z * z                                                         # sign-free, at 2 x the residual
     df = np.arange(-SQ_RANGE_HZ, SQ_RANGE_HZ, SQ_STEP_HZ)
     tb = np.arange(nb) * (n / fs)                                     # block start times
@@ -360,8 +361,7 @@ def refine_doppler_squared(samples: np.ndarray, fs: float, if_hz: float, prn: in
     # z^2 of 1-ms blocks cannot tell df from df +/- 500 Hz: the 1-ms blocks' own power decides (at a 500 Hz
     # error it is down to sinc^2(1/2) = -3.9 dB; a weak detection's 1-ms estimate can be that far off)
     cands = [res - 500.0, res, res + 500.0]
-    pw = [float(np.sum(np.abs((y * np.exp(-2j * np.pi * m * c_ / fs)).reshape(nb, n).sum(axis=1)) ** 2))
-          for c_ in cands]
+    pw = [float(np.sum(np.abs(y @ np.exp(-2j * np.pi * (f0 + c_ / fs) * m)) ** 2)) for c_ in cands]
     return float(doppler_hz + cands[int(np.argmax(pw))])
 
 
