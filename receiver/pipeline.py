@@ -56,6 +56,7 @@ class RunSummary:
     scatter_m: tuple | None = None     # (east, north, up) standard deviation
     parity_failures: int = 0
     reacquisitions: int = 0
+    false_locks: dict = field(default_factory=dict)     # sat key -> carrier false locks restarted
     nonfinite_samples: int = 0         # NaN/Inf input samples replaced by zeros
     system: str = "G"                  # RINEX letter of the signal (labels: G05, J01, C12)
     # fixes per FIX_DTYPE iono_params code, and the first fix (s after the first sample) with broadcast ones
@@ -89,6 +90,10 @@ class RunSummary:
             lines.append(f"mean C/N0       {np.mean(list(self.mean_cn0.values())):.1f} dB-Hz")
         if self.reacquisitions:
             lines.append(f"re-acquisitions {self.reacquisitions} (signal lost and found again)")
+        if self.false_locks:
+            lines.append("false locks     " + " ".join(f"{sat_label(p, self.system)} x{n}" for p, n in
+                                                      sorted(self.false_locks.items()))
+                         + " (carrier off the code's Doppler: channel restarted there)")
         if self.n_fixes:
             lat, lon, h = self.mean_llh
             lines += [f"first fix       {self.first_fix_s:.2f} s after the first sample",
@@ -761,6 +766,8 @@ def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, io
     s.first_fix_s = first_fix
     s.iono_counts, s.iono_broadcast_from_s = iono_counts, iono_from
     s.reacquisitions = sum(v["reacquisitions"] for part in parts for v in part.manager.summary().values())
+    s.false_locks = {part.key(p): v["false_locks"] for part in parts for p, v in part.manager.summary().items()
+                     if v["false_locks"]}
     for part in parts:
         if hasattr(part.reader, "resample"):      # the decimating input stage
             s.notes.append(part.reader.describe() + (f" [{part.signal.name}]" if multi else ""))

@@ -37,3 +37,40 @@ def test_b1i_acquire_and_track(b1i_file, variant):
             assert np.mean(g["pli"][-100:]) > 0.9
             truth_dop = t["satellites"][f"C{prn:02d}"]["doppler_hz"][-1]
             assert abs(g["doppler_hz"][-1] - truth_dop) < 5.0
+
+
+@pytest.fixture(scope="module")
+def b1i_false_lock(tmp_path_factory):
+    """5.5 s of the static Tokyo BeiDou scenario, seed 2, with the acquisition's fine Doppler limited to its
+    1-ms stage (the squared-block stage off, as before it existed): C32 (MEO, 45 dB-Hz, NH code) is acquired
+    98 Hz off and its 5-ms carrier loop settles at +100 Hz = 1/(2 T) from the truth while the DLL keeps the
+    code on C32 (code-minus-carrier -19 m/s); 4 GEO satellites give the common code-minus-carrier rate."""
+    import receiver.acquisition as acq
+    d = tmp_path_factory.mktemp("b1i_fl")
+    out = d / "bds.bin"
+    simulate(str(REPO / "configs/scenarios/bds_static_tokyo.yaml"), str(out),
+             overrides=["time.seed=2", "time.duration_s=5.5"], progress=False)
+    cfg = load_receiver_config(REPO / "configs/bds_b1i_nav.yaml",
+                               [f"input.path={out}", f"output.path={d / 'run.h5'}", "navigation.enabled=false",
+                                "acquisition.prns=[1, 2, 3, 4, 32]"])
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(acq, "refine_doppler_squared", lambda *a, **k: a[5])     # the 1-ms estimate unchanged
+        summary = run(cfg, quiet=True, log=lambda *a: None)
+    return summary, d / "run.h5", str(out)[:-4] + ".truth.h5"
+
+
+def test_b1i_carrier_false_lock_restarted_at_code_doppler(b1i_false_lock):
+    """The channel whose carrier sits 100 Hz from its code's Doppler is restarted at the code's Doppler and
+    then tracks the truth; the true channels (GEO C01-C04) are left alone."""
+    summary, h5, truth = b1i_false_lock
+    assert summary.tracked == [1, 2, 3, 4, 32]
+    with h5py.File(h5, "r") as f, h5py.File(truth, "r") as t:
+        for prn in (1, 2, 3, 4, 32):
+            g = f["channels"][f"C{prn:02d}"]
+            tt = t["satellites"][f"C{prn:02d}"]
+            last = g["time_s"][:] > g["time_s"][-1] - 0.5
+            err = g["doppler_hz"][:][last] - np.interp(g["time_s"][:][last], tt["time_s"][:], tt["doppler_hz"][:])
+            assert np.max(np.abs(err)) < 10.0, (prn, err)
+            assert np.median(g["cn0_dbhz"][:][last]) > 42.0
+    assert summary.false_locks == {32: 1}
+    assert "false locks     C32 x1" in summary.text()

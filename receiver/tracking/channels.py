@@ -28,6 +28,17 @@ Per satellite (:class:`SatTrack`)::
   0.05 chip and the search finds the signal within 0.5 chip of it, the channel starts on the prediction and
   its measurements are used ``reacquisition.settle_predicted_s`` after the pull-in (else ``settle_s``).
 
+* Carrier false lock: in a true lock the code and the carrier move together (carrier-aided DLL: its rate
+  integrator, the code-minus-carrier rate, stays within a few m/s).  A channel whose carrier loop was captured
+  by something else -- the images of strong signals at another Doppler leaking through its code (B1I: the
+  GEO cluster, several 45 dB-Hz signals within a few Hz of each other), or a sidelobe at 1/(2 T) -- keeps
+  its code on its own satellite (the DLL still sees it) while the carrier runs at the wrong frequency: the
+  code-minus-carrier rate is that frequency error times lambda.  When it differs from the median over the
+  signal's channels (the common part: a front-end LO offset) by more than ``CC_FALSE_LOCK_MPS`` over
+  ``CC_WINDOW_S`` of in-lock epochs (every chunk of the window beyond half of it, same sign) the channel is
+  restarted at its current code phase with the Doppler its code rate measured (event "carrier false
+  lock"; its navigation memory is reset as for a new track).
+
 The pipeline calls ``start`` once, then per chunk ``note(prn, recs)`` for every channel's records and
 ``after_chunk(start, next_start)``.  ``channels`` (prn -> Channel) is the dict the vector tracker shares.
 """
@@ -55,6 +66,9 @@ GOOD_MARGIN_S = 0.1             # lock detectors lag: the prediction starts this
 XCORR_RATIO_DB = 15.0           # a cold detection this much weaker than a tracked signal at its Doppler is an image
 XCORR_IMAGE_FRACTION = 0.25     # ... or at k x 1 kHz when the predicted image explains this share of its power
 CHUNK_YOUNG_S = 1.0             # a channel opened this recently is judged by its search's C/N0 until in lock
+CC_FALSE_LOCK_MPS = 15.0        # code-minus-carrier rate of a carrier false lock (true locks: < ~8 m/s per s)
+CC_WINDOW_S = 2.0               # ... sustained over this much of consecutive in-lock chunks
+CC_MIN_EPOCHS = 50              # a chunk counts when it has this many in-lock epochs
 
 
 @dataclass
@@ -70,6 +84,9 @@ class SatTrack:
     restore_at: float | None = None     # sample from which a hot channel's DLL is 2nd order again
     reacquisitions: int = 0
     searches: int = 0
+    # per chunk (last sample, code-minus-carrier rate m/s, code-derived Doppler Hz, seconds) of in-lock epochs
+    cc: deque = field(default_factory=deque)
+    false_locks: int = 0
 
 
 class ChannelManager:
@@ -224,6 +241,7 @@ class ChannelManager:
         sat = self._sat(prn)
         ok = (recs["pll_lock"] > 0) & (recs["cn0_dbhz"] >= self.cfg.tracking.lock_cn0_min_dbhz) & \
             (recs["state"] != K.MODE_PULL_IN)
+        self._note_code_carrier(sat, recs, ok)
         if not ok.any():
             return
         r = recs[ok][::10]
@@ -241,8 +259,72 @@ class ChannelManager:
         if ch is not None and sat.restore_at is None and ch.st[K.S_LOCK] > 0:
             sat.dll_rate = float(ch.st[K.S_DLL_RATE])
 
+    def _note_code_carrier(self, sat: SatTrack, recs: np.ndarray, ok: np.ndarray):
+        """Keep the chunk's mean code-minus-carrier rate (m/s) and code-derived Doppler of the in-lock
+        epochs; a chunk without enough of them ends the run of consecutive chunks."""
+        if ok.sum() < CC_MIN_EPOCHS:
+            sat.cc.clear()
+            return
+        r = recs[ok]
+        sig = self.signal
+        code_dop = (r["code_rate_hz"].astype(np.float64) / sig.chip_rate - 1.0) * sig.carrier_hz
+        w = r["integration_ms"].astype(np.float64)
+        dop_code = float(np.sum(code_dop * w) / np.sum(w))
+        dop_carr = float(np.sum(r["doppler_hz"].astype(np.float64) * w) / np.sum(w))
+        sat.cc.append((int(r["sample_index"][-1]), (dop_code - dop_carr) * self.lambda_m, dop_code,
+                       float(np.sum(w)) * 1e-3))
+        while len(sat.cc) > 1 and sum(x[3] for x in list(sat.cc)[1:]) >= CC_WINDOW_S:
+            sat.cc.popleft()
+
+    @staticmethod
+    def _cc_window(sat: SatTrack):
+        """(mean code-minus-carrier rate m/s, per-chunk rates, mean code-derived Doppler Hz) over the window,
+        or None when the satellite has less than CC_WINDOW_S of consecutive in-lock chunks."""
+        cc = list(sat.cc)
+        secs = np.array([x[3] for x in cc])
+        if secs.sum() < CC_WINDOW_S * 0.999:
+            return None
+        rates = np.array([x[1] for x in cc])
+        return (float(np.sum(rates * secs) / secs.sum()), rates,
+                float(np.sum(np.array([x[2] for x in cc]) * secs) / secs.sum()))
+
+    def _restart_false_locks(self):
+        """Restart channels in a carrier false lock at their code phase with the code-derived Doppler.
+
+        The code-minus-carrier rate has a part common to every channel of the signal (a front-end LO offset
+        moves every carrier Doppler, not the code rates: the GPS reference recording reads +150 m/s on every
+        satellite); a channel is judged by its difference to the median over the channels with a full
+        window, so at least 3 of them are needed."""
+        # scalar channels only: under the vector loop both NCOs follow the navigation solution
+        win = {prn: self._cc_window(self._sat(prn)) for prn, ch in self.channels.items()
+               if not ch.lost and not (ch.vector_carrier or ch.vector_code)}
+        win = {p: w for p, w in win.items() if w is not None}
+        if len(win) < 3:
+            return
+        common = float(np.median([w[0] for w in win.values()]))
+        for prn, (mean, rates, dop_code) in win.items():
+            dev = mean - common
+            if abs(dev) < CC_FALSE_LOCK_MPS or np.any((rates - common) * np.sign(dev) < 0.5 * CC_FALSE_LOCK_MPS):
+                continue
+            ch = self.channels[prn]
+            sat = self._sat(prn)
+            s = ch.next_sample
+            code_phase = float(ch.st[K.S_CODE_PHASE])
+            old = ch.doppler_hz
+            dop = dop_code - common / self.lambda_m
+            sat.cc.clear()
+            sat.false_locks += 1
+            self._open(prn, dop, code_phase, s)
+            if self.nav is not None and prn in self.nav.channels:
+                self.nav.resume(prn, continuous=False)
+            self._event(s, prn, "carrier false lock",
+                        f"(carrier at {old:.0f} Hz, code-minus-carrier {dev:+.0f} m/s from the common "
+                        f"{common:+.1f} m/s): restarted at the code's Doppler {dop:.0f} Hz")
+
     def after_chunk(self, start: int, next_start: int):
-        """Lost channels -> re-acquiring; narrow searches at next_start; the periodic cold search."""
+        """Lost channels -> re-acquiring; carrier false locks restarted; narrow searches at next_start; the
+        periodic cold search."""
+        self._restart_false_locks()
         for prn, ch in list(self.channels.items()):
             if ch.lost:
                 del self.channels[prn]
@@ -447,4 +529,5 @@ class ChannelManager:
 
     # ------------------------------------------------------------------ summary
     def summary(self) -> dict:
-        return {p: {"state": s.state, "reacquisitions": s.reacquisitions} for p, s in sorted(self.sats.items())}
+        return {p: {"state": s.state, "reacquisitions": s.reacquisitions, "false_locks": s.false_locks}
+                for p, s in sorted(self.sats.items())}
