@@ -11,16 +11,11 @@ import logging
 import os
 import sys
 
-# The receiver parallelises on its own threads (channels, acquisition PRNs: receiver/threads.py); BLAS
-# threads on top of them oversubscribe the cores (OpenBLAS spins while waiting).  Before numpy loads;
-# a value set in the environment wins.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+import click
 
-import click  # noqa: E402
-
-from . import __version__, interrupt  # noqa: E402
-from .errors import UserError  # noqa: E402
-from .logs import setup_cli  # noqa: E402
+from . import __version__, interrupt      # (the package sets BLAS to one thread before numpy loads)
+from .errors import UserError
+from .logs import setup_cli
 
 
 class _Group(click.Group):

@@ -28,7 +28,12 @@ import sys
 import time
 from multiprocessing import Pool
 
-import numpy as np
+# BLAS on one thread before numpy loads (as receiver/__init__.py does): the runs of -j 1 execute in this
+# process, and a threaded BLAS sums in a thread-count-dependent order (results must not depend on -j)
+for _v in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 

@@ -50,7 +50,12 @@ import os
 import sys
 import time
 
-import numpy as np
+# BLAS on one thread before numpy loads (as receiver/__init__.py does): the runs of -j 1 execute in this
+# process, and a threaded BLAS sums in a thread-count-dependent order (results must not depend on -j)
+for _v in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, ROOT)
@@ -511,6 +516,8 @@ def aggregate(seed_rows, order):
 
 
 def pm(r, k, d=2):
+    if k not in r:                           # a row left out (--variants)
+        return "n/a"
     m, h = r[k], r["ci"].get(k, float("nan"))
     return f"{m:.{d}f} ± {h:.{d}f}" if np.isfinite(h) else f"{m:.{d}f}"
 

@@ -205,3 +205,28 @@ def test_background_writer_queues_acquisition_tables_from_a_snapshot():
     gate.set()
     w.close()
     assert f.calls == [("ch", 3), ("acq", [(7, True)], 2.6e6)]
+
+
+_BLAS_PROBE = """
+import receiver                       # first: it sets the BLAS thread count before numpy loads
+import numpy as np
+from receiver.acquisition import refine_doppler
+rng = np.random.default_rng(2)
+x = (rng.standard_normal(520_000) + 1j * rng.standard_normal(520_000)).astype(np.complex64)
+print(repr(refine_doppler(x, 2.6e6, 0.0, 7, 100.5, 1250.0, 125.0, block_ms=10, n_blocks=20)))
+"""
+
+
+@pytest.mark.skipif((__import__("os").cpu_count() or 1) < 2, reason="needs 2 cores for a threaded BLAS")
+def test_results_do_not_depend_on_the_environments_blas_threads():
+    """The fine Doppler's line powers are BLAS matrix products; a threaded BLAS sums them in a
+    thread-count-dependent order (the last bit of the Doppler moved with OPENBLAS_NUM_THREADS, and through
+    a vector loop whole figure results between -j 1 and -j 2).  Importing receiver pins BLAS to one
+    thread unless the environment says otherwise: a process with nothing set equals one told 1 thread."""
+    import os
+    import subprocess
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                                                             "OMP_NUM_THREADS")}
+    out = [subprocess.run([sys.executable, "-c", _BLAS_PROBE], capture_output=True, text=True, check=True,
+                          cwd=ROOT, env={**env, **extra}).stdout for extra in ({}, {"OPENBLAS_NUM_THREADS": "1"})]
+    assert out[0] == out[1] and out[0].strip()
