@@ -231,7 +231,7 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
                         float(cn0), reason)
         if res.detected and fine:
             # symbols shorter than 10 ms (NH overlay, D2): refine over 1 ms blocks
-            short = sig.secondary(prn) is not None or sig.bit_ms(prn) < 10
+            short = sig.short_symbols(prn)
             res.doppler_hz = refine_doppler(samples, fs, if_hz, prn, res.code_phase_chips, dop, step,
                                             block_ms=1 if short else 10, n_blocks=40 if short else 20,
                                             signal=sig)

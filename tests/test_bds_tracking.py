@@ -42,10 +42,23 @@ def test_b1i_acquire_and_track(b1i_file, variant):
 @pytest.fixture(scope="module")
 def b1i_false_lock(tmp_path_factory):
     """5.5 s of the static Tokyo BeiDou scenario, seed 2, with the acquisition's fine Doppler limited to its
-    1-ms stage (the squared-block stage off, as before it existed): C32 (MEO, 45 dB-Hz, NH code) is acquired
-    98 Hz off and its 5-ms carrier loop settles at +100 Hz = 1/(2 T) from the truth while the DLL keeps the
-    code on C32 (code-minus-carrier -19 m/s); 4 GEO satellites give the common code-minus-carrier rate."""
+    1-ms stage (the squared-block stage off, as before it existed) and the hot search's Doppler from plain
+    phase differences (its squared form off): C32 (MEO, 45 dB-Hz, NH code) is acquired 98 Hz off and its
+    5-ms carrier loop settles at +100 Hz = 1/(2 T) from the truth while the DLL keeps the code on C32
+    (code-minus-carrier -19 m/s); 4 GEO satellites give the common code-minus-carrier rate."""
     import receiver.acquisition as acq
+    import receiver.tracking.reacq as reacq
+
+    class _SignsIgnored:                       # the signal as the former hot-search Doppler saw it
+        def __init__(self, sig):
+            self._sig = sig
+
+        def __getattr__(self, name):
+            return getattr(self._sig, name)
+
+        def short_symbols(self, prn):
+            return False
+    refine = reacq.refine
     d = tmp_path_factory.mktemp("b1i_fl")
     out = d / "bds.bin"
     simulate(str(REPO / "configs/scenarios/bds_static_tokyo.yaml"), str(out),
@@ -55,6 +68,7 @@ def b1i_false_lock(tmp_path_factory):
                                 "acquisition.prns=[1, 2, 3, 4, 32]"])
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(acq, "refine_doppler_squared", lambda *a, **k: a[5])     # the 1-ms estimate unchanged
+        mp.setattr(reacq, "refine", lambda *a, **k: refine(*a[:6], _SignsIgnored(a[6]), *a[7:], **k))
         summary = run(cfg, quiet=True, log=lambda *a: None)
     return summary, d / "run.h5", str(out)[:-4] + ".truth.h5"
 

@@ -109,5 +109,11 @@ class SignalDef:
         """+/-1 overlay code per code period (length bit_ms), or None."""
         return None
 
+    def short_symbols(self, prn: int) -> bool:
+        """The sign of the signal can change every code period or two (an overlay code, or symbols shorter
+        than 10 ms: B1I's NH x D1 and D2): Doppler estimators must not integrate across code periods
+        coherently, nor difference the phase of consecutive periods (a sign change reads as 500 Hz)."""
+        return self.secondary(prn) is not None or self.bit_ms(prn) < 10
+
 
 GPS_L1CA = SignalDef()

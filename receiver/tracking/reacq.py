@@ -96,23 +96,42 @@ def narrow_search(samples: np.ndarray, start_index: int, fs: float, if_hz: float
     frac = (y2 - y0) / den if den > 0 else 0.0
     lag = li + max(-0.5, min(0.5, frac))
     code_phase = (code_phase_chips - lag * sig.chip_rate / fs) % code_len
-    dop = refine(samples[:n * K], fs, if_hz, prn, code_phase, float(dopplers[di]), sig)
+    dop = refine(samples[:n * K], fs, if_hz, prn, code_phase, float(dopplers[di]), sig, doppler_hz)
     cn0 = 10 * np.log10(max(ptm - 1.0, 1e-3) / T)
     return HotResult(prn, dop, float(code_phase), int(start_index), ptm / thr, float(cn0))
 
 
-def refine(samples, fs, if_hz, prn, code_phase_chips, coarse_hz, sig) -> float:
-    """Doppler from the phase advance of consecutive 1-ms prompts (range +/- 500 Hz around coarse_hz)."""
+def refine(samples, fs, if_hz, prn, code_phase_chips, coarse_hz, sig, centre_hz=None) -> float:
+    """Doppler from the phase advance of consecutive 1-ms prompts (range +/- 500 Hz around coarse_hz).
+    Signals whose sign can change every code period (``sig.short_symbols``: B1I's NH code, D2 symbols) use
+    the squared prompts, free of the sign, whose phase advances at twice the residual (range +/- 250 Hz,
+    twice the half step of the narrow search's grid): a sign change between two prompts would otherwise
+    read as a 500 Hz jump (B1I hot searches were measured 40-350 Hz off at 38-45 dB-Hz).  The squares give
+    the Doppler modulo 500 Hz: the value nearest ``centre_hz`` (the searched window's centre, the
+    prediction) is taken, since a 2-ms coherent block of a sign-changing signal also peaks 250 Hz off."""
     n1 = int(round(fs * 1e-3))
-    k = len(samples) // n1
+    rate = sig.chip_rate * (1.0 + coarse_hz / sig.carrier_hz)
+    short = sig.short_symbols(prn)
+    # sign-changing signals: the 1-ms blocks start at a code period's first chip, so that each holds one
+    # symbol (a block straddling a sign change loses its amplitude, half the time at B1I's NH rate)
+    s0 = int(round(((sig.code_len - code_phase_chips) % sig.code_len) / rate * fs)) if short else 0
+    k = (len(samples) - s0) // n1
     if k < 3:
         return coarse_hz
     n = k * n1
-    code = sample_code(sig.code(prn), sig.chip_rate * (1.0 + coarse_hz / sig.carrier_hz), fs, n,
-                       code_phase_chips)
-    t = np.arange(n) / fs
-    z = (samples[:n] * code * np.exp(-2j * np.pi * (if_hz + coarse_hz) * t)).reshape(k, n1).sum(axis=1)
-    # the code-phase prediction may straddle a period boundary of the 1-ms blocks: harmless for the phase
+    code = sample_code(sig.code(prn), rate, fs, n, (code_phase_chips + s0 * rate / fs) % sig.code_len)
+    t = np.arange(s0, s0 + n) / fs
+    z = (samples[s0:s0 + n] * code * np.exp(-2j * np.pi * (if_hz + coarse_hz) * t)).reshape(k, n1).sum(axis=1)
+    # (GPS: the code-phase prediction may straddle a period boundary of the 1-ms blocks: harmless)
+    if short:
+        w = z * z
+        acc = np.sum(w[1:] * np.conj(w[:-1]))
+        if acc == 0:
+            return coarse_hz
+        f = coarse_hz + np.angle(acc) / (4 * np.pi * 1e-3)
+        if centre_hz is not None:
+            f += 500.0 * round((centre_hz - f) / 500.0)
+        return float(f)
     acc = np.sum(z[1:] * np.conj(z[:-1]))
     if acc == 0:
         return coarse_hz
