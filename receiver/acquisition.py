@@ -329,22 +329,26 @@ def refine_doppler_squared(samples: np.ndarray, fs: float, if_hz: float, prn: in
     every 1 ms, D2 symbols every 2 ms): the 1-ms estimate (:func:`refine_doppler` over 1-ms blocks, its
     lines ~76-122 Hz apart on a 1-kHz-wide lobe: errors of 40-130 Hz measured at 45 dB-Hz) refined by
     squaring.  Each 1-ms block's correlation z_b (code and carrier at ``doppler_hz`` wiped) carries the
-    symbol sign +/-1 (a block straddling a sign change only loses amplitude); z_b^2 loses the sign and
+    symbol sign +/-1 (the blocks are aligned to the code periods); z_b^2 loses the sign and
     rotates at twice the residual frequency, so its spectrum over all blocks (up to 200 ms coherently)
     peaks at 2 df within a line of a few Hz (2 df modulo 1 kHz: df, df - 500 and df + 500 Hz are told apart by
     the 1-ms blocks' power).  The residual is searched within +/-SQ_RANGE_HZ; without a peak
     SQ_MIN_PEAK times the spectrum's mean (weak signal) the 1-ms estimate is returned unchanged."""
     sig = signal if signal is not None else GPS_L1CA
     n = int(round(1e-3 * fs))
-    nb = min(n_blocks, len(samples) // n)
+    rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz) / fs    # chips per sample
+    # the blocks start at a code period's first chip: each holds one symbol (a block straddling a sign
+    # change loses amplitude, half the time at the NH rate; up to 4 dB of the squares' SNR)
+    s0 = int(round(((sig.code_len - code_phase_chips) % sig.code_len) / rate))
+    nb = min(n_blocks, (len(samples) - s0) // n)
     if nb < 20:
         return doppler_hz
-    y = _code_wipe(samples[:nb * n], sig.code(prn), float(code_phase_chips),
-                   sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz) / fs).reshape(nb, n)
+    y = _code_wipe(samples[s0:s0 + nb * n], sig.code(prn), (float(code_phase_chips) + s0 * rate) % sig.code_len,
+                   rate).reshape(nb, n)
     f0 = (if_hz + doppler_hz) / fs                                    # cycles per sample
     m = np.arange(n)
     # the carrier wipe-off within a block (one row of exponentials), then the block's own start phase
-    z = (y @ np.exp(-2j * np.pi * f0 * m)) * np.exp(-2j * np.pi * ((f0 * n * np.arange(nb)) % 1.0))
+    z = (y @ np.exp(-2j * np.pi * f0 * m)) * np.exp(-2j * np.pi * ((f0 * (s0 + n * np.arange(nb))) % 1.0))
     w = z * z                                                         # sign-free, at 2 x the residual
     df = np.arange(-SQ_RANGE_HZ, SQ_RANGE_HZ, SQ_STEP_HZ)
     tb = np.arange(nb) * (n / fs)                                     # block start times
