@@ -339,7 +339,7 @@ def refine_doppler_squared(samples: np.ndarray, fs: float, if_hz: float, prn: in
     rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz) / fs    # chips per sample
     # the blocks start at a code period's first chip: each holds one symbol (a block straddling a sign
     # change loses amplitude, half the time at the NH rate; up to 4 dB of the squares' SNR)
-    s0 = int(round(((sig.code_len - code_phase_chips) % sig.code_len) / rate))
+    s0 = sig.samples_to_period_start(code_phase_chips, rate)
     nb = min(n_blocks, (len(samples) - s0) // n)
     if nb < 20:
         return doppler_hz

@@ -115,5 +115,10 @@ class SignalDef:
         coherently, nor difference the phase of consecutive periods (a sign change reads as 500 Hz)."""
         return self.secondary(prn) is not None or self.bit_ms(prn) < 10
 
+    def samples_to_period_start(self, code_phase_chips: float, chips_per_sample: float) -> int:
+        """Samples from a block's first sample (code phase ``code_phase_chips``) to the next code period's
+        first chip: where 1-ms blocks holding one symbol each begin."""
+        return int(round(((self.code_len - code_phase_chips) % self.code_len) / chips_per_sample))
+
 
 GPS_L1CA = SignalDef()

@@ -114,7 +114,7 @@ def refine(samples, fs, if_hz, prn, code_phase_chips, coarse_hz, sig, centre_hz=
     short = sig.short_symbols(prn)
     # sign-changing signals: the 1-ms blocks start at a code period's first chip, so that each holds one
     # symbol (a block straddling a sign change loses its amplitude, half the time at B1I's NH rate)
-    s0 = int(round(((sig.code_len - code_phase_chips) % sig.code_len) / rate * fs)) if short else 0
+    s0 = sig.samples_to_period_start(code_phase_chips, rate / fs) if short else 0
     k = (len(samples) - s0) // n1
     if k < 3:
         return coarse_hz
