@@ -526,7 +526,9 @@ RECEIVER_SCHEMA = {
     "navigation": {
         "enabled": P(True, "bool", "decode the navigation message (LNAV; BeiDou D1/D2) and compute fixes"),
         "rate_hz": P(10.0, "float", "observable / fix rate", lo=0.1, hi=1000.0),
-        "ephemeris": P(None, "str", "RINEX 2/3 GPS navigation file for assisted mode", nullable=True),
+        "ephemeris": P(None, "str", "RINEX 2/3 navigation file for assisted mode (its GPS/QZSS records; a "
+                                    "BeiDou B1I run its RINEX 3 BeiDou records; several signals: a mixed RINEX 3 "
+                                    "file)", nullable=True),
         "troposphere": P("saastamoinen", "str", "troposphere model", choices=("saastamoinen", "none")),
         "ionosphere": P("klobuchar", "str", "ionosphere model", choices=("klobuchar", "none")),
         "klobuchar_fallback": P(True, "bool", "while no broadcast Klobuchar set is known (LNAV subframe 4 page 18 "
@@ -802,6 +804,10 @@ def load_receiver_config(path=None, overrides=None) -> Section:
 SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 38))}
 
 
+#: the signals the vector loops track (receiver/tracking/vector: any mix of them, one clock bias per system)
+VECTOR_SIGNALS = ("gps_l1ca", "bds_b1i")
+
+
 def _prn_text(name: str) -> str:
     return "1-32 (GPS) and 193-202 (QZSS)" if name == "gps_l1ca" else "1-37"
 
@@ -849,9 +855,9 @@ def validate_receiver(cfg: Section) -> Section:
     if not prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
     sigs = run_signals(cfg)
-    if cfg.vector.enabled and sigs != ["gps_l1ca"]:
-        raise UserError(f"config key 'vector.enabled': the vector loops track gps_l1ca only, not "
-                        f"{', '.join(s for s in sigs if s != 'gps_l1ca')}")
+    if cfg.vector.enabled and any(s not in VECTOR_SIGNALS for s in sigs):
+        raise UserError(f"config key 'vector.enabled': the vector loops track {' and '.join(VECTOR_SIGNALS)} "
+                        f"only, not {', '.join(s for s in sigs if s not in VECTOR_SIGNALS)}")
     known = SIGNAL_PRNS.get(sigs[0])
     bad = [p for p in prns if known is not None and p not in known]
     if bad:

@@ -232,13 +232,35 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     return res
 
 
-def _vector_handover(cfg, channels, nav, fs, quiet=False):
+def _vector_handover(cfg, parts, nav, fs, quiet=False):
     """Vector-loop handover state (owned by the run): ``.step(start)`` returns a vector tracker once
     vector.start_s is reached (or 5 s after the first fix), else None.  The tracker's
-    ``process(block, start)`` returns ({prn: EPOCH_DTYPE records}, FIX_DTYPE fixes, mode 1 or 2 = coast)
-    and drives the channels' NCOs; ``tracker.reinit_needed`` asks for a fall-back to scalar tracking."""
+    ``process(blocks, start)`` (the chunk of every signal's stream, in the order of ``parts``) returns
+    ({key: EPOCH_DTYPE records}, FIX_DTYPE fixes, mode 1 or 2 = coast) and drives the channels' NCOs;
+    ``tracker.reinit_needed`` asks for a fall-back to scalar tracking.  Several signals: the tracker sees
+    the channel managers' channels as one dict keyed by satellite key (tracking.vector.tracker.RunChannels)."""
     from .tracking.vector import Handover
-    return Handover(cfg, channels, nav, fs, log=(lambda msg: None) if quiet else None)
+    from .tracking.vector.tracker import RunChannels
+    channels = parts[0].manager.channels if len(parts) == 1 else \
+        RunChannels([(p.signal, p.manager.channels) for p in parts])
+    return Handover(cfg, channels, nav, fs, log=(lambda msg: None) if quiet else None,
+                    signals=[(p.signal, p.reader.if_hz) for p in parts])
+
+
+def _assisted_ephemerides(path, sigs):
+    """navigation.ephemeris (assisted mode): the RINEX records of the run's systems, keyed like its channels
+    (one signal: its PRNs -- a BeiDou B1I run the BeiDou records, BDT; several signals: satellite keys,
+    receiver.gnss.satid.sat_key, from a mixed RINEX 3 file), and the header's Klobuchar set (GPS's first)."""
+    from .gnss.rinex import read_rinex_nav
+    letters = [get_signal(n).system for n in sigs]
+    if len(letters) == 1:
+        return read_rinex_nav(path, systems=("C",) if letters[0] == "C" else ("G", "J"))
+    ephs, iono = {}, None
+    for letter in letters:
+        e, io = read_rinex_nav(path, systems=("C",) if letter == "C" else ("G", "J"))
+        ephs.update({sat_key(letter, p): lst for p, lst in e.items()})
+        iono = iono if iono is not None else io
+    return ephs, iono
 
 
 @interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk
@@ -259,9 +281,6 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     prov = provenance_async()           # git / package versions on a thread while the input opens
     with stage("open input"):
         sigs = run_signals(cfg)
-        if len(sigs) > 1 and cfg.navigation.enabled and cfg.navigation.ephemeris:
-            raise UserError("config key 'navigation.ephemeris' (assisted mode) is not supported in a run over "
-                            "several signals")
         plan_chip = max(get_signal(n).chip_rate for n in sigs)
         readers = [open_input(cfg, n, plan_chip if len(sigs) > 1 else None) for n in sigs]
         reader = readers[0]
@@ -270,7 +289,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         ephemerides, iono = None, None
         if cfg.navigation.enabled and cfg.navigation.ephemeris:
             from .gnss.rinex import read_rinex_nav
-            ephemerides, iono = read_rinex_nav(cfg.navigation.ephemeris)
+            ephemerides, iono = _assisted_ephemerides(cfg.navigation.ephemeris, sigs)
     fs, if_hz = reader.fs, reader.if_hz
     with stage("write"):
         writer = _writer(cfg, reader, out_path, fs, if_hz, reads, prov)
@@ -659,7 +678,7 @@ def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, io
     chunk = int(CHUNK_S * fs)
     overlap = int(OVERLAP_S * fs)
     vector = None
-    handover = _vector_handover(cfg, channels, nav, fs, quiet) if cfg.vector.enabled else None
+    handover = _vector_handover(cfg, parts, nav, fs, quiet) if cfg.vector.enabled else None
     bar = _progress(reader.duration_s, quiet)
 
     def finish_chunk(end):
@@ -706,7 +725,7 @@ def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, io
             vector = handover.step(start)
         if vector is not None:
             with stage("vector tracking"):
-                block_recs, vfixes = vector.process(block, start)
+                block_recs, vfixes = vector.process(blocks, start)
             with stage("write"):
                 writer.append_fixes(vfixes)
                 writer.append_vector_log(vector.last_diag)

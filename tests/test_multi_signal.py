@@ -29,10 +29,20 @@ def test_signals_config():
     assert run_signals(load_receiver_config(None)) == ["gps_l1ca"]          # `signals` empty: `signal`
     for bad, msg in ((["signals=[gps_l1ca, gal_e1]"], "signals"), (["signals=[gps_l1ca, gps_l1ca]"], "twice"),
                      (["acquisition.prns_by_signal={bds_b1i: [40]}"], "prns_by_signal.bds_b1i"),
-                     (["acquisition.prns_by_signal={gal_e1: [1]}"], "not one of the run's signals"),
-                     (["vector.enabled=true"], "vector.enabled")):
+                     (["acquisition.prns_by_signal={gal_e1: [1]}"], "not one of the run's signals")):
         with pytest.raises(UserError, match=msg):
             load_receiver_config(REPO / "configs/gps_bds_nav.yaml", bad)
+    # the vector loops track GPS + BeiDou runs (tests/test_vector_gnss.py); a signal they do not know is
+    # refused in one line
+    assert load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["vector.enabled=true"]).vector.enabled
+    import receiver.config as C
+    known = C.VECTOR_SIGNALS
+    try:
+        C.VECTOR_SIGNALS = ("gps_l1ca",)
+        with pytest.raises(UserError, match="vector.enabled.*not bds_b1i"):
+            load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["vector.enabled=true"])
+    finally:
+        C.VECTOR_SIGNALS = known
 
 
 @pytest.fixture(scope="module")

@@ -16,17 +16,36 @@ from .metrics import METRICS_VERSION, compute_metrics
 
 
 def write_nav_for_scenario(scenario: dict, path: str):
-    """The ephemerides and iono/UTC the simulator broadcasts for this scenario, as a RINEX 3.04 nav file."""
+    """The ephemerides and iono/UTC the simulator broadcasts for this scenario, as a RINEX 3.04 nav file
+    (GPS, + QZSS with constellation.qzss; BeiDou scenarios: the BeiDou sets; GPS + BeiDou: a mixed file)."""
     from ..gnss.ephemeris import IonoUtc
     from ..gnss.rinex import write_rinex_nav
     from ..sim.constellation import load_constellation, quantize_iono
     from ..sim.scenario import load_scenario, resolve_path
     sc = load_scenario(scenario)
     con, tm, atm = sc.constellation, sc.time, sc.atmosphere
-    cons = load_constellation(con.source, resolve_path(con.rinex, "RINEX file") if con.rinex else None,
-                              resolve_path(con.nominal_file, "constellation file"), tm.gps_week, tm.tow_s,
-                              tm.tow_s + tm.duration_s / 2.0)
+    if con.source in ("bds_nominal", "bds_rinex"):      # a BeiDou recording: its D1/D2 sets (BDT)
+        from types import SimpleNamespace
+        from ..sim.bds_constellation import bds_nominal_ephemerides, bds_rinex_ephemerides
+        if con.source == "bds_nominal":
+            b_ephs, b_iono = bds_nominal_ephemerides(resolve_path(con.bds_file, "constellation file"),
+                                                     tm.gps_week, tm.tow_s)
+        else:
+            b_ephs, b_iono = bds_rinex_ephemerides(resolve_path(con.rinex, "RINEX file"), tm.gps_week,
+                                                   tm.tow_s + tm.duration_s / 2.0)
+        cons = SimpleNamespace(ephemerides=b_ephs, iono_utc=quantize_iono(b_iono) if b_iono is not None else None)
+    else:
+        cons = load_constellation(con.source, resolve_path(con.rinex, "RINEX file") if con.rinex else None,
+                                  resolve_path(con.nominal_file, "constellation file"), tm.gps_week, tm.tow_s,
+                                  tm.tow_s + tm.duration_s / 2.0,
+                                  resolve_path(con.qzss_file, "constellation file") if con.qzss else None)
     ephs = dict(cons.ephemerides)
+    if len(list(getattr(sc, "signals", None) or [])) > 1:     # GPS + BeiDou: the nominal BeiDou sets too
+        from ..gnss.satid import sat_key
+        from ..sim.bds_constellation import bds_nominal_ephemerides
+        b_ephs, _ = bds_nominal_ephemerides(resolve_path(con.bds_file, "constellation file"), tm.gps_week,
+                                            tm.tow_s)
+        ephs.update({sat_key("C", p): e for p, e in b_ephs.items()})
     if con.prns:
         ephs = {p: e for p, e in ephs.items() if p in con.prns}
     for p in con.exclude_prns:

@@ -31,6 +31,7 @@ from .pvt import Aiding, NavSolver, Observation, vnorm
 from .pvt_filter import make_pvt_filter
 
 BIT_MS = 20
+DEEP_ORBIT_SQRT_A = 6000.0    # sqrt(m): a GEO or IGSO orbit (BeiDou; ~6493), not a MEO (GPS ~5154, BeiDou ~5282)
 LOCK_GUARD_S = 0.1           # a measurement needs lock this long after its epoch too (detector lag)
 LOCK_GUARD_PRESENT_S = 0.04  # the same for a channel judged by the signal-presence test (lock gone <= 35 ms)
 PRESENCE_MARGIN_DB = 3.0     # ... i.e. its C/N0 this far above tracking.presence.min_cn0_dbhz
@@ -208,10 +209,14 @@ class ChannelNav:
         m = self.measure(s)
         if m is None or self.bit_offset < 0:
             return None, None
+        return self.offset_nearest(tx_guess, m[0]), m[0]
+
+    def offset_nearest(self, tx_guess: float, txrel: float) -> float:
+        """:meth:`offset_candidates` for a measured relative transmit time txrel."""
         base = -self.bit_offset * 1e-3
         tb = self.bit_ms * 1e-3
-        k = round((tx_guess - m[0] - base) / tb)
-        return base + tb * k, m[0]
+        k = round((tx_guess - txrel - base) / tb)
+        return base + tb * k
 
     def add(self, recs: np.ndarray, bit_offset: int):
         if len(recs) == 0:
@@ -744,17 +749,26 @@ class NavigationEngine:
             return
         best = None
         tried = set()          # travel times that give the same 20-ms assignments give the same fix
-        for c in np.arange(0.060, 0.0955, 0.001):
+        # BeiDou GEO/IGSO satellites (orbit radius ~42 000 km) are 119-138 ms away, MEO (and GPS) 67-90 ms: a
+        # second common travel time for them (GPS: none, the search is the one-dimensional one)
+        cand = []              # (channel, ephemeris, relative transmit time) of the channels with a measurement
+        for ch in pending:
+            if ch.bit_ms < BIT_MS:
+                continue       # BeiDou D2 (GEO): 2-ms symbols, no common travel time resolves them (frame sync)
+            m = ch.measure(s) if ch.bit_offset >= 0 else None
+            e = select(self.rinex_ephs[ch.prn], T) if ch.prn in self.rinex_ephs else None
+            if m is not None and e is not None:
+                cand.append((ch, e, m[0]))
+        deep = {ch.prn for ch, e, _ in cand if getattr(e, "sqrt_a", 0.0) > DEEP_ORBIT_SQRT_A}
+        grid = [(c, c) for c in np.arange(0.060, 0.0955, 0.001)]
+        if deep:
+            grid = [(c, c2) for c in np.arange(0.060, 0.0955, 0.001) for c2 in np.arange(0.115, 0.1405, 0.001)]
+        for c, c2 in grid:
             offs, obs = {}, []
-            for ch in pending:
-                off, txrel = ch.offset_candidates(s, T - c)
-                if off is None or ch.prn not in self.rinex_ephs:
-                    continue
-                e = select(self.rinex_ephs[ch.prn], T)
-                if e is None:
-                    continue
+            for ch, _, txrel in cand:
+                off = ch.offset_nearest(T - (c2 if ch.prn in deep else c), txrel)
                 offs[ch.prn] = off
-                obs.append(Observation(prn=ch.prn, tx_tow=off + txrel, cn0_dbhz=ch.cn0))
+                obs.append(Observation(prn=ch.prn, tx_tow=off + txrel, cn0_dbhz=ch.cn0, system=ch.signal.system))
             key = tuple(offs.items())
             if len(obs) < 5 or key in tried:
                 continue
@@ -767,6 +781,8 @@ class NavigationEngine:
             if fix is None or fix.rejected_prns or fix.n_sats < 5 or \
                     abs(fix.clock_bias_m) > 0.01 * C_LIGHT:
                 continue
+            if deep and fix.n_sats < len(obs):
+                continue       # (a fix without the deep group cannot judge its travel time: e.g. all masked)
             rms = float(np.sqrt(np.mean(np.square(fix.residuals_m))))
             if best is None or rms < best[0]:
                 best = (rms, offs)

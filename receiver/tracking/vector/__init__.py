@@ -73,7 +73,8 @@ def code_carrier_drift(history, channels) -> float:
         if ok.sum() >= 5:
             slope = np.polyfit(t[ok] - t[ok][0], b[ok], 1)[0]
             return float(slope - np.median(d[ok]))
-    rates = [ch.st[K.S_DLL_RATE] for ch in channels.values()
+    # (chips/s of each channel's signal, referred to L1 C/A's chip rate: a factor of exactly 1 for GPS)
+    rates = [ch.st[K.S_DLL_RATE] * (CA_CHIP_RATE / ch.signal.chip_rate) for ch in channels.values()
              if ch.st[K.S_MODE] in (K.MODE_TRACK, K.MODE_BIT_SYNC) and ch.st[K.S_LOCK] > 0]
     if rates:
         return float(-C_LIGHT * np.median(rates) / CA_CHIP_RATE)
@@ -83,18 +84,23 @@ def code_carrier_drift(history, channels) -> float:
 class Handover:
     """Scalar-to-vector handover state of one run (history of scalar fixes, re-initialisations)."""
 
-    def __init__(self, cfg, channels, nav, fs, log=None):
+    def __init__(self, cfg, channels, nav, fs, log=None, signals=None):
+        """channels: the pipeline's channel dict (several signals: a tracker.RunChannels view keyed by
+        satellite key); signals: [(SignalDef, IF Hz)] in the order of the blocks the tracker is given
+        (None: GPS L1 C/A alone)."""
         if nav is None:
             raise UserError("vector tracking needs the navigation solution (navigation.enabled: true)")
         make_filter(cfg.vector.variant, cfg.vector)     # validate early
         self.cfg, self.channels, self.nav, self.fs = cfg, channels, nav, fs
+        self.signals = signals
         self.log = log or _log
         self.state = {"history": [], "first": None, "last": None, "not_before": None}
         self.reinits = 0
 
     def step(self, start):
         """The vector tracker once the handover time is reached and a scalar fix is available, else None."""
-        return handover(self.cfg, self.channels, self.nav, start, self.fs, log=self.log, state=self.state)
+        return handover(self.cfg, self.channels, self.nav, start, self.fs, log=self.log, state=self.state,
+                        signals=self.signals)
 
     def fall_back(self, tracker, start):
         """The tracker cannot bridge the outage: every channel back to its scalar loop; the next handover
@@ -121,7 +127,7 @@ def _scalar_again(cfg, ch):
     ch.cfg[K.C_CN0_WIN_MS] = cfg.tracking.cn0_window_ms
 
 
-def handover(cfg, channels, nav, start, fs, log=_log, state=None):
+def handover(cfg, channels, nav, start, fs, log=_log, state=None, signals=None):
     """The vector tracker once the handover time is reached and a scalar fix is available, else None.
     state: the handover bookkeeping (Handover.state), kept by the caller between calls."""
     v = cfg.vector
@@ -162,7 +168,7 @@ def handover(cfg, channels, nav, start, fs, log=_log, state=None):
            "d": sig_v, "delta": 1.0}
     tracker = VectorTracker(cfg, channels, nav, filt, fs, s_fix, fix.rx_tow,
                             (np.asarray(fix.ecef, dtype=float), vel, float(fix.clock_bias_m), drift, delta),
-                            sig, start, log=log)
+                            sig, start, log=log, signals=signals, isb=getattr(fix, "isb_m", None))
     if len(tracker.prns) < 4:
         # undo: give the NCOs back to the scalar loops and try again next chunk
         for prn in list(tracker.prns):
@@ -170,7 +176,8 @@ def handover(cfg, channels, nav, start, fs, log=_log, state=None):
             tracker._remove(prn, False)
             _scalar_again(cfg, ch)
         return None
+    isb = "".join(f"; inter-system bias {c} {tracker.x[i]:+.2f} m" for c, i in tracker.isb_index.items())
     log(f"vector: handover at {start / fs - first_sample / fs:.2f} s to {filt.describe()}; "
-        f"{len(tracker.prns)} channels {' '.join(f'G{p:02d}' for p in tracker.prns)}; "
-        f"code-carrier drift {delta:+.2f} m/s")
+        f"{len(tracker.prns)} channels {' '.join(tracker.label(p) for p in tracker.prns)}; "
+        f"code-carrier drift {delta:+.2f} m/s{isb}")
     return tracker

@@ -9,7 +9,10 @@ options (adaptive R form, chi-square manoeuvre detection); the measurement model
 with e_j the unit line of sight receiver -> satellite (the papers' a_j = -e_j), r, v the receiver position
 and velocity, b the (code) clock bias and d the carrier clock drift (both in metres, m/s).  The state
 layout array ``lay`` = [ip, iv, ib, id, idel] gives the indices of x, y, z (ip..ip+2), vx, vy, vz
-(iv..iv+2), b, d and of the code-minus-carrier drift (idel, -1 when absent).
+(iv..iv+2), b, d and of the code-minus-carrier drift (idel, -1 when absent).  Channels of a system other
+than the clock's reference system (a run over several signals) see b + isb_s: their code rows have a 1 in
+the column of that system's inter-system bias state too (``G`` (m,): the state index, -1 for the reference
+system; :func:`kf_update_isb`).
 
 Updates are sequential scalar updates (R diagonal), which is exactly the batch update.  Everything here
 is numba-compiled; :mod:`receiver.tracking.vector.loop` calls it once per epoch.
@@ -72,27 +75,40 @@ def kf_predict(x, P, F, Q):
 
 
 @njit(cache=True)
-def _ph(P, lay, e, kind, out):
-    """out = P h for the code (kind 0) or carrier (kind 1) row of LOS e; returns h P h^T."""
+def _ph(P, lay, e, kind, out, ig=-1):
+    """out = P h for the code (kind 0) or carrier (kind 1) row of LOS e (ig >= 0: the code row's inter-system
+    bias column); returns h P h^T."""
     n = P.shape[0]
     i0 = lay[0] if kind == 0 else lay[1]
     ic = lay[2] if kind == 0 else lay[3]
     for r in range(n):
         out[r] = P[r, ic] - e[0] * P[r, i0] - e[1] * P[r, i0 + 1] - e[2] * P[r, i0 + 2]
+    if kind == 0 and ig >= 0:
+        for r in range(n):
+            out[r] += P[r, ig]
+        return out[ic] - e[0] * out[i0] - e[1] * out[i0 + 1] - e[2] * out[i0 + 2] + out[ig]
     return out[ic] - e[0] * out[i0] - e[1] * out[i0 + 1] - e[2] * out[i0 + 2]
 
 
 @njit(cache=True)
-def _hdot(lay, e, kind, v):
-    """h v for the code (0) or carrier (1) row."""
+def _hdot(lay, e, kind, v, ig=-1):
+    """h v for the code (0) or carrier (1) row (ig: as in _ph)."""
     i0 = lay[0] if kind == 0 else lay[1]
     ic = lay[2] if kind == 0 else lay[3]
+    if kind == 0 and ig >= 0:
+        return v[ic] - e[0] * v[i0] - e[1] * v[i0 + 1] - e[2] * v[i0 + 2] + v[ig]
     return v[ic] - e[0] * v[i0] - e[1] * v[i0 + 1] - e[2] * v[i0 + 2]
 
 
 @njit(cache=True)
 def chi2_tag(P, lay, E, z, R, valid, kind):
     """z^T (H P H^T + R)^-1 z over the valid channels of one measurement type (the manoeuvre tag)."""
+    return chi2_tag_isb(P, lay, E, np.full(E.shape[0], -1, np.int64), z, R, valid, kind)
+
+
+@njit(cache=True)
+def chi2_tag_isb(P, lay, E, G, z, R, valid, kind):
+    """:func:`chi2_tag` with the channels' inter-system bias columns G (m,) (-1: none)."""
     m = E.shape[0]
     n = P.shape[0]
     idx = np.zeros(m, np.int64)
@@ -106,14 +122,14 @@ def chi2_tag(P, lay, E, z, R, valid, kind):
     PH = np.zeros((n, mv))
     col = np.zeros(n)
     for a in range(mv):
-        _ph(P, lay, E[idx[a]], kind, col)
+        _ph(P, lay, E[idx[a]], kind, col, G[idx[a]])
         PH[:, a] = col
     S = np.zeros((mv, mv))
     zz = np.zeros(mv)
     for a in range(mv):
         ja = idx[a]
         for b in range(mv):
-            S[a, b] = _hdot(lay, E[ja], kind, PH[:, b])
+            S[a, b] = _hdot(lay, E[ja], kind, PH[:, b], G[ja])
         S[a, a] += R[ja]
         zz[a] = z[ja]
     S = 0.5 * (S + S.T)
@@ -146,7 +162,15 @@ def chi2_tag(P, lay, E, z, R, valid, kind):
 
 @njit(cache=True)
 def kf_update(x, P, lay, E, zc, zf, valid, Rc, Rf, QB, chi2_thr, diag, gate=0.0):
-    """One epoch's measurement update (in place).
+    """:func:`kf_update_isb` of channels of the reference clock only."""
+    return kf_update_isb(x, P, lay, E, np.full(E.shape[0], -1, np.int64), zc, zf, valid, Rc, Rf, QB, chi2_thr,
+                         diag, gate)
+
+
+@njit(cache=True)
+def kf_update_isb(x, P, lay, E, G, zc, zf, valid, Rc, Rf, QB, chi2_thr, diag, gate=0.0):
+    """One epoch's measurement update (in place).  G (m,): the state index of each channel's inter-system
+    bias (-1: a channel of the reference clock).
 
     E (m, 3) lines of sight, zc / zf innovations (m, m/s), valid (m,) channels with a measurement,
     Rc / Rf (m,) their variances.  When chi2_thr > 0 the code and carrier tags are computed first and,
@@ -162,15 +186,15 @@ def kf_update(x, P, lay, E, zc, zf, valid, Rc, Rf, QB, chi2_thr, diag, gate=0.0)
     tag_v = 0.0
     fired = 0
     if chi2_thr > 0.0:
-        tag_p = chi2_tag(P, lay, E, zc, Rc, valid, 0)
-        tag_v = chi2_tag(P, lay, E, zf, Rf, valid, 1)
+        tag_p = chi2_tag_isb(P, lay, E, G, zc, Rc, valid, 0)
+        tag_v = chi2_tag_isb(P, lay, E, G, zf, Rf, valid, 1)
         if tag_p > chi2_thr or tag_v > chi2_thr:
             P += QB
             fired = 1
     ph = np.zeros(n)
     for j in range(m):
         if valid[j]:
-            diag[j, 0] = _ph(P, lay, E[j], 0, ph)
+            diag[j, 0] = _ph(P, lay, E[j], 0, ph, G[j])
             diag[j, 1] = _ph(P, lay, E[j], 1, ph)
     dx = np.zeros(n)
     for kind in range(2):
@@ -178,10 +202,10 @@ def kf_update(x, P, lay, E, zc, zf, valid, Rc, Rf, QB, chi2_thr, diag, gate=0.0)
             if not valid[j]:
                 continue
             e = E[j]
-            s = _ph(P, lay, e, kind, ph)
+            s = _ph(P, lay, e, kind, ph, G[j])
             if kind == 0:
                 r = Rc[j]
-                innov = zc[j] - _hdot(lay, e, 0, dx)
+                innov = zc[j] - _hdot(lay, e, 0, dx, G[j])
             else:
                 r = Rf[j]
                 innov = zf[j] - _hdot(lay, e, 1, dx)
@@ -207,9 +231,9 @@ def kf_update(x, P, lay, E, zc, zf, valid, Rc, Rf, QB, chi2_thr, diag, gate=0.0)
             P[a, a] = 1e-12
     for j in range(m):
         if valid[j]:
-            diag[j, 2] = _ph(P, lay, E[j], 0, ph)
+            diag[j, 2] = _ph(P, lay, E[j], 0, ph, G[j])
             diag[j, 3] = _ph(P, lay, E[j], 1, ph)
-            diag[j, 4] = zc[j] - _hdot(lay, E[j], 0, dx)
+            diag[j, 4] = zc[j] - _hdot(lay, E[j], 0, dx, G[j])
             diag[j, 5] = zf[j] - _hdot(lay, E[j], 1, dx)
             diag[j, 6] = zc[j]
             diag[j, 7] = zf[j]

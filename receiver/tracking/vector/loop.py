@@ -8,13 +8,20 @@ tau_mid = tau_k + Delta with |Delta| <= T/2; the prediction is propagated by Del
 velocity and drift (the tiny Delta terms of H are neglected).
 
 Per channel and epoch:
-  replica transmit time   tx_nco = A_j + code_period * 1 ms + code_phase / f_code   (at tau_mid)
+  replica transmit time   tx_nco = A_j + code_period * T_code + code_phase / f_code   (at tau_mid)
   measured pseudorange    rho = c (tau_mid - tx_nco) + Z_code
   measured rate           rate = -lambda (NCO Doppler + df),   df from the cross/dot of the halves
-  predicted               rho_hat = |p_sat(tau) - r| + I + T + b - c dt_sv(tau)
+  predicted               rho_hat = |p_sat(tau) - r| + I + T + b (+ isb_s) - c dt_sv(tau)
                           rate_hat = e . (v_sat - v) + d - c ddt_sv
 (all times relative to the handover reference, see tracker.py; A_j is the relative transmit time of the
-channel's code period 0, an integer number of ms in absolute GPS time).  Since the NCOs are commanded
+channel's code period 0, a whole number of code periods in absolute GPS time).  The signal constants are the
+channel's (SIG columns, from its SignalDef: chip rate f_code, carrier wavelength lambda, code period T_code,
+the IF and the input block of its signal), so channels of several signals (GPS/QZSS L1 C/A, BeiDou B1I)
+share one filter; a channel of a system other than the reference clock's adds its system's inter-system
+bias state isb_s (column SIG_ISB: its index in x, -1 for the reference system).  The frequency
+discriminator compares the two halves of ONE correlation epoch, and the kernel's epochs never span a data
+symbol or overlay-code chip (B1I: 1 ms before NH sync, then NH wiped off and epochs aligned to the D1 bits;
+D2: epochs of at most the 2-ms symbol), so the symbol signs never enter it.  Since the NCOs are commanded
 from the prediction, the innovation rho - rho_hat is the discriminator output of the error-state
 formulation of the papers (E_code = t_b + (X - X_hat)^T a_j); the explicit form above stays exact when an
 NCO could not follow the prediction (clamped code steps, the first epoch after handover).
@@ -34,11 +41,10 @@ from numba import njit
 
 from .. import kernel as K
 from ..correlator import workspace
-from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ
+from ...gnss.signals import C_LIGHT
 from .discriminators import code_disc_m, freq_disc_hz
-from .kalman import adapt_r, kf_predict, kf_update
+from .kalman import adapt_r, kf_predict, kf_update_isb
 
-LAMBDA = C_LIGHT / L1_HZ
 MAX_SHIFT = 3.0          # chips per epoch (the correlator's code array has 4 chips of wrap margin)
 GROSS_CODE_M = 3000.0    # innovations beyond these are not measurements of this channel's signal (the
 GROSS_RATE_MPS = 1000.0  # discriminators alone span +/- 220 m and +/- 190 m/s): never used in an update
@@ -60,6 +66,15 @@ P_GATE = 12
 P_COAST_MASK = 13      # 1: while fewer than 4 channels carry signal, channels without signal only predict
 N_PRM = 14
 
+# ---- per-channel signal columns (SIG)
+SIG_CHIP = 0             # chip rate (chips/s)
+SIG_LAMBDA = 1           # carrier wavelength (m)
+SIG_PERIOD = 2           # primary-code period (s)
+SIG_IF = 3               # IF of the channel's input stream (Hz)
+SIG_BLOCK = 4            # row of `blocks` holding the channel's signal
+SIG_ISB = 5              # state index of the channel's inter-system bias, -1: the reference clock
+N_SIG = 6
+
 # ---- per-epoch log columns (besides the state)
 L_TAU = 0
 L_TAGP = 1
@@ -79,8 +94,9 @@ def _sat(POLY, TAU_A, j, tau, sp, sv):
 
 
 @njit(cache=True)
-def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e):
-    """Predicted pseudorange, carrier rate and code rate of channel j at tau (state x at tau_k); fills e."""
+def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e, ig):
+    """Predicted pseudorange, carrier rate and code rate of channel j at tau (state x at tau_k); fills e.
+    ig >= 0: the state index of the channel's inter-system bias."""
     ip, iv, ib, idd, idl = lay[0], lay[1], lay[2], lay[3], lay[4]
     dlt = x[idl] if idl >= 0 else 0.0
     dt = tau - tau_k
@@ -95,29 +111,36 @@ def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e):
         e[a] = e[a] / rng
         rr += e[a] * (sv[a] - x[iv + a])
     b = x[ib] + (x[idd] + dlt) * dt
+    if ig >= 0:
+        b += x[ig]
     rho = rng + ATM[j] + b - sp[3]
     rate_carr = rr + x[idd] - sv[3]
     return rho, rate_carr, rate_carr + dlt
 
 
 @njit(cache=True)
-def run_chunk(block, block_start, prm, grid_next, max_epochs,
-              ST, CF, CODE, HIST, REC, NREC, CA, POLY, TAU_A, ATM, ACTIVE,
+def run_chunk(blocks, block_start, prm, grid_next, max_epochs,
+              ST, CF, CODE, HIST, REC, NREC, CA, POLY, TAU_A, ATM, ACTIVE, SIG,
               x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS, LOG, LX, LPD, LR):
     """Run vector epochs while every channel's next correlation epoch fits in the block.
+
+    blocks (n_signals, n): the chunk's samples of each signal's input stream (the same sample span); SIG
+    (m, N_SIG): each channel's signal constants (see the module docstring).
 
     Returns (epochs run, next grid point).  REC (m, cap, N_OUT) / NREC receive the channels' correlation
     records; LOG / LX / LPD / LR (per epoch: log columns, state, covariance diagonal, channel R) the
     filter history.  ACTIVE (m,) 0 freezes a channel (not stepped, not commanded).
     """
     fs = prm[P_FS]
-    nblk = block.shape[0]
+    nblk = blocks.shape[1]
     m = ST.shape[0]
     n = x.shape[0]
     step = prm[P_GRID]
     T = step / fs
     s_ref = prm[P_SREF]
-    chip = CA_CHIP_RATE
+    G = np.zeros(m, np.int64)
+    for j in range(m):
+        G[j] = int(SIG[j, SIG_ISB])
     E = np.zeros((m, 3))
     zc = np.zeros(m)
     zf = np.zeros(m)
@@ -152,6 +175,8 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
                 continue
             if ST[j, K.S_CN0] >= prm[P_LOCK_CN0]:
                 nlock += 1
+            chip = SIG[j, SIG_CHIP]
+            block = blocks[int(SIG[j, SIG_BLOCK])]
             while ST[j, K.S_NEXT_SAMPLE] < s_end and NREC[j] < cap:
                 r0 = NREC[j]
                 got = K.track_block_ws(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
@@ -163,14 +188,14 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
                 ns = ST[j, K.S_NEXT_SAMPLE] - o[K.O_SAMPLE]
                 t_int = ns / fs
                 tau_mid = (o[K.O_SAMPLE] + 0.5 * ns - s_ref) / fs
-                txrel = CA[j] + o[K.O_PERIOD] * 1e-3 + \
+                txrel = CA[j] + o[K.O_PERIOD] * SIG[j, SIG_PERIOD] + \
                     (o[K.O_CODE_PHASE] + 0.5 * ns * o[K.O_CODE_RATE] / fs) / chip
                 rho_meas = C_LIGHT * (tau_mid - txrel) + \
                     code_disc_m(o[K.O_E], o[K.O_L], K.el_spacing(ST[j], CF[j]), chip)
                 dop = o[K.O_DOPPLER] + freq_disc_hz(o[K.O_P1I], o[K.O_P1Q], o[K.O_P2I], o[K.O_P2Q], t_int)
-                rate_meas = -LAMBDA * dop
+                rate_meas = -SIG[j, SIG_LAMBDA] * dop
                 rho_hat, rate_hat, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_mid, tau_k,
-                                                        sp, sv, e)
+                                                        sp, sv, e, G[j])
                 zc[j] += rho_meas - rho_hat
                 zf[j] += rate_meas - rate_hat
                 cnt[j] += 1
@@ -192,29 +217,32 @@ def run_chunk(block, block_start, prm, grid_next, max_epochs,
         for j in range(m):
             if valid[j]:
                 nvalid += 1
-        tp, tv, fired = kf_update(x, P, lay, E, zc, zf, valid, Rc, Rf, QB, prm[P_CHI2], diag, prm[P_GATE])
+        tp, tv, fired = kf_update_isb(x, P, lay, E, G, zc, zf, valid, Rc, Rf, QB, prm[P_CHI2], diag,
+                                      prm[P_GATE])
         adapt_r(int(prm[P_FORM]), valid, diag, W, WI, WN, WS, Rc, Rf, int(prm[P_MIN_FILL]),
                 prm[P_FLOOR_C], prm[P_FLOOR_F])
         # ---- NCO commands for each channel's next correlation epoch
         for j in range(m):
             if not ACTIVE[j]:
                 continue
+            chip = SIG[j, SIG_CHIP]
             s_next = ST[j, K.S_NEXT_SAMPLE]
             tau_n = (s_next - s_ref) / fs
-            rho_n, _, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_n, tau_k, sp, sv, e)
+            rho_n, _, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_n, tau_k, sp, sv, e, G[j])
             tx_pred = tau_n - rho_n / C_LIGHT
-            tx_nco = CA[j] + ST[j, K.S_CODE_PERIOD] * 1e-3 + ST[j, K.S_CODE_PHASE] / chip
+            tx_nco = CA[j] + ST[j, K.S_CODE_PERIOD] * SIG[j, SIG_PERIOD] + ST[j, K.S_CODE_PHASE] / chip
             shift = (tx_pred - tx_nco) * chip
             if shift > MAX_SHIFT:
                 shift = MAX_SHIFT
             elif shift < -MAX_SHIFT:
                 shift = -MAX_SHIFT
             ST[j, K.S_CODE_PHASE] += shift
-            tau_m = tau_n + 0.5e-3 * ST[j, K.S_INT_MS]
-            _, rate_c, rate_code = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_m, tau_k, sp, sv, e)
+            tau_m = tau_n + 0.5 * SIG[j, SIG_PERIOD] * ST[j, K.S_INT_MS]
+            _, rate_c, rate_code = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_m, tau_k, sp, sv, e,
+                                                    G[j])
             ST[j, K.S_CODE_RATE] = chip * (1.0 - rate_code / C_LIGHT)
-            dop = -rate_c / LAMBDA
-            ST[j, K.S_CARR_FREQ] = prm[P_IF] + dop
+            dop = -rate_c / SIG[j, SIG_LAMBDA]
+            ST[j, K.S_CARR_FREQ] = SIG[j, SIG_IF] + dop
             ST[j, K.S_PLL_FREQ] = dop
         # ---- log
         LOG[k, L_TAU] = tau_k

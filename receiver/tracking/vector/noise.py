@@ -29,27 +29,29 @@ LAMBDA = C_LIGHT / L1_HZ
 METRES_PER_CHIP = C_LIGHT / CA_CHIP_RATE
 
 
-def code_var_m2(cn0_dbhz, t_s, spacing_chips):
-    """Variance (m^2) of the normalised E-L envelope code discriminator (one integration of t_s)."""
+def code_var_m2(cn0_dbhz, t_s, spacing_chips, metres_per_chip=METRES_PER_CHIP):
+    """Variance (m^2) of the normalised E-L envelope code discriminator (one integration of t_s; chips of
+    metres_per_chip, default L1 C/A's)."""
     q = 10.0 ** (np.asarray(cn0_dbhz, dtype=float) / 10.0) * t_s
     d = np.asarray(spacing_chips, dtype=float)
-    return d / (4.0 * q) * (1.0 + 2.0 / ((2.0 - d) * q)) * METRES_PER_CHIP ** 2
+    return d / (4.0 * q) * (1.0 + 2.0 / ((2.0 - d) * q)) * np.asarray(metres_per_chip, dtype=float) ** 2
 
 
-def rate_var_m2s2(cn0_dbhz, t_s):
-    """Variance ((m/s)^2) of the cross/dot frequency discriminator of the two halves of one integration."""
+def rate_var_m2s2(cn0_dbhz, t_s, wavelength_m=LAMBDA):
+    """Variance ((m/s)^2) of the cross/dot frequency discriminator of the two halves of one integration
+    (carrier wavelength_m, default L1's)."""
     q = 10.0 ** (np.asarray(cn0_dbhz, dtype=float) / 10.0) * t_s
-    return (LAMBDA / (np.pi * t_s)) ** 2 * 2.0 / q * (1.0 + 2.0 / q)
+    return (np.asarray(wavelength_m, dtype=float) / (np.pi * t_s)) ** 2 * 2.0 / q * (1.0 + 2.0 / q)
 
 
-def channel_r(cn0_dbhz, int_ms, grid_ms, spacing_chips, rc):
+def channel_r(cn0_dbhz, int_ms, grid_ms, spacing_chips, rc, metres_per_chip=METRES_PER_CHIP, wavelength_m=LAMBDA):
     """(R code m^2, R rate (m/s)^2) of channels with C/N0 estimates cn0_dbhz integrating int_ms per
     correlation epoch in a filter epoch of grid_ms (a shorter integration is averaged grid/int times);
-    rc: the vector.r_cn0 config section."""
+    rc: the vector.r_cn0 config section; metres_per_chip / wavelength_m: per channel, of its signal."""
     cn0 = np.maximum(np.asarray(cn0_dbhz, dtype=float), float(rc.min_cn0_dbhz))
     t = np.maximum(np.asarray(int_ms, dtype=float), 1.0) * 1e-3
     n = np.maximum(float(grid_ms) * 1e-3 / t, 1.0)
     s = float(rc.scale)
-    r_code = np.maximum(s * code_var_m2(cn0, t, spacing_chips) / n, float(rc.floor_code_m2))
-    r_rate = np.maximum(s * rate_var_m2s2(cn0, t) / n, float(rc.floor_carrier_m2s2))
+    r_code = np.maximum(s * code_var_m2(cn0, t, spacing_chips, metres_per_chip) / n, float(rc.floor_code_m2))
+    r_rate = np.maximum(s * rate_var_m2s2(cn0, t, wavelength_m) / n, float(rc.floor_carrier_m2s2))
     return r_code, r_rate

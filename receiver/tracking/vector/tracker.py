@@ -25,50 +25,118 @@ channel keeps being predicted and is re-captured without re-acquisition when the
 Time: receiver time tau (s) counts from the handover reference sample s_ref, whose receiver clock reading
 t_ref is the navigation engine's (rx_tow = tow0 + (s - s0)/fs), so the clock bias keeps its meaning:
 GPS time = t_ref + tau - b / c.
+
+Signals and systems: every channel carries its signal's constants into the compiled loop (chip rate, carrier
+wavelength, code period, the IF and the input block of its stream: ``signals``, the run's SignalDefs in the
+order of the pipeline's input blocks), so GPS and QZSS L1 C/A and BeiDou B1I channels share the filter.  In a
+run over several signals the channels are keyed like the navigation engine's (receiver.gnss.satid.sat_key;
+:class:`RunChannels` joins the channel managers' dicts) and the filter gains one inter-system clock bias
+state per system after the reference one, in the navigation solution's order and grouping (clock group =
+the signal's system letter: QZSS shares GPS's clock, as in receiver.navigation.pvt), started from the
+handover fix's ``isb_m``.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import MutableMapping
 
 import numpy as np
 
 from .. import kernel as K
 from ...gnss.geodesy import ecef2lla, enu_matrix
 from ...runfile.record import FIX_DTYPE, VECTOR_LOG_DTYPE
-from ...gnss.signals import C_LIGHT, CA_CHIP_RATE, CA_CODE_LEN, L1_HZ
+from ...gnss.satid import MIXED, sat_key, sat_label, split_key
+from ...gnss.signals import C_LIGHT, GPS_L1CA
 from ..scalar import Channel, to_records
 from . import loop as L
 from .geometry import satellite_polys
 from .kalman import FORM_NONE
 from .noise import channel_r
 
-LAMBDA = C_LIGHT / L1_HZ
 NEVER_LOST_MS = 1e15
 MODE_VECTOR = 1               # FIX_DTYPE mode values (receiver.output)
 MODE_COAST = 2
 EPH_JUMP_M = 30.0             # a replacement ephemeris moving a locked satellite's range more than this is
                               # not used (_refresh_ephemerides)
 PROMOTE_LOCKED_S = 1.0        # a scalar channel joins the vector loop after this long in lock
+ISB_Q_M2_S = 1e-3             # random-walk PSD of an inter-system bias state (m^2/s: a hardware delay difference,
+                              # constant but for temperature; 0.3 m after 100 s)
+CLOCK_ORDER = "GJCE"          # the reference clock is the first of these (receiver.navigation.pvt._Sats)
+
+
+class RunChannels(MutableMapping):
+    """The channels of a run over several signals as one dict keyed by satellite key (sat_key): a view of
+    the channel managers' own dicts (keyed by the signal's PRN), which stay the owners."""
+
+    def __init__(self, parts):
+        self._by = {sig.system: chans for sig, chans in parts}     # system letter -> {signal PRN: Channel}
+
+    def _dict(self, key):
+        letter, prn = split_key(key)
+        return self._by[letter], prn
+
+    def __getitem__(self, key):
+        d, prn = self._dict(key)
+        return d[prn]
+
+    def __setitem__(self, key, ch):
+        d, prn = self._dict(key)
+        d[prn] = ch
+
+    def __delitem__(self, key):
+        d, prn = self._dict(key)
+        del d[prn]
+
+    def __iter__(self):
+        for letter, d in self._by.items():
+            for prn in list(d):
+                yield sat_key(letter, prn)
+
+    def __len__(self):
+        return sum(len(d) for d in self._by.values())
 
 
 class VectorTracker:
-    def __init__(self, cfg, channels, nav, filt, fs, s_ref, t_ref, nav0, sig, start_sample, log=None):
-        """nav0 = (r, v, b, d, delta) at sample s_ref (receiver clock reading t_ref); sig: initial sigmas."""
+    # (class defaults: GPS L1 C/A alone, one clock; __init__ sets them from its arguments)
+    signals = [(GPS_L1CA, 0.0)]
+    block_of = {"G": 0}
+    multi = False
+    system = "G"
+    isb_systems: list = []
+    isb_index: dict = {}
+
+    def __init__(self, cfg, channels, nav, filt, fs, s_ref, t_ref, nav0, sig, start_sample, log=None,
+                 signals=None, isb=None):
+        """nav0 = (r, v, b, d, delta) at sample s_ref (receiver clock reading t_ref); sig: initial sigmas;
+        signals: [(SignalDef, IF Hz of its stream)] in the order of process()'s blocks (None: GPS L1 C/A on
+        the navigation engine's IF); isb: the handover fix's inter-system biases {system letter: m}."""
         self.cfg = cfg
         self.v = cfg.vector
         self.fs = float(fs)
         self.if_hz = float(getattr(nav, "if_hz", cfg.input.if_hz))    # 0 after the decimating stage
-        self.channels = channels            # the pipeline's dict (shared)
+        if signals is None:
+            signals = [(getattr(nav, "signal", None) or GPS_L1CA, self.if_hz)]
+        self.signals = [(s_, float(f)) for s_, f in signals]
+        self.block_of = {s_.system: i for i, (s_, _) in enumerate(self.signals)}
+        self.multi = len(self.signals) > 1
+        self.system = MIXED if self.multi else self.signals[0][0].system      # of the channel keys (labels)
+        self.channels = channels            # the pipeline's dict (shared), or a RunChannels view of several
         self.nav = nav
         self.filt = filt
         self.s_ref = float(s_ref)
         self.t_ref = float(t_ref)
         self._sig = sig
-        x, P = filt.initial(*nav0, sig)
+        # clock groups: one bias per system of the run's signals after the reference one (navigation order)
+        letters = sorted(self.block_of, key=lambda c: CLOCK_ORDER.index(c) if c in CLOCK_ORDER else 9)
+        self.isb_systems = letters[1:]
+        self.n = filt.n + len(self.isb_systems)
+        self.isb_index = {c: filt.n + i for i, c in enumerate(self.isb_systems)}
+        self._isb0 = dict(isb or {})
+        x, P = self._augment(*filt.initial(*nav0, sig))
         self.x, self.P = np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(P, dtype=float)
         self.tau_state = 0.0
         F, Q, QB = filt.matrices()
-        self.F, self.Q, self.QB = (np.ascontiguousarray(a, dtype=float) for a in (F, Q, QB))
+        self.F, self.Q, self.QB = (np.ascontiguousarray(a, dtype=float) for a in self._augment_matrices(F, Q, QB))
         self.lay = filt.layout()
         self.T_ms = int(self.v.integration_ms)
         self.step = self.T_ms * 1e-3 * self.fs
@@ -96,11 +164,60 @@ class VectorTracker:
         # the filter state starts at the grid origin
         tau0 = (origin - self.s_ref) / self.fs
         r, v, b, d, dl = nav0
-        x, P = filt.initial(np.asarray(r) + np.asarray(v) * tau0, v, b + (d + dl) * tau0, d, dl, sig)
+        x, P = self._augment(*filt.initial(np.asarray(r) + np.asarray(v) * tau0, v, b + (d + dl) * tau0, d, dl,
+                                           sig))
         self.x, self.P = np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(P, dtype=float)
         self.tau_state = tau0
 
     # ================================================================== helpers
+    def _augment(self, x, P):
+        """The variant's (x, P) with the inter-system bias states appended (from the handover fix's isb_m;
+        a system the fix did not use starts at 0 with a 1-km sigma)."""
+        k = len(self.isb_systems)
+        if not k:
+            return x, P
+        n0 = len(x)
+        xa = np.concatenate([x, [float(self._isb0.get(c, 0.0)) for c in self.isb_systems]])
+        Pa = np.zeros((n0 + k, n0 + k))
+        Pa[:n0, :n0] = P
+        for i, c in enumerate(self.isb_systems):
+            Pa[n0 + i, n0 + i] = float(self._sig["b"]) ** 2 if c in self._isb0 else 1e6
+        return xa, Pa
+
+    def _augment_matrices(self, F, Q, QB):
+        k = len(self.isb_systems)
+        if not k:
+            return F, Q, QB
+        n0 = F.shape[0]
+        out = []
+        for M, diag in ((F, 1.0), (Q, ISB_Q_M2_S * self.filt.T), (QB, 0.0)):
+            A = np.zeros((n0 + k, n0 + k))
+            A[:n0, :n0] = M
+            A[range(n0, n0 + k), range(n0, n0 + k)] = diag
+            out.append(A)
+        return out
+
+    def label(self, key) -> str:
+        """RINEX label of a channel key (G05, J01, C12)."""
+        return sat_label(key, self.system)
+
+    def _signal(self, key):
+        """(SignalDef, IF Hz, signal PRN) of a channel key."""
+        if self.multi:
+            letter, prn = split_key(key)
+            sig, f = self.signals[self.block_of[letter]]
+            return sig, f, prn
+        sig, f = self.signals[0]
+        return sig, f, key
+
+    def _isb_state(self, sig) -> int:
+        return self.isb_index.get(sig.system, -1)
+
+    def _max_int_ms(self, sig, sig_prn) -> int:
+        """The channel's coherent integration under the vector loop: the longest that divides its data
+        symbol and is at most vector.integration_ms (L1 C/A, B1I D1: T; B1I D2 GEO: its 2-ms symbols)."""
+        bit_ms = int(sig.bit_ms(sig_prn))
+        return max(d for d in range(1, min(self.T_ms, bit_ms) + 1) if bit_ms % d == 0)
     def _gps_time(self, tau):
         r, v, b, d, dl = self.filt.nav_state(self.x)
         return self.t_ref + tau - b / C_LIGHT
@@ -123,7 +240,7 @@ class VectorTracker:
                 # one disagrees with the signal - a decoding error that passed parity (low C/N0, words
                 # assembled across frames) - and would steer the channel off it
                 self._rejected[prn] = e
-                self.log(f"vector: G{prn:02d} new ephemeris (IODE {e.iode}) moves the predicted range by "
+                self.log(f"vector: {self.label(prn)} new ephemeris (IODE {e.iode}) moves the predicted range by "
                          f"{jump:+.0f} m while the channel is locked with the one in use (IODE {old.iode}): "
                          f"not used")
                 continue
@@ -143,11 +260,15 @@ class VectorTracker:
         """(pseudorange m, pseudorange rate m/s, LOS unit vector, elevation rad) of a satellite at tau (with
         the ephemeris in use, or eph)."""
         r, v, b, d, dl = self.filt.nav_state(self.x)
+        sig = self._signal(prn)[0]
+        ig = self._isb_state(sig)
+        if ig >= 0:                         # the channel's clock: the reference one plus its system's bias
+            b = b + float(self.x[ig])
         dt = tau - self.tau_state
         pos = r + v * dt
         eph = self.ephs[prn] if eph is None else eph
         poly, atm, el = satellite_polys([eph], self.t_ref, tau, 0.05, b + (d + dl) * dt, d + dl, pos,
-                                        self.nav.iono(), self.cfg.navigation)
+                                        self.nav.iono(), self.cfg.navigation, [sig.carrier_hz])
         sp, sv = poly[0, 0], poly[0, 1]
         los = sp[:3] - pos
         rng = float(np.linalg.norm(los))
@@ -157,18 +278,21 @@ class VectorTracker:
         return rho, rate, e, float(el[0])
 
     def _tx_offset(self, prn, ch):
-        """A_j: relative transmit time of the channel's code period 0 (an integer ms of GPS time)."""
+        """A_j: relative transmit time of the channel's code period 0 (a whole number of code periods of GPS
+        time: L1 C/A and B1I have 1-ms codes; B1I's BDT is GPS time - 14 s)."""
+        sig = self._signal(prn)[0]
+        per = sig.code_len / sig.chip_rate
         s = float(ch.st[K.S_NEXT_SAMPLE])
         tau = (s - self.s_ref) / self.fs
         rho, _, _, _ = self._predict_prn(prn, tau)
         tx_abs = self.t_ref + tau - rho / C_LIGHT
-        t0 = tx_abs - ch.st[K.S_CODE_PERIOD] * 1e-3 - ch.st[K.S_CODE_PHASE] / CA_CHIP_RATE
-        A = round(t0 * 1000.0) / 1000.0 - self.t_ref
+        t0 = tx_abs - ch.st[K.S_CODE_PERIOD] * per - ch.st[K.S_CODE_PHASE] / sig.chip_rate
+        A = round(t0 / per) * per - self.t_ref
         cn = self.nav.channels.get(prn)
         if cn is not None and cn.has_time:
             A_dec = cn.tx_offset - self.t_ref
             if abs(A_dec - A) > 1e-6:
-                self.log(f"vector: G{prn:02d} decoded transmit time disagrees with the prediction by "
+                self.log(f"vector: {self.label(prn)} decoded transmit time disagrees with the prediction by "
                          f"{(A_dec - A) * 1e3:.3f} ms; using the prediction")
         return A
 
@@ -179,9 +303,15 @@ class VectorTracker:
         ch.cfg[K.C_PRES_LOST_MS] = NEVER_LOST_MS        # (the presence test still zeroes C/N0: coast at once)
         ch.cfg[K.C_CN0_EST] = 1.0                       # M2M4: phase-lock independent
         ch.cfg[K.C_CN0_WIN_MS] = float(self.v.cn0_window_ms)
-        ch.cfg[K.C_MAX_INT_MS] = self.T_ms
-        if ch.st[K.S_INT_MS] > self.T_ms:
+        sig, _, sig_prn = self._signal(prn)
+        max_int = self._max_int_ms(sig, sig_prn)
+        ch.cfg[K.C_MAX_INT_MS] = max_int
+        if ch.st[K.S_INT_MS] > max_int:
             ch.st[K.S_INT_MS] = 1
+            # the C/N0 window's partial sums hold epochs of the longer integration: M2M4 over a mix of two
+            # integration times reads nonsense (0 dB-Hz for ~0.4 s: the channel counted as without signal)
+            for i in (K.S_ACC_ABSI, K.S_ACC_Q2, K.S_ACC_I2, K.S_ACC_M2, K.S_ACC_M4, K.S_ACC_N):
+                ch.st[i] = 0.0
         self.info[prn] = {"A": self._tx_offset(prn, ch), "Rc": self.filt.r_code, "Rf": self.filt.r_carr,
                           "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2)}
         self.prns.append(prn)
@@ -192,13 +322,16 @@ class VectorTracker:
 
     def _open_predicted(self, prn, s):
         s = float(math.floor(s))
+        sig, if_hz, sig_prn = self._signal(prn)
+        per = sig.code_len / sig.chip_rate
+        bit_ms = int(sig.bit_ms(sig_prn))
         tau = (s - self.s_ref) / self.fs
         rho, rate, _, _ = self._predict_prn(prn, tau)
         tx_abs = self.t_ref + tau - rho / C_LIGHT
-        code_phase = ((tx_abs * 1000.0) % 1.0) * CA_CODE_LEN
-        doppler = -rate / LAMBDA
-        ch = Channel(prn, doppler, code_phase, int(s), self.cfg.tracking, self.fs, self.if_hz,
-                     channel_id=len(self.channels))
+        code_phase = ((tx_abs / per) % 1.0) * sig.code_len
+        doppler = -rate / (C_LIGHT / sig.carrier_hz)
+        ch = Channel(sig_prn, doppler, code_phase, int(s), self.cfg.tracking, self.fs, if_hz,
+                     channel_id=len(self.channels), signal=sig)
         ch.st[K.S_MODE] = K.MODE_TRACK
         # continue the satellite's code-period count of its navigation memory (transmit-time reference,
         # bit alignment), else start a new one there
@@ -208,23 +341,24 @@ class VectorTracker:
             s1 = float(ch.st[K.S_NEXT_SAMPLE])
             rho1, _, _, _ = self._predict_prn(prn, (s1 - self.s_ref) / self.fs)
             tx1 = self.t_ref + (s1 - self.s_ref) / self.fs - rho1 / C_LIGHT
-            ch.st[K.S_CODE_PERIOD] = round((tx1 - cn.tx_offset - ch.st[K.S_CODE_PHASE] / CA_CHIP_RATE) * 1e3)
+            ch.st[K.S_CODE_PERIOD] = round((tx1 - cn.tx_offset - ch.st[K.S_CODE_PHASE] / sig.chip_rate) / per)
             ch.st[K.S_BIT_OFFSET] = cn.bit_offset
             ch.hist[cn.bit_offset % 20] = 12
             continuous = True
         else:
             # no memory of the satellite: the data-bit edges from the predicted transmit time (bits start
-            # at whole 20 ms of GPS time; the prediction is good to far better than 0.5 ms), so the channel
-            # integrates 10-20 ms at once instead of waiting ~1 s for an energy bit sync
-            t0 = round((tx_abs - code_phase / CA_CHIP_RATE) * 1000.0)     # transmit ms of code period 0
-            ch.st[K.S_BIT_OFFSET] = (-t0) % 20
+            # at whole 20 ms of GPS time -- B1I D1 bits and NH code periods too (BDT = GPS time - 14 s), D2
+            # symbols at whole 2 ms; the prediction is good to far better than 0.5 ms), so the channel
+            # integrates 10-20 ms at once (B1I: NH wiped off) instead of waiting ~1 s for a bit sync
+            t0 = round((tx_abs - code_phase / sig.chip_rate) / per)     # transmit code period of period 0
+            ch.st[K.S_BIT_OFFSET] = (-t0) % bit_ms
             ch.st[K.S_MODE] = K.MODE_BIT_SYNC
             ch.hist[int(ch.st[K.S_BIT_OFFSET])] = 12
         if cn is not None:
             self.nav.resume(prn, continuous)
         self.channels[prn] = ch
         self._promote(prn, ch)
-        self.log(f"vector: opened predicted channel G{prn:02d} (Doppler {doppler:.0f} Hz)")
+        self.log(f"vector: opened predicted channel {self.label(prn)} (Doppler {doppler:.0f} Hz)")
 
     # ================================================================== arrays
     def _build_arrays(self):
@@ -234,13 +368,23 @@ class VectorTracker:
         chans = [self.channels[p] for p in prns]
         self.ST = np.zeros((m, K.N_STATE))
         self.CF = np.zeros((m, K.N_CONFIG))
-        L_code = chans[0].code_ext.shape[0] if m else 1
+        # codes of different signals differ in length (B1I: 2046 chips and the NH-modulated section): the
+        # rows are zero-padded to the longest (each channel's kernel stays inside its own code)
+        L_code = max((ch.code_ext.shape[0] for ch in chans), default=1)
         self.CODE = np.zeros((m, L_code), np.float32)
+        self.SIG = np.zeros((m, L.N_SIG))
         self.HIST = np.zeros((m, 20), np.int64)
         for i, ch in enumerate(chans):
             self.ST[i] = ch.st
             self.CF[i] = ch.cfg
-            self.CODE[i] = ch.code_ext
+            self.CODE[i, :ch.code_ext.shape[0]] = ch.code_ext
+            sig, if_hz, _ = self._signal(prns[i])
+            self.SIG[i, L.SIG_CHIP] = sig.chip_rate
+            self.SIG[i, L.SIG_LAMBDA] = C_LIGHT / sig.carrier_hz
+            self.SIG[i, L.SIG_PERIOD] = sig.code_len / sig.chip_rate
+            self.SIG[i, L.SIG_IF] = if_hz
+            self.SIG[i, L.SIG_BLOCK] = self.block_of[sig.system]
+            self.SIG[i, L.SIG_ISB] = self._isb_state(sig)
             self.HIST[i, :len(ch.hist)] = ch.hist
             ch.st = self.ST[i]                 # the channel now lives in the shared arrays
             ch.cfg = self.CF[i]
@@ -265,7 +409,8 @@ class VectorTracker:
         adaptive variant's channel keeps its own estimate once its window is filled."""
         m = len(self.prns)
         r_code, r_rate = channel_r(self.ST[:, K.S_CN0], self.ST[:, K.S_INT_MS], self.T_ms,
-                                   self.CF[:, K.C_EL_SPACING], self.v.r_cn0)
+                                   self.CF[:, K.C_EL_SPACING], self.v.r_cn0,
+                                   C_LIGHT / self.SIG[:, L.SIG_CHIP], self.SIG[:, L.SIG_LAMBDA])
         own = np.zeros(m, bool)
         if self.filt.adaptive_form != FORM_NONE:
             own = self.WN >= min(self.filt.window, 100)
@@ -298,7 +443,14 @@ class VectorTracker:
             self._arrays_dirty = True
 
     # ================================================================== per chunk
-    def process(self, block, start):
+    def process(self, blocks, start):
+        """One chunk: blocks = the chunk's samples of each signal's stream (the order of ``signals``; one
+        array for a one-signal run).  Returns (records per channel key, fixes)."""
+        if isinstance(blocks, np.ndarray) and blocks.ndim == 1:
+            blocks = [blocks]
+        block = blocks[0]
+        # one 2-D array for the compiled loop (a view without copying for one signal)
+        B = block[None, :] if len(blocks) == 1 else np.ascontiguousarray(np.stack(blocks))
         fs = self.fs
         recs = {}
         tau_now = (self.grid_next - self.s_ref) / fs
@@ -310,7 +462,7 @@ class VectorTracker:
         for prn, ch in list(self.channels.items()):
             if prn in self.prns:
                 continue
-            recs[prn] = ch.process(block, start)
+            recs[prn] = ch.process(blocks[self.block_of[ch.signal.system]], start)
             if ch.lost:
                 continue
             locked = ch.st[K.S_LOCK] > 0
@@ -318,7 +470,7 @@ class VectorTracker:
                 t0 = self.pending_since.setdefault(prn, start / fs)
                 if start / fs - t0 >= PROMOTE_LOCKED_S and self._eligible(prn, ch):
                     self._promote(prn, ch)
-                    self.log(f"vector: G{prn:02d} joined the vector loop")
+                    self.log(f"vector: {self.label(prn)} joined the vector loop")
             else:
                 self.pending_since.pop(prn, None)
         # geometry of all satellites with ephemeris (elevations), predicted channels, setting satellites
@@ -343,14 +495,15 @@ class VectorTracker:
         span = max((blk_end - (self.grid_next - self.step)) / fs, 0.05)
         ephs = [self.ephs[p] for p in self.prns]
         POLY, ATM, EL = satellite_polys(ephs, self.t_ref, tau_a, span / 2.0, b, d + dl, r,
-                                        self.nav.iono(), self.cfg.navigation)
+                                        self.nav.iono(), self.cfg.navigation,
+                                        [self._signal(p)[0].carrier_hz for p in self.prns])
         TAU_A = np.full(m, tau_a)
         self._geo = (list(self.prns), POLY, tau_a)
         cap = int(len(block) / fs * 1000.0) + 8
         REC = np.zeros((m, cap, K.N_OUT))
         NREC = np.zeros(m, np.int64)
         max_ep = int(len(block) / self.step) + 2
-        n = self.filt.n
+        n = self.n
         LOG = np.zeros((max_ep, L.N_LOG))
         LX = np.zeros((max_ep, n))
         LPD = np.zeros((max_ep, n))
@@ -376,8 +529,8 @@ class VectorTracker:
             self._cn0_r()
         if m:
             nep, self.grid_next = L.run_chunk(
-                block, start, prm, self.grid_next, max_ep, self.ST, self.CF, self.CODE, self.HIST, REC,
-                NREC, self.CA, POLY, TAU_A, ATM, self.ACTIVE, self.x, self.P, self.F, self.Q, self.QB,
+                B, start, prm, self.grid_next, max_ep, self.ST, self.CF, self.CODE, self.HIST, REC,
+                NREC, self.CA, POLY, TAU_A, ATM, self.ACTIVE, self.SIG, self.x, self.P, self.F, self.Q, self.QB,
                 self.lay, self.RC, self.RF, self.W, self.WI, self.WN, self.WS, LOG, LX, LPD, LR)
         else:                                   # nothing to track: coast the filter over the block
             nep = 0
@@ -412,7 +565,7 @@ class VectorTracker:
         # satellites that set: close their channels (the pipeline drops lost channels)
         for i, prn in enumerate(list(self.prns)):
             if np.degrees(EL[i]) < self.v.drop_elevation_deg:
-                self.log(f"vector: G{prn:02d} set below {self.v.drop_elevation_deg:g} deg, channel closed")
+                self.log(f"vector: {self.label(prn)} set below {self.v.drop_elevation_deg:g} deg, channel closed")
                 self._remove(prn, True)
         return recs, fixes
 
@@ -498,6 +651,13 @@ class VectorTracker:
         los = c[:, 0] + (c[:, 1] + c[:, 2] * dt) * dt - r
         E = los / np.linalg.norm(los, axis=1)[:, None]
         H = np.hstack([-E, np.ones((len(E), 1))])
+        if self.isb_systems:            # one inter-system bias column per other system among them
+            letters = [self._signal(prns[i])[0].system for i in rows]
+            extra = [c for c in self.isb_systems if c in letters]
+            if extra:
+                H = np.hstack([H, np.array([[float(c == x) for x in extra] for c in letters])])
+            if len(rows) < H.shape[1]:
+                return (np.nan,) * 4
         try:
             Qm = np.linalg.inv(H.T @ H)
         except np.linalg.LinAlgError:
