@@ -150,8 +150,9 @@ def test_beidou_channels_in_the_vector_loop(bds_run):
     ts, mode, err, nsat, vel = _errors(out, truth)
     vec, sca = mode == 1, mode == 0
     assert vec.sum() >= 30 and np.all(mode[ts > START + 0.2] == 1) and np.all(nsat[vec] == len(BDS_PRNS))
-    # vector fixes as good as the scalar ones before the handover (measured 0.45 vs 0.48 m)
-    assert _rms(err[vec]) < 1.5 and _rms(err[vec]) < 2.0 * _rms(err[sca]) + 0.2
+    # measured: vector 1.08 m (max 2.3 m); the scalar fixes before the handover 3.9 m, a scalar-only run over
+    # the same span 1.76 m (its carrier smoothing still converging)
+    assert _rms(err[vec]) < 1.5 and _rms(err[vec]) < _rms(err[sca])
     assert _rms(np.linalg.norm(vel[vec], axis=1)) < 3.0                                  # static
     _locked_to_the_end(out, [f"C{p:02d}" for p in BDS_PRNS])
     with h5py.File(out, "r") as f:
@@ -170,11 +171,15 @@ def test_mixed_gps_beidou_vector_run(mixed_run):
     assert summary.tracked == GPS_PRNS + [sat_key("C", p) for p in BDS_PRNS]
     hand = [m for m in messages if "vector: handover" in m]
     assert len(hand) == 1 and "inter-system bias C" in hand[0]
+    # both systems' signals were generated on one receiver clock: the scalar fix's bias, the filter's start, ~0
+    isb0 = float(hand[0].split("inter-system bias C")[1].split("m")[0])
+    assert abs(isb0) < 3.0
     assert all(f"G{p:02d}" in hand[0] for p in GPS_PRNS) and all(f"C{p:02d}" in hand[0] for p in BDS_PRNS)
     ts, mode, err, nsat, vel = _errors(out, truth)
     vec = mode == 1
     n = len(GPS_PRNS) + len(BDS_PRNS)
     assert vec.sum() >= 30 and np.all(mode[ts > START + 0.2] == 1) and np.all(nsat[vec] == n)
+    # measured: 0.78 m (max 2.2 m); a scalar-only run over the same span 1.56 m; GPS alone (3 satellites): no fix
     assert _rms(err[vec]) < 1.5 and err[vec].max() < 4.0
     assert _rms(np.linalg.norm(vel[vec], axis=1)) < 3.0
     _locked_to_the_end(out, [f"G{p:02d}" for p in GPS_PRNS] + [f"C{p:02d}" for p in BDS_PRNS])
@@ -213,3 +218,42 @@ def test_qzss_channels_in_the_vector_loop(tmp_path):
     assert vec.sum() >= 30 and np.all(nsat[vec] == len(prns))
     assert _rms(err[vec]) < 2.0
     _locked_to_the_end(out, ["J01", "J02", "J03", "J07"], cn0=42.0)
+
+
+def test_inter_system_bias_update_equals_the_batch_kalman_update():
+    """kf_update_isb (sequential scalar updates, the channels' inter-system bias columns) equals the textbook
+    batch update with H written out: code rows [-e, 0, 1 (b), 0, 1 (isb of the channel's system)], carrier
+    rows [0, -e, 0, 1 (d)]; channels of the reference system have no isb column."""
+    from receiver.tracking.vector.kalman import kf_update_isb
+    rng = np.random.default_rng(3)
+    n = 10                                       # [r, v, b, d, isb_C, isb_E]
+    lay = np.array([0, 3, 6, 7, -1], np.int64)
+    A = rng.normal(size=(n, n))
+    P = A @ A.T + n * np.eye(n)
+    x = rng.normal(size=n)
+    m = 6
+    E = rng.normal(size=(m, 3))
+    E /= np.linalg.norm(E, axis=1)[:, None]
+    G = np.array([-1, -1, 8, 8, 9, -1], np.int64)
+    zc, zf = rng.normal(size=m) * 5.0, rng.normal(size=m)
+    Rc, Rf = rng.uniform(1.0, 4.0, m), rng.uniform(0.1, 0.5, m)
+    valid = np.array([True, True, True, False, True, True])
+    H, z, R = [], [], []
+    for j in np.flatnonzero(valid):
+        h = np.zeros(n)
+        h[0:3], h[6] = -E[j], 1.0
+        if G[j] >= 0:
+            h[G[j]] = 1.0
+        H.append(h), z.append(zc[j]), R.append(Rc[j])
+    for j in np.flatnonzero(valid):
+        h = np.zeros(n)
+        h[3:6], h[7] = -E[j], 1.0
+        H.append(h), z.append(zf[j]), R.append(Rf[j])
+    H, z, R = np.array(H), np.array(z), np.diag(R)
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    x_ref, P_ref = x + K @ z, (np.eye(n) - K @ H) @ P
+    xs, Ps = x.copy(), P.copy()
+    kf_update_isb(xs, Ps, lay, E, G, zc, zf, valid, Rc, Rf, np.zeros((n, n)), 0.0, np.zeros((m, 8)), 0.0)
+    assert np.allclose(xs, x_ref, rtol=0, atol=1e-9)
+    assert np.allclose(Ps, 0.5 * (P_ref + P_ref.T), rtol=0, atol=1e-9)
+    assert not np.allclose(xs[8:], x[8:])                 # the biases were observed

@@ -123,7 +123,7 @@ def _scalar_again(cfg, ch):
     ch.cfg[K.C_LOST_MS] = cfg.tracking.lost_ms
     ch.cfg[K.C_PRES_LOST_MS] = cfg.tracking.presence.lost_ms
     ch.cfg[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[cfg.tracking.cn0_estimator]
-    ch.cfg[K.C_MAX_INT_MS] = cfg.tracking.integration_ms
+    ch.cfg[K.C_MAX_INT_MS] = getattr(ch, "max_int_ms", cfg.tracking.integration_ms)    # its own (B1I D2: 2 ms)
     ch.cfg[K.C_CN0_WIN_MS] = cfg.tracking.cn0_window_ms
 
 
