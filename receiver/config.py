@@ -331,7 +331,7 @@ RECEIVER_SCHEMA = {
                              "fixes use all systems with an inter-system clock bias; README \"Multi-GNSS\""),
     "acquisition": {
         "prns": P(list(range(1, 33)), "list_int", "PRNs searched (gps_l1ca: GPS 1-32 and QZSS 193-202 = "
-                                                  "J01-J10; bds_b1i: 1-37)", lo=1, hi=202),
+                                                  "J01-J10; bds_b1i: 1-63)", lo=1, hi=202),
         "prns_by_signal": P({}, "dict", "runs over several signals: PRNs searched per signal name (e.g. "
                                         "{bds_b1i: [6, 7, 8]}); a signal not listed searches acquisition.prns "
                                         "when it is the first of `signals`, else all its PRNs"),
@@ -801,7 +801,7 @@ def load_receiver_config(path=None, overrides=None) -> Section:
 
 
 #: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/test_registries.py)
-SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 38))}
+SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 64))}
 
 
 #: the signals the vector loops track (receiver/tracking/vector: any mix of them, one clock bias per system)
@@ -809,7 +809,7 @@ VECTOR_SIGNALS = ("gps_l1ca", "bds_b1i")
 
 
 def _prn_text(name: str) -> str:
-    return "1-32 (GPS) and 193-202 (QZSS)" if name == "gps_l1ca" else "1-37"
+    return "1-32 (GPS) and 193-202 (QZSS)" if name == "gps_l1ca" else "1-63"
 
 
 def run_signals(cfg: Section) -> list:

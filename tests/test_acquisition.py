@@ -243,3 +243,20 @@ def test_b1i_fine_doppler_of_weaker_nh_satellites():
         for s, r in zip(sats, res):
             assert r.detected, (seed, s["prn"])
             assert abs(r.doppler_hz - s["doppler_hz"]) < 1.0, (seed, s["prn"], r.doppler_hz - s["doppler_hz"])
+
+
+def test_b1i_bds3_ranging_codes_38_to_63():
+    """BDS-3 ranging codes (three-stage G2 sums): an IGSO/MEO code (D1 + NH) and a GEO code of 59-63 (D2) are
+    found at their code phase and Doppler, and a code not in the signal is not (each code its own)."""
+    from receiver.gnss.signals_bds import BDS_B1I
+    fs = 4.0e6
+    sats = [{"prn": 45, "doppler_hz": 1210.0, "code_phase_chips": 301.4, "cn0_dbhz": 44},
+            {"prn": 60, "doppler_hz": -95.0, "code_phase_chips": 1802.7, "cn0_dbhz": 44}]
+    x = _b1i_block(sats, fs, 0.2, seed=5)
+    res = search(x, 0, fs, 0.0, [45, 60, 38, 63], 1, 20, 6000.0, signal=BDS_B1I)
+    for s, r in zip(sats, res[:2]):
+        assert r.detected, s["prn"]
+        assert abs(r.doppler_hz - s["doppler_hz"]) < 5.0, (s["prn"], r.doppler_hz)
+        err = (r.code_phase_chips - s["code_phase_chips"] + 1023) % 2046 - 1023
+        assert abs(err) < 0.5, (s["prn"], err)
+    assert not res[2].detected and not res[3].detected

@@ -124,7 +124,7 @@ def test_config_rejects_prns_the_signal_has_no_code_for():
     from receiver.errors import UserError
     with pytest.raises(UserError, match="no PRN 150"):
         load_receiver_config(REPO / "configs/default.yaml", [("acquisition.prns", [1, 150])])
-    with pytest.raises(UserError, match="no PRN 40"):
-        load_receiver_config(REPO / "configs/default.yaml", [("signal", "bds_b1i"), ("acquisition.prns", [40])])
+    with pytest.raises(UserError, match="no PRN 64"):
+        load_receiver_config(REPO / "configs/default.yaml", [("signal", "bds_b1i"), ("acquisition.prns", [64])])
     # the vector loops track B1I too (tests/test_vector_gnss.py)
     assert load_receiver_config(REPO / "configs/carrier_bds_b1i.yaml", [("vector.enabled", True)]).vector.enabled

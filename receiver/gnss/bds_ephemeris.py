@@ -24,6 +24,7 @@ import numpy as np
 
 from .ephemeris import Ephemeris
 from .signals import C_LIGHT
+from .signals_bds import B1I_GEO_PRNS
 from .time import wrap_week_seconds
 
 MU_BDS = 3.986004418e14
@@ -32,7 +33,7 @@ BDS_PI = 3.1415926535898
 F_REL_BDS = -2.0 * np.sqrt(MU_BDS) / C_LIGHT ** 2
 BDT_GPS_OFFSET_S = 14            # GPST - BDT
 BDT_WEEK_OFFSET = 1356           # GPS week of BDT week 0
-GEO_PRNS = (1, 2, 3, 4, 5, 59, 60, 61, 62, 63)
+GEO_PRNS = B1I_GEO_PRNS          # geostationary: the GEO orbit case (ICD 5.2.4.12)
 _COS5, _SIN5 = np.cos(np.radians(-5.0)), np.sin(np.radians(-5.0))
 
 

@@ -14,6 +14,7 @@ from ..config import read_yaml
 from ..errors import UserError
 from ..gnss.bds_ephemeris import OMEGA_E_BDS, BdsEphemeris
 from ..gnss.bds_nav import bdt_from_gps, quantize_bds
+from ..gnss.signals_bds import B1I_PRNS
 from ..gnss.ephemeris import IonoUtc
 
 NOMINAL_BDS = "data/bds_nominal_constellation.yaml"
@@ -69,9 +70,9 @@ def bds_rinex_ephemerides(path, gps_week: int, gps_tow: float) -> tuple[dict, Io
     out = {}
     for prn, lst in sorted(ephs.items()):
         e = select(lst, sow, week=wk)
-        if e is not None and 1 <= prn <= 37:
+        if e is not None and prn in B1I_PRNS:
             out[prn] = quantize_bds(e)
     if not out:
-        raise UserError(f"RINEX file {path} has no healthy BeiDou ephemeris (PRN 1-37) within 4 h of BDT week "
+        raise UserError(f"RINEX file {path} has no healthy BeiDou ephemeris (PRN 1-63) within 4 h of BDT week "
                         f"{wk} SOW {sow:.0f}")
     return out, iono
