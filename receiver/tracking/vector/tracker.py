@@ -281,13 +281,14 @@ class VectorTracker:
         """A_j: relative transmit time of the channel's code period 0 (a whole number of code periods of GPS
         time: L1 C/A and B1I have 1-ms codes; B1I's BDT is GPS time - 14 s)."""
         sig = self._signal(prn)[0]
-        per = sig.code_len / sig.chip_rate
+        per = sig.code_len / sig.chip_rate          # s (1e-3 to the bit for both signals)
+        pps = sig.chip_rate / sig.code_len          # code periods per second (1000.0 exactly)
         s = float(ch.st[K.S_NEXT_SAMPLE])
         tau = (s - self.s_ref) / self.fs
         rho, _, _, _ = self._predict_prn(prn, tau)
         tx_abs = self.t_ref + tau - rho / C_LIGHT
         t0 = tx_abs - ch.st[K.S_CODE_PERIOD] * per - ch.st[K.S_CODE_PHASE] / sig.chip_rate
-        A = round(t0 / per) * per - self.t_ref
+        A = round(t0 * pps) / pps - self.t_ref
         cn = self.nav.channels.get(prn)
         if cn is not None and cn.has_time:
             A_dec = cn.tx_offset - self.t_ref
@@ -323,12 +324,12 @@ class VectorTracker:
     def _open_predicted(self, prn, s):
         s = float(math.floor(s))
         sig, if_hz, sig_prn = self._signal(prn)
-        per = sig.code_len / sig.chip_rate
+        pps = sig.chip_rate / sig.code_len          # code periods per second (1000.0 exactly)
         bit_ms = int(sig.bit_ms(sig_prn))
         tau = (s - self.s_ref) / self.fs
         rho, rate, _, _ = self._predict_prn(prn, tau)
         tx_abs = self.t_ref + tau - rho / C_LIGHT
-        code_phase = ((tx_abs / per) % 1.0) * sig.code_len
+        code_phase = ((tx_abs * pps) % 1.0) * sig.code_len
         doppler = -rate / (C_LIGHT / sig.carrier_hz)
         ch = Channel(sig_prn, doppler, code_phase, int(s), self.cfg.tracking, self.fs, if_hz,
                      channel_id=len(self.channels), signal=sig)
@@ -341,7 +342,7 @@ class VectorTracker:
             s1 = float(ch.st[K.S_NEXT_SAMPLE])
             rho1, _, _, _ = self._predict_prn(prn, (s1 - self.s_ref) / self.fs)
             tx1 = self.t_ref + (s1 - self.s_ref) / self.fs - rho1 / C_LIGHT
-            ch.st[K.S_CODE_PERIOD] = round((tx1 - cn.tx_offset - ch.st[K.S_CODE_PHASE] / sig.chip_rate) / per)
+            ch.st[K.S_CODE_PERIOD] = round((tx1 - cn.tx_offset - ch.st[K.S_CODE_PHASE] / sig.chip_rate) * pps)
             ch.st[K.S_BIT_OFFSET] = cn.bit_offset
             ch.hist[cn.bit_offset % 20] = 12
             continuous = True
@@ -350,7 +351,7 @@ class VectorTracker:
             # at whole 20 ms of GPS time -- B1I D1 bits and NH code periods too (BDT = GPS time - 14 s), D2
             # symbols at whole 2 ms; the prediction is good to far better than 0.5 ms), so the channel
             # integrates 10-20 ms at once (B1I: NH wiped off) instead of waiting ~1 s for a bit sync
-            t0 = round((tx_abs - code_phase / sig.chip_rate) / per)     # transmit code period of period 0
+            t0 = round((tx_abs - code_phase / sig.chip_rate) * pps)     # transmit code period of period 0
             ch.st[K.S_BIT_OFFSET] = (-t0) % bit_ms
             ch.st[K.S_MODE] = K.MODE_BIT_SYNC
             ch.hist[int(ch.st[K.S_BIT_OFFSET])] = 12
