@@ -611,7 +611,8 @@ RECEIVER_SCHEMA = {
         },
     },
     "vector": {
-        "enabled": P(False, "bool", "hand scalar channels over to a vector loop"),
+        "enabled": P(False, "bool", "hand scalar channels over to a vector loop (gps_l1ca incl. QZSS, "
+                                    "bds_b1i, or both: one inter-system bias per extra system)"),
         "variant": P("adaptive_r", "str", "vector loop variant",
                      choices=("fixed_r", "adaptive_r", "polynomial", "cv")),
         "start_s": P(None, "float", "handover time in seconds from the first sample (empty: 5 s after "
