@@ -163,6 +163,7 @@ def test_beidou_channels_in_the_vector_loop(bds_run):
         # vector epochs of 5 ms: the D1 channels (NH wiped off) integrate 5 ms inside their 20-ms bits, the D2
         # GEO ones their 2-ms symbols -- no correlation epoch spans a symbol edge (the frequency
         # discriminator compares the halves of one epoch)
+        assert np.all(np.isnan(f["vector"]["isb_m"][:]))     # one system: one clock, no bias state
         for name, top in (("C01", 2), ("C03", 2), ("C06", 5), ("C20", 5)):
             c = f["channels"][name]
             im = c["integration_ms"][:][c["time_s"][:] > START + 0.5]
@@ -187,6 +188,10 @@ def test_mixed_gps_beidou_vector_run(mixed_run):
     # alone (3 satellites): no fix
     assert _rms(err[vec]) < 1.5 and err[vec].max() < 4.0
     assert _rms(np.linalg.norm(vel[vec], axis=1)) < 3.0
+    with h5py.File(out, "r") as f:                            # the bias state in /vector (BeiDou column)
+        isb, sig = f["vector"]["isb_m"][:], f["vector"]["sigma_isb_m"][:]
+        assert np.all(np.isnan(isb[:, 1])) and abs(float(np.median(isb[-100:, 0])) - C_LIGHT * ISB_S) < 1.0
+        assert 0.0 < sig[-1, 0] < sig[0, 0]
     _locked_to_the_end(out, [f"G{p:02d}" for p in GPS_PRNS] + [f"C{p:02d}" for p in BDS_PRNS])
 
 

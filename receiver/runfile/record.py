@@ -82,4 +82,7 @@ VECTOR_LOG_DTYPE = np.dtype([
     ("time_s", "f8"), ("tag_code", "f4"), ("tag_carrier", "f4"), ("manoeuvre", "u1"), ("n_valid", "u1"),
     ("n_lock", "u1"), ("sigma_pos_m", "f4", (3,)), ("sigma_vel_mps", "f4", (3,)), ("sigma_bias_m", "f4"),
     ("sigma_drift_mps", "f4"), ("r_code_m2", "f4", (32,)), ("r_carrier_m2s2", "f4", (32,)),
+    ("isb_m", "f4", (2,)), ("sigma_isb_m", "f4", (2,)),     # inter-system bias of BeiDou, Galileo (NaN: none)
 ])
+#: the systems of VECTOR_LOG_DTYPE's isb_m / sigma_isb_m columns
+VECTOR_ISB_SYSTEMS = ("C", "E")

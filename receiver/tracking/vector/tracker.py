@@ -44,7 +44,7 @@ import numpy as np
 
 from .. import kernel as K
 from ...gnss.geodesy import ecef2lla, enu_matrix
-from ...runfile.record import FIX_DTYPE, VECTOR_LOG_DTYPE
+from ...runfile.record import FIX_DTYPE, VECTOR_ISB_SYSTEMS, VECTOR_LOG_DTYPE
 from ...gnss.satid import MIXED, sat_key, sat_label, split_key
 from ...gnss.signals import C_LIGHT, GPS_L1CA
 from ..scalar import Channel, to_records
@@ -551,7 +551,7 @@ class VectorTracker:
             lim = float(self.v.reinit_sigma_m)
             if lim > 0 and LOG[nep - 1, L.L_NLOCK] < 4 and sig_pos > lim:
                 self.reinit_needed = True
-        self.last_diag = self._diagnostics(LOG[:nep], LPD[:nep], LR[:nep], self.stats["epochs"])
+        self.last_diag = self._diagnostics(LOG[:nep], LPD[:nep], LR[:nep], self.stats["epochs"], LX[:nep])
         self.stats["epochs"] += nep
         self.stats["fired"] += int(LOG[:nep, L.L_FIRED].sum())
         lock_min = float(self.v.lock_cn0_dbhz)
@@ -571,7 +571,7 @@ class VectorTracker:
         return recs, fixes
 
     # ================================================================== diagnostics
-    def _diagnostics(self, LOG, LPD, LR, first_epoch):
+    def _diagnostics(self, LOG, LPD, LR, first_epoch, LX=None):
         """VECTOR_LOG_DTYPE rows of this chunk's epochs, every round(1 / (output.vector_log_hz T)) epochs."""
         hz = float(self.cfg.output.vector_log_hz)
         if hz <= 0 or not len(LOG):
@@ -589,6 +589,13 @@ class VectorTracker:
         out["sigma_bias_m"], out["sigma_drift_mps"] = sd[:, ib], sd[:, idd]
         out["r_code_m2"] = np.nan
         out["r_carrier_m2s2"] = np.nan
+        out["isb_m"] = np.nan
+        out["sigma_isb_m"] = np.nan
+        for c, i in self.isb_index.items():
+            if c in VECTOR_ISB_SYSTEMS and LX is not None:
+                col = VECTOR_ISB_SYSTEMS.index(c)
+                out["isb_m"][:, col] = LX[k, i]
+                out["sigma_isb_m"][:, col] = sd[:, i]
         for j, prn in enumerate(list(getattr(self, "_arr_prns", self.prns))[:LR.shape[1]]):
             if 1 <= prn <= 32:
                 out["r_code_m2"][:, prn - 1] = LR[k, j, 0]
