@@ -351,8 +351,10 @@ class VectorTracker:
             # at whole 20 ms of GPS time -- B1I D1 bits and NH code periods too (BDT = GPS time - 14 s), D2
             # symbols at whole 2 ms; the prediction is good to far better than 0.5 ms), so the channel
             # integrates 10-20 ms at once (B1I: NH wiped off) instead of waiting ~1 s for a bit sync
-            t0 = round((tx_abs - code_phase / sig.chip_rate) * pps)     # transmit code period of period 0
-            ch.st[K.S_BIT_OFFSET] = (-t0) % bit_ms
+            # t0: the transmit code period (ms of GPS time) in progress at sample s; the channel's code period
+            # 0 is the NEXT one (Channel starts at the first code-period start at or after s), t0 + 1
+            t0 = round((tx_abs - code_phase / sig.chip_rate) * pps)
+            ch.st[K.S_BIT_OFFSET] = (-(t0 + 1)) % bit_ms
             ch.st[K.S_MODE] = K.MODE_BIT_SYNC
             ch.hist[int(ch.st[K.S_BIT_OFFSET])] = 12
         if cn is not None:
