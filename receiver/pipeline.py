@@ -256,8 +256,13 @@ def _assisted_ephemerides(path, sigs):
     if len(letters) == 1:
         return read_rinex_nav(path, systems=("C",) if letters[0] == "C" else ("G", "J"))
     ephs, iono = {}, None
-    for letter in letters:
-        e, io = read_rinex_nav(path, systems=("C",) if letter == "C" else ("G", "J"))
+    for i, letter in enumerate(letters):
+        try:
+            e, io = read_rinex_nav(path, systems=("C",) if letter == "C" else ("G", "J"))
+        except UserError:
+            if i == 0:
+                raise
+            continue            # no records of a further system: its satellites decode their own ephemerides
         ephs.update({sat_key(letter, p): lst for p, lst in e.items()})
         iono = iono if iono is not None else io
     return ephs, iono
@@ -288,7 +293,6 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         check_meaning(cfg, reader)
         ephemerides, iono = None, None
         if cfg.navigation.enabled and cfg.navigation.ephemeris:
-            from .gnss.rinex import read_rinex_nav
             ephemerides, iono = _assisted_ephemerides(cfg.navigation.ephemeris, sigs)
     fs, if_hz = reader.fs, reader.if_hz
     with stage("write"):
