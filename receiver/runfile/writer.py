@@ -387,15 +387,19 @@ class RunWriter:
         """Write the buffered records of prn: whole chunks (the rest stays buffered), all of them if final."""
         job = self._channel_job(prn, final)
         if job is not None:
-            g, cache, cols, todo = job
-            self._write_channel(g, cache, cols, self._precompress(todo))
+            self._write_channel(*job[:2], self._precompress(job[2]))
 
     def _channel_job(self, prn: int, final: bool):
-        """(group, dataset cache, columns, the columns that go the direct way) of the rows of prn to write
-        now (:meth:`_take`), or None."""
+        """(prn, columns, the columns that go the direct way) of the rows of prn to write now
+        (:meth:`_take`), or None.  No HDF5 call."""
         records = self._take(self._buffers, prn, final)
         if records is None:
             return None
+        rounded = ROUNDED_DIGITS if self.round_columns else {}
+        cols = [(name, np.ascontiguousarray(records[name]), rounded.get(name)) for name in EPOCH_DTYPE.names]
+        return prn, cols, self._direct_columns(*self._groups.get(prn, (None, None)), cols)
+
+    def _write_channel(self, prn: int, cols, pre: dict):
         g, cache = self._groups.get(prn, (None, None))
         if g is None:
             g = self.f["channels"].require_group(sat_label(prn, self.system))
@@ -403,27 +407,26 @@ class RunWriter:
                 _set_attrs(g, {"prn": prn, "state_mapping": STATE_MAPPING})
             cache = {}
             self._groups[prn] = (g, cache)
-        rounded = ROUNDED_DIGITS if self.round_columns else {}
-        cols = [(name, np.ascontiguousarray(records[name]), rounded.get(name)) for name in EPOCH_DTYPE.names]
-        return g, cache, cols, self._direct_columns(g, cache, cols)
-
-    def _write_channel(self, g, cache: dict, cols, pre: dict):
         for name, col, digits in cols:
             _append(g, name, col, self.compression, digits, rows=self.chunk_rows, cache=cache,
                     chunks=pre.get(name))
         self._out.check()
 
-    def _direct_columns(self, g, cache: dict, cols) -> list:
+    def _direct_columns(self, g, cache: dict | None, cols) -> list:
         """[(name, column)] of the columns that go the direct way (gzip, not rounded, a new dataset or one
-        whose rows end on a chunk boundary): _append writes them as chunks compressed by _gzip_chunk."""
+        whose rows end on a chunk boundary): _append writes them as chunks compressed by _gzip_chunk.
+        ``g`` None: the channel's group is not created yet (every such column is a new dataset).  (Only
+        a matter of speed: _append ignores the chunks of a column that does not go the direct way and
+        compresses those of one that does when it has none.)"""
         if self.compression != "gzip":
             return []
         todo = []
         for name, col, digits in cols:
             if digits is not None:
                 continue
-            hit = cache.get(name)
-            if (hit is not None and hit[1] % self.chunk_rows == 0) or (hit is None and not _exists(g, name)):
+            hit = cache.get(name) if cache is not None else None
+            if g is None or (hit is not None and hit[1] % self.chunk_rows == 0) or \
+                    (hit is None and not _exists(g, name)):
                 todo.append((name, col))
         return todo
 
@@ -452,9 +455,9 @@ class RunWriter:
         datasets and chunks as flushing the channels one after the other."""
         from ..threads import submit_each
         jobs = [j for j in (self._channel_job(prn, True) for prn in list(self._buffers)) if j is not None]
-        waits = submit_each(self._compress, [todo for _, _, _, todo in jobs])
-        for (g, cache, cols, todo), wait in zip(jobs, waits):
-            self._write_channel(g, cache, cols,
+        waits = submit_each(self._compress, [todo for _, _, todo in jobs])
+        for (prn, cols, todo), wait in zip(jobs, waits):
+            self._write_channel(prn, cols,
                                 {name: (lambda i=i, wait=wait: wait()[i]) for i, (name, _) in enumerate(todo)})
 
     def _take(self, buffers: dict, key, final: bool):
