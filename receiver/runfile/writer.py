@@ -156,13 +156,17 @@ _ATTR_TYPES: dict = {}
 
 
 def _set_attrs(obj, attrs: dict):
-    """``obj.attrs[k] = v`` for every item: a scalar (bool, int, float, str, numpy number) through h5py's
-    low-level calls with types built once (the calls h5py's AttributeManager.create makes: the same
-    attribute type and value, ~2x faster), anything else through h5py."""
-    oid = obj.id
+    """``obj.attrs[k] = v`` for every item (``obj``: an h5py File, Group or Dataset, or a low-level dataset
+    id): a scalar (bool, int, float, str, numpy number) through h5py's low-level calls with types built
+    once (the calls h5py's AttributeManager.create makes: the same attribute type and value, ~2x faster),
+    anything else through h5py."""
+    if isinstance(obj, h5d.DatasetID):           # a low-level dataset id (no h5py.Dataset made unless needed)
+        oid, obj = obj, None
+    else:
+        oid = obj.id
     for k, v in attrs.items():
         if not isinstance(v, _SCALAR_TYPES) or not k.isascii() or (isinstance(v, str) and type(v) is not str):
-            obj.attrs[k] = v
+            (obj if obj is not None else h5py.Dataset(oid)).attrs[k] = v
             continue
         if isinstance(v, str):
             dt = _STR
@@ -171,7 +175,7 @@ def _set_attrs(obj, attrs: dict):
             data = np.asarray(v, order="C")
             dt = data.dtype
             if dt.kind not in "biuf":        # (an int beyond 64 bits: h5py's error)
-                obj.attrs[k] = v
+                (obj if obj is not None else h5py.Dataset(oid)).attrs[k] = v
                 continue
         key = "str" if dt is _STR else dt          # (_STR == dtype("O") as a dict key)
         types = _ATTR_TYPES.get(key)
@@ -224,7 +228,7 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
             return
         dsid = _create(group, name, data, rows, compression, digits, write=True)
         if digits is not None:
-            _set_attrs(h5py.Dataset(dsid), {"resolution": 10.0 ** -int(digits)})
+            _set_attrs(dsid, {"resolution": 10.0 ** -int(digits)})
         return
     else:
         ds = group[name]
@@ -475,7 +479,7 @@ class RunWriter:
 
     def _write_stats(self):
         for prn, st in self._stats.items():
-            g = self.f["channels"].require_group(sat_label(prn, self.system))
+            g = self._groups.get(prn, (None,))[0] or self.f["channels"].require_group(sat_label(prn, self.system))
             if "prn" not in g.attrs:
                 _set_attrs(g, {"prn": prn, "state_mapping": STATE_MAPPING})
             _set_attrs(g, st.attrs())
