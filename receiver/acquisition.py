@@ -289,6 +289,23 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     return map_ordered(one, list(prns)) if parallel else [one(p) for p in prns]
 
 
+def _folded_power(samples, fs, if_hz, dopplers, m, k, cf):
+    """The power grid of :meth:`_Spectra.power` for a few Doppler bins: each coherent block of m code periods,
+    carrier wiped off at the bin's frequency, folded onto one period (the sum of its m periods: the same
+    as taking every m-th line of the block's spectrum), then one FFT of one period."""
+    n1 = int(round(fs * 1e-3))
+    n = n1 * m
+    t = np.arange(n) / fs
+    blocks = samples[:n * k].reshape(k, n)
+    power = np.zeros((len(dopplers), n1), np.float32)
+    for i, d in enumerate(dopplers):
+        mix = np.exp(-2j * np.pi * (if_hz + d) * t).astype(np.complex64)
+        folded = (blocks * mix[None, :]).reshape(k, m, n1).sum(axis=1)
+        corr = np.fft.ifft(np.fft.fft(folded, axis=1) * cf[None, :], axis=1)
+        power[i] = (corr.real ** 2 + corr.imag ** 2).sum(axis=0)
+    return power
+
+
 def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: AcqResult,
            coherent_ms: int, noncoherent: int, doppler_step_hz: float | None = None, pfa: float = 1e-3,
            threshold: float = 1.0, signal=None, window_chips: float = 1.5) -> bool:
@@ -300,8 +317,7 @@ def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: 
     n1 = int(round(fs * 1e-3))
     step = doppler_step_hz or 1.0 / (2.0 * coherent_ms * 1e-3)
     dopplers = res.doppler_hz + step * np.array([-1.0, 0.0, 1.0])
-    sp = _Spectra(samples, fs, if_hz, dopplers, coherent_ms, noncoherent)
-    power = sp.power(_code_fft(sig, res.prn, fs, n1))
+    power = _folded_power(samples, fs, if_hz, dopplers, coherent_ms, noncoherent, _code_fft(sig, res.prn, fs, n1))
     pn = power / _row_floor(power, noncoherent)[:, None]
     cols = verify_columns(res, start_index, fs, sig, window_chips)
     thr = _threshold(pfa, 3 * cols.size, noncoherent)

@@ -184,3 +184,19 @@ def test_search_power_equals_the_gathered_formulation(m, k, centre_hz, step_hz):
     assert abs(dopplers[d] - (centre_hz + 1510.0)) <= step
     chips = (-s * GPS_L1CA.chip_rate / fs) % 1023
     assert abs((chips - 512.3 + 511.5) % 1023 - 511.5) < 0.5
+
+
+@pytest.mark.parametrize("m,k", [(4, 10), (1, 5), (2, 7)])
+def test_verification_power_equals_the_search_power(m, k):
+    """The verification dwell's power (each block's carrier wiped off at the bin, folded onto one code
+    period, one FFT of a period) equals the search's (every m-th line of the block spectrum) at off-grid
+    Dopplers, to float32 rounding."""
+    from receiver.acquisition import _code_fft, _folded_power, _Spectra
+    x = make_signal([dict(prn=7, doppler_hz=-2233.3, code_phase_chips=100.7, cn0_dbhz=42.0)], FS,
+                    m * k * 1e-3 + 0.001, seed=5).astype(np.complex64)
+    dopplers = -2233.3 + np.array([-1.0, 0.0, 1.0]) / (2 * m * 1e-3) + 37.0
+    cf = _code_fft(GPS_L1CA, 7, FS, 2600)
+    ref = _Spectra(x, FS, 0.0, dopplers, m, k).power(cf)
+    got = _folded_power(x, FS, 0.0, dopplers, m, k, cf)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=2e-6 * ref.max())
+    assert int(np.argmax(got[1])) == int(np.argmax(ref[1]))
