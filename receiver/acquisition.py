@@ -178,9 +178,19 @@ def _code_wipe(x, code, phase, ratio):
     modulo the code length) and the same products as numpy's."""
     out = np.empty(x.shape[0], x.dtype)
     n_code = code.shape[0]
+    if phase < 0.0 or ratio < 0.0 or ratio >= n_code:
+        for i in range(x.shape[0]):
+            out[i] = x[i] * code[np.int64(np.floor(phase + i * ratio)) % n_code]
+        return out
+    # phase + i ratio >= 0 and grows by less than a code length per sample: the truncation is the floor,
+    # and the modulo a running multiple of the code length (half the time of floor and modulo per sample)
+    base = 0
     for i in range(x.shape[0]):
-        c = code[np.int64(np.floor(phase + i * ratio)) % n_code]
-        out[i] = x[i] * c
+        k = np.int64(phase + i * ratio) - base
+        if k >= n_code:
+            base += n_code
+            k -= n_code
+        out[i] = x[i] * code[k]
     return out
 
 

@@ -200,3 +200,16 @@ def test_verification_power_equals_the_search_power(m, k):
     got = _folded_power(x, FS, 0.0, dopplers, m, k, cf)
     np.testing.assert_allclose(got, ref, rtol=0, atol=2e-6 * ref.max())
     assert int(np.argmax(got[1])) == int(np.argmax(ref[1]))
+
+
+@pytest.mark.parametrize("phase,ratio", [(930.93, 1.023e6 * (1 + 726 / 1575.42e6) / 2.6e6), (1022.9999, 0.9999),
+                                         (0.0, 0.25), (-3.7, 0.3934)])
+def test_code_wipe_equals_the_sampled_code(phase, ratio):
+    """The fine Doppler's compiled code wipe-off (running code-length offset instead of a modulo per
+    sample) multiplies every sample by the chip numpy's sample_code picks, across code-period ends."""
+    from receiver.acquisition import _code_wipe
+    rng = np.random.default_rng(1)
+    x = (rng.normal(size=30000) + 1j * rng.normal(size=30000)).astype(np.complex64)
+    code = GPS_L1CA.code(5)
+    ref = x * sample_code(code, ratio * FS, FS, len(x), phase)
+    np.testing.assert_array_equal(_code_wipe(x, code, phase, ratio), ref)
