@@ -25,6 +25,8 @@ class _Group(click.Group):
         # args=...), standalone (the exit status is the result); then the exit skips the teardown
         process_entry = not args and "args" not in kwargs and kwargs.get("standalone_mode", True) and \
             getattr(sys.modules.get("__main__"), "main", None) is self
+        global _process_entry
+        _process_entry = bool(process_entry)
         try:
             return self._main(*args, **kwargs)
         except SystemExit as exc:
@@ -66,6 +68,8 @@ class _Group(click.Group):
 
 #: set when ``gnssrx run`` has written all its outputs: only then does the process skip the teardown
 _finished_run = False
+#: this process's own command line is running (not click's test runner nor a script calling main(args=...))
+_process_entry = False
 
 
 def _exit_now(code) -> None:
@@ -153,9 +157,17 @@ def run(config, input_path, output, sets, quiet, n_threads, timings):
     from .stagetimes import stage
     stagetimes.reset()
     stagetimes.add("start-up", *_since_process_start())
-    with stage("imports"):
-        from .pipeline import run as run_pipeline
-        from .threads import set_threads
+    import gc
+    own = _process_entry and gc.isenabled()
+    if own:
+        gc.disable()                # no collection while the imports build their ~10^5 lasting objects
+    try:
+        with stage("imports"):
+            from .pipeline import run as run_pipeline
+            from .threads import set_threads
+    finally:
+        if own:
+            _freeze_gc()
     set_threads(n_threads)
     with stage("config"):
         cfg = _load(config, input_path, sets, output)
@@ -171,6 +183,21 @@ def run(config, input_path, output, sets, quiet, n_threads, timings):
         click.echo(stagetimes.text(wall, time.process_time()), err=True)
     global _finished_run
     _finished_run = True            # run file closed, standard outputs written: exit without the teardown
+
+
+def _freeze_gc():
+    """After ``run``'s imports (the garbage collector was off meanwhile, then on again): every object alive
+    (~10^5: numpy, scipy, numba, h5py, ...) is moved out of the cyclic collector's reach (gc.freeze).
+    They live as long as the process; otherwise every full collection during the run walks them again,
+    40-60 ms each, landing wherever the allocation counts trigger one (in a 1-s run: during the imports
+    and in the HDF5 close; 0.11 -> 0.015 s of collections).  Objects created later are collected as
+    usual.  Only for the process's own command line (``_process_entry``): a test runner or a script calling
+    ``main`` keeps its collector as it is (freezing would keep its uncollected garbage forever)."""
+    import atexit
+    import gc
+    gc.freeze()
+    gc.enable()
+    atexit.register(gc.unfreeze)    # the interpreter's teardown (error exits) then finalizes them as usual
 
 
 def _since_process_start() -> tuple[float, float]:

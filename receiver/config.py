@@ -21,6 +21,9 @@ import yaml
 
 from .errors import UserError
 
+#: YAML dumper of Section.to_yaml: the safe dumper, through libyaml when PyYAML was built with it
+_SAFE_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+
 _REQUIRED = object()
 
 
@@ -73,7 +76,9 @@ class Section:
                 for k, v in self._values.items()}
 
     def to_yaml(self) -> str:
-        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+        """The section as YAML (libyaml's emitter when PyYAML has it: ~4x faster than the pure-Python one,
+        the same text for every shipped config, tests/test_config_yaml_dump.py)."""
+        return yaml.dump(self.to_dict(), Dumper=_SAFE_DUMPER, sort_keys=False)
 
     def __repr__(self):
         return f"Section({self.to_dict()!r})"

@@ -88,3 +88,16 @@ def submit_ordered(fn, items: list):
         return lambda: res
     futs = [_get_pool().submit(fn, x) for x in items]
     return lambda: [f.result() for f in futs]
+
+
+def submit_each(fn, items: list) -> list:
+    """Start fn(x) for every x of ``items`` on the thread pool; a list of callables, one per item, each
+    waiting for (and returning) its item's result, so that the caller can use the first results while the
+    pool computes the others.  With one thread fn(x) runs in line when its callable is first called."""
+    if threads() <= 1 or getattr(_local, "serial", False):
+        def later(x):
+            box = []
+            return lambda: box[0] if box else (box.append(fn(x)) or box[0])
+        return [later(x) for x in items]
+    futs = [_get_pool().submit(fn, x) for x in items]
+    return [f.result for f in futs]

@@ -60,8 +60,14 @@ def test_run_path_imports_no_heavy_scipy_module(tmp_path):
 
 
 FAST_EXIT = r"""
-import atexit, sys
+import atexit, gc, os, sys
+import receiver.cli
 from receiver.cli import main
+if os.environ.get("GC_PROBE"):     # (not for the error exit: the wrapper would tie __main__ to receiver.cli)
+    def _frozen(f=receiver.cli._freeze_gc):
+        f()
+        print(f"gc frozen {gc.get_freeze_count()} enabled {gc.isenabled()}", file=sys.stderr, flush=True)
+    receiver.cli._freeze_gc = _frozen
 atexit.register(lambda: print("atexit handler ran", flush=True))
 class Teardown:
     def __del__(self):
@@ -88,10 +94,13 @@ def test_a_finished_run_exits_without_teardown_but_with_atexit_and_status(tmp_pa
                          "--input", str(tmp_path / "x.bin"), "-o", str(tmp_path / "x.h5"), "-q",
                          "--set", "input.format=int8_iq", "--set", "input.sample_rate_hz=2600000",
                          "--set", "input.if_hz=0", "--set", "acquisition.prns=[3,7,11,17,22,28]"],
-                        capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+                        capture_output=True, text=True, env=dict(env, GC_PROBE="1"), cwd=tmp_path, timeout=300)
     assert ok.returncode == 0, ok.stderr
     assert ok.stdout.startswith("beforeoutput") and "atexit handler ran" in ok.stdout
     assert "module teardown" not in ok.stdout
+    # the objects of the imports were put out of the garbage collector's reach (receiver/cli.py _freeze_gc)
+    frozen = [ln.split() for ln in ok.stderr.splitlines() if ln.startswith("gc frozen")]
+    assert len(frozen) == 1 and int(frozen[0][2]) > 50000 and frozen[0][4] == "True", ok.stderr
     import h5py
     with h5py.File(tmp_path / "x.h5", "r") as h:
         assert int(h["acquisition/detected"][:].sum()) == 6
@@ -99,3 +108,15 @@ def test_a_finished_run_exits_without_teardown_but_with_atexit_and_status(tmp_pa
                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
     assert bad.returncode == 2 and "config file not found" in bad.stderr and "Traceback" not in bad.stderr
     assert "atexit handler ran" in bad.stdout and "module teardown" in bad.stdout
+
+
+def test_a_test_runner_keeps_its_garbage_collector(tmp_path):
+    """``main`` called by a test runner or a script (not the process's command line) leaves the collector
+    alone: nothing frozen, still enabled."""
+    import gc
+    from click.testing import CliRunner
+    from receiver.cli import main
+    frozen = gc.get_freeze_count()
+    r = CliRunner().invoke(main, ["run", str(tmp_path / "none.yaml")])
+    assert r.exit_code == 2 and "config file not found" in r.output
+    assert gc.isenabled() and gc.get_freeze_count() == frozen

@@ -13,6 +13,7 @@ import zlib
 
 import h5py
 import numpy as np
+from h5py import h5a, h5d, h5p, h5s, h5t, h5z
 
 from .. import __version__
 from .. import interrupt
@@ -57,6 +58,9 @@ ROUNDED_DIGITS = {"doppler_hz": 3, "code_rate_hz": 5, "code_phase_chips": 7}
 #: 1 = every column exact.  Readers read both alike.
 SCHEMA = "gnssrx-run-2"
 
+#: /channels/Gnn attribute state_mapping
+STATE_MAPPING = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+
 
 def _gzip_chunk(block: np.ndarray, rows: int) -> bytes:
     """One HDF5 chunk of ``rows`` rows through the shuffle + deflate filters of COMPRESSION["gzip"], as
@@ -81,13 +85,124 @@ def _direct(ds: h5py.Dataset) -> bool:
         ds.compression_opts == COMPRESSION["gzip"]["compression_opts"]
 
 
+#: dataset-creation property lists (chunk shape, filters) and HDF5 types (numpy dtype) built once per process
+#: and reused for every dataset the writer creates (h5py's create_dataset builds both anew each time, ~1 ms a
+#: dataset with the rest of its checks; a 1-s run creates ~220)
+_DCPLS: dict = {}
+_TYPES: dict = {}
+
+
+def _dcpl(chunk: tuple, compression: str, digits, kind: str):
+    """The dataset-creation property list h5py's ``create_dataset(chunks=chunk, maxshape=(None, ...),
+    scaleoffset=digits, **COMPRESSION[compression])`` builds (h5py/_hl/filters.py fill_dcpl and
+    dataset.py make_new_dset: chunk, scale-offset, shuffle, deflate or LZF in that order, no creation
+    times, attribute creation order per h5py's track_order setting; fill value and times HDF5's defaults).
+    tests/test_runfile_lowlevel.py checks it equals h5py's (H5Pequal)."""
+    track_order = bool(h5py.get_config().track_order)
+    key = (chunk, compression, digits, kind, track_order)
+    p = _DCPLS.get(key)
+    if p is None:
+        kw = COMPRESSION[compression]
+        p = h5p.create(h5p.DATASET_CREATE)
+        p.set_chunk(chunk)
+        if digits is not None:
+            if kind in "ui":
+                p.set_scaleoffset(h5z.SO_INT, int(digits))
+            else:
+                p.set_scaleoffset(h5z.SO_FLOAT_DSCALE, int(digits))
+        if kw.get("shuffle") and digits is None:
+            p.set_shuffle()
+        if kw.get("compression") == "gzip":
+            p.set_deflate(kw["compression_opts"])
+        elif kw.get("compression") == "lzf":
+            p.set_filter(h5z.FILTER_LZF, h5z.FLAG_OPTIONAL)
+        elif kw.get("compression") is not None:
+            raise ValueError(f"compression {compression!r}")
+        p.set_obj_track_times(False)
+        p.set_attr_creation_order(h5p.CRT_ORDER_TRACKED | h5p.CRT_ORDER_INDEXED if track_order else 0)
+        _DCPLS[key] = p
+    return p
+
+
+def _h5type(dtype: np.dtype):
+    t = _TYPES.get(dtype)
+    if t is None:
+        t = _TYPES[dtype] = h5t.py_create(dtype, logical=1)
+    return t
+
+
+def _exists(group: h5py.Group, name: str) -> bool:
+    """``name in group`` for a plain name (no path): H5Lexists, ~4x cheaper than h5py's check."""
+    return group.id.links.exists(name.encode("ascii"))
+
+
+def _create(group: h5py.Group, name: str, data: np.ndarray, rows: int, compression: str, digits, write: bool):
+    """A new growing dataset group[name] of ``len(data)`` rows (maxshape (None,) + data.shape[1:], chunks of
+    ``rows`` rows, the filters of ``compression`` / scale-offset ``digits``): what ``group.create_dataset``
+    makes, through h5py's low-level API with the cached property list and type.  ``write``: store ``data``
+    through HDF5's filters (else the caller writes whole chunks directly).  Returns the low-level id."""
+    tail = data.shape[1:]
+    space = h5s.create_simple((len(data),) + tail, (h5s.UNLIMITED,) + tail)
+    dsid = h5d.create(group.id, name.encode("ascii"), _h5type(data.dtype), space,
+                      dcpl=_dcpl((rows,) + tail, compression, digits, data.dtype.kind))
+    if write:
+        dsid.write(h5s.ALL, h5s.ALL, np.ascontiguousarray(data))
+    return dsid
+
+
+_STR = h5t.string_dtype()        # h5py's type for a str attribute (variable-length UTF-8)
+_SCALAR_TYPES = (bool, int, float, str, np.bool_, np.integer, np.floating)
+_ATTR_TYPES: dict = {}
+
+
+def _set_attrs(obj, attrs: dict):
+    """``obj.attrs[k] = v`` for every item (``obj``: an h5py File, Group or Dataset, or a low-level dataset
+    id): a scalar (bool, int, float, str, numpy number) through h5py's low-level calls with types built
+    once (the calls h5py's AttributeManager.create makes: the same attribute type and value, ~2x faster),
+    anything else through h5py."""
+    if isinstance(obj, h5d.DatasetID):           # a low-level dataset id (no h5py.Dataset made unless needed)
+        oid, obj = obj, None
+    else:
+        oid = obj.id
+    for k, v in attrs.items():
+        if not isinstance(v, _SCALAR_TYPES) or not k.isascii() or (isinstance(v, str) and type(v) is not str):
+            (obj if obj is not None else h5py.Dataset(oid)).attrs[k] = v
+            continue
+        if isinstance(v, str):
+            dt = _STR
+            data = np.asarray(v, order="C", dtype=dt).view(dt)
+        else:
+            data = np.asarray(v, order="C")
+            dt = data.dtype
+            if dt.kind not in "biuf":        # (an int beyond 64 bits: h5py's error)
+                (obj if obj is not None else h5py.Dataset(oid)).attrs[k] = v
+                continue
+        key = "str" if dt is _STR else dt          # (_STR == dtype("O") as a dict key)
+        types = _ATTR_TYPES.get(key)
+        if types is None:
+            types = _ATTR_TYPES[key] = (h5t.py_create(dt, logical=True), h5t.py_create(dt), h5s.create_simple(()))
+        name = k.encode("ascii")
+        if h5a.exists(oid, name):
+            h5a.delete(oid, name)
+        a = h5a.create(oid, name, types[0], types[2])
+        try:
+            a.write(data, mtype=types[1])
+        except BaseException:
+            a.close()
+            h5a.delete(oid, name)
+            raise
+        a.close()
+
+
 def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "none", digits=None,
             rows: int = CHUNK_ROWS, cache: dict | None = None, chunks: list | None = None):
     """Append ``data`` to group[name] (created on the first call).  ``cache``: a dict the caller keeps per
-    group, name -> dataset, for the datasets written by whole compressed chunks (saves the h5py look-ups of
-    every later append; those writes bypass HDF5's chunk cache).  The other datasets are opened per call:
-    closing one flushes its chunk cache through the filters (what the scale-offset columns rely on).
-    ``chunks``: ``data``'s chunks already compressed by :func:`_gzip_chunk` (used on the direct path)."""
+    group, name -> [low-level dataset id, rows], for the datasets written by whole compressed chunks
+    (saves the h5py look-ups of every later append; those writes bypass HDF5's chunk cache).  The other
+    datasets are opened per call: closing one flushes its chunk cache through the filters (what the
+    scale-offset columns rely on).  ``chunks``: ``data``'s chunks already compressed by :func:`_gzip_chunk`
+    (used on the direct path), or a callable returning them (called once the dataset exists: the chunks
+    may still be being compressed on another thread meanwhile)."""
     hit = cache.get(name) if cache is not None else None
     if digits is not None and not np.isfinite(data).all():
         # the scale-offset filter would turn NaN/Inf into numbers: this column of this group is stored
@@ -96,41 +211,45 @@ def _append(group: h5py.Group, name: str, data: np.ndarray, compression: str = "
         if name in group and group[name].scaleoffset is not None:
             _unround(group, name, compression, rows)
             hit = None
+    tail = (0,) * (data.ndim - 1)
     if hit is not None:
-        ds, direct = hit, True
-    elif name not in group:
-        maxshape = (None,) + data.shape[1:]
-        chunk = (rows,) + data.shape[1:]
-        if digits is not None:
-            # then the run's compressor (no shuffle: the filter packs bits), which also squeezes the fill
-            # of a partly written chunk (the filter packs all its CHUNK_ROWS slots)
-            kw = {"scaleoffset": int(digits),
-                  **{k: v for k, v in COMPRESSION[compression].items() if k != "shuffle"}}
-        else:
-            kw = COMPRESSION[compression]
+        dsid, n = hit
+        dsid.set_extent((n + len(data),) + data.shape[1:])
+    elif not _exists(group, name):
         if digits is None and compression == "gzip":      # written below, chunk by chunk
-            ds = group.create_dataset(name, shape=(0,) + data.shape[1:], dtype=data.dtype, maxshape=maxshape,
-                                      chunks=chunk, **kw)
-            direct = True
-        else:
-            ds = group.create_dataset(name, data=data, maxshape=maxshape, chunks=chunk, **kw)
-            if digits is not None:
-                ds.attrs["resolution"] = 10.0 ** -int(digits)
+            dsid = _create(group, name, data, rows, compression, None, write=False)
+            if cache is not None:
+                cache[name] = [dsid, len(data)]
+            if callable(chunks):
+                chunks = chunks()
+            for i, a in enumerate(range(0, len(data), rows)):
+                z = chunks[i] if chunks is not None else _gzip_chunk(data[a:a + rows], rows)
+                dsid.write_direct_chunk((a,) + tail, z)
             return
+        dsid = _create(group, name, data, rows, compression, digits, write=True)
+        if digits is not None:
+            _set_attrs(dsid, {"resolution": 10.0 ** -int(digits)})
+        return
     else:
         ds = group[name]
-        direct = compression == "gzip" and ds.chunks[0] == rows and _direct(ds)
-    if cache is not None and direct:
-        cache[name] = ds
-    n = ds.shape[0]
-    ds.resize(n + len(data), axis=0)
-    if direct and n % rows == 0:
+        if not (compression == "gzip" and ds.chunks[0] == rows and _direct(ds)):
+            n = ds.shape[0]
+            ds.resize(n + len(data), axis=0)
+            ds[n:] = data
+            return
+        dsid, n = ds.id, ds.shape[0]
+        dsid.set_extent((n + len(data),) + data.shape[1:])
+    if cache is not None:
+        cache[name] = [dsid, n + len(data)]
+    if n % rows == 0:
         # whole chunks compressed here (the same bytes in the file as through h5py's filters)
-        tail = (0,) * (data.ndim - 1)
+        if callable(chunks):
+            chunks = chunks()
         for i, a in enumerate(range(0, len(data), rows)):
             z = chunks[i] if chunks is not None else _gzip_chunk(data[a:a + rows], rows)
-            ds.id.write_direct_chunk((n + a,) + tail, z)
+            dsid.write_direct_chunk((n + a,) + tail, z)
     else:
+        ds = h5py.Dataset(dsid)
         ds[n:] = data
 
 
@@ -220,17 +339,13 @@ class RunWriter:
         self._out = AtomicH5(path, "output", reads=reads)
         self.path, self.tmp, self.f = self._out.path, self._out.tmp, self._out.f
         try:
-            a = self.f.attrs
-            a["gnssrx_version"] = __version__
-            a["config"] = config_yaml
-            a["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-            a["schema"] = SCHEMA if self.round_columns else "gnssrx-run-1"
-            for k, v in (attrs or {}).items():
-                a[k] = v
-            self.f.create_group("channels").attrs["channel_rate_hz"] = self.channel_rate_hz
-            g = self.f.create_group("navigation")
-            g.attrs["mode_mapping"] = "0=scalar,1=vector,2=coast,3=aided"
-            g.attrs["iono_params_mapping"] = ",".join(f"{k}={v}" for k, v in IONO_PARAMS_NAMES.items())
+            _set_attrs(self.f, {"gnssrx_version": __version__, "config": config_yaml,
+                                "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                                "schema": SCHEMA if self.round_columns else "gnssrx-run-1", **(attrs or {})})
+            _set_attrs(self.f.create_group("channels"), {"channel_rate_hz": self.channel_rate_hz})
+            _set_attrs(self.f.create_group("navigation"), {
+                "mode_mapping": "0=scalar,1=vector,2=coast,3=aided",
+                "iono_params_mapping": ",".join(f"{k}={v}" for k, v in IONO_PARAMS_NAMES.items())})
             self._out.check()
         except BaseException:
             self.close(ok=False)
@@ -254,8 +369,7 @@ class RunWriter:
         g.attrs["reason_codes"] = ",".join(f"{v}={k or 'detected'}" for k, v in ACQ_REASONS.items())
         for k, v in rows.items():
             _append(g, k, v, rows=256)               # a few rows per search: small chunks
-        for k, v in (attrs or {}).items():
-            g.attrs[k] = v
+        _set_attrs(g, attrs or {})
 
     # ------------------------------------------------------------------ channels
     def append_channel(self, prn: int, records: np.ndarray):
@@ -275,52 +389,80 @@ class RunWriter:
 
     def _flush_channel(self, prn: int, final: bool = False):
         """Write the buffered records of prn: whole chunks (the rest stays buffered), all of them if final."""
+        job = self._channel_job(prn, final)
+        if job is not None:
+            self._write_channel(*job[:2], self._precompress(job[2]))
+
+    def _channel_job(self, prn: int, final: bool):
+        """(prn, columns, the columns that go the direct way) of the rows of prn to write now
+        (:meth:`_take`), or None.  No HDF5 call."""
         records = self._take(self._buffers, prn, final)
         if records is None:
-            return
+            return None
+        rounded = ROUNDED_DIGITS if self.round_columns else {}
+        cols = [(name, np.ascontiguousarray(records[name]), rounded.get(name)) for name in EPOCH_DTYPE.names]
+        return prn, cols, self._direct_columns(*self._groups.get(prn, (None, None)), cols)
+
+    def _write_channel(self, prn: int, cols, pre: dict):
         g, cache = self._groups.get(prn, (None, None))
         if g is None:
             g = self.f["channels"].require_group(sat_label(prn, self.system))
             if "prn" not in g.attrs:
-                g.attrs["prn"] = prn
-                g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
+                _set_attrs(g, {"prn": prn, "state_mapping": STATE_MAPPING})
             cache = {}
             self._groups[prn] = (g, cache)
-        rounded = ROUNDED_DIGITS if self.round_columns else {}
-        cols = [(name, np.ascontiguousarray(records[name]), rounded.get(name)) for name in EPOCH_DTYPE.names]
-        pre = self._precompress(g, cache, cols)
         for name, col, digits in cols:
             _append(g, name, col, self.compression, digits, rows=self.chunk_rows, cache=cache,
                     chunks=pre.get(name))
         self._out.check()
 
-    def _precompress(self, g, cache: dict, cols) -> dict:
-        """name -> the compressed chunks of the columns that go the direct way (gzip, not rounded, a new
-        dataset or one whose rows end on a chunk boundary), compressed on the receiver's thread pool (zlib
-        releases the GIL: the columns of a flush, e.g. the last partial chunks at close, use every core).
-        The chunks are the ones _append would compute, so the file does not depend on it."""
+    def _direct_columns(self, g, cache: dict | None, cols) -> list:
+        """[(name, column)] of the columns that go the direct way (gzip, not rounded, a new dataset or one
+        whose rows end on a chunk boundary): _append writes them as chunks compressed by _gzip_chunk.
+        ``g`` None: the channel's group is not created yet (every such column is a new dataset).  (Only
+        a matter of speed: _append ignores the chunks of a column that does not go the direct way and
+        compresses those of one that does when it has none.)"""
         if self.compression != "gzip":
-            return {}
+            return []
         todo = []
         for name, col, digits in cols:
             if digits is not None:
                 continue
-            ds = cache.get(name)
-            if (ds is not None and ds.shape[0] % self.chunk_rows == 0) or (ds is None and name not in g):
+            hit = cache.get(name) if cache is not None else None
+            if g is None or (hit is not None and hit[1] % self.chunk_rows == 0) or \
+                    (hit is None and not _exists(g, name)):
                 todo.append((name, col))
+        return todo
+
+    def _compress(self, todo) -> list:
+        r = self.chunk_rows
+        return [[_gzip_chunk(c[a:a + r], r) for a in range(0, len(c), r)] for _, c in todo]
+
+    def _precompress(self, todo) -> dict:
+        """name -> the compressed chunks of the columns ``todo`` (:meth:`_direct_columns`), compressed on
+        the receiver's thread pool (zlib releases the GIL: the columns of a flush use every core).
+        The chunks are the ones _append would compute, so the file does not depend on it."""
         if not todo:
             return {}
         from ..threads import map_ordered, threads
-        r = self.chunk_rows
-
-        def batch(cols):
-            return [[_gzip_chunk(c[a:a + r], r) for a in range(0, len(c), r)] for _, c in cols]
         # a few batches of columns, one per thread: a short run's columns are one small chunk each, and a
         # pool job per column cost as much as compressing it (future, locks, GIL hand-offs)
         k = max(1, min(threads(), len(todo)))
         groups = [todo[i * len(todo) // k:(i + 1) * len(todo) // k] for i in range(k)]
-        done = [z for g in map_ordered(batch, groups) for z in g]
+        done = [z for g in map_ordered(self._compress, groups) for z in g]
         return {name: z for (name, _), z in zip(todo, done)}
+
+    def _flush_channels_final(self):
+        """Every channel's last rows (at close).  The compression of all of them is started on the thread
+        pool first (one job per channel) and runs while this thread creates the datasets (HDF5 calls hold
+        the GIL, zlib does not); each channel's chunks are waited for when its datasets exist.  The same
+        datasets and chunks as flushing the channels one after the other."""
+        from ..threads import submit_each
+        jobs = [j for j in (self._channel_job(prn, True) for prn in list(self._buffers)) if j is not None]
+        waits = submit_each(self._compress, [todo for _, _, todo in jobs])
+        for (prn, cols, todo), wait in zip(jobs, waits):
+            self._write_channel(prn, cols,
+                                {name: (lambda i=i, wait=wait: wait()[i]) for i, (name, _) in enumerate(todo)})
 
     def _take(self, buffers: dict, key, final: bool):
         """The buffered rows of ``key`` to write now: a whole number of chunks (chunk_rows), the rest kept
@@ -337,12 +479,10 @@ class RunWriter:
 
     def _write_stats(self):
         for prn, st in self._stats.items():
-            g = self.f["channels"].require_group(sat_label(prn, self.system))
+            g = self._groups.get(prn, (None,))[0] or self.f["channels"].require_group(sat_label(prn, self.system))
             if "prn" not in g.attrs:
-                g.attrs["prn"] = prn
-                g.attrs["state_mapping"] = ",".join(f"{k}={v}" for k, v in STATE_NAMES.items())
-            for k, v in st.attrs().items():
-                g.attrs[k] = v
+                _set_attrs(g, {"prn": prn, "state_mapping": STATE_MAPPING})
+            _set_attrs(g, st.attrs())
 
     # ------------------------------------------------------------------ navigation
     def _append_table(self, group: str, rows: np.ndarray):
@@ -419,8 +559,7 @@ class RunWriter:
 
     def set_attrs(self, group: str, attrs: dict):
         g = self.f.require_group(group) if group != "/" else self.f
-        for k, v in attrs.items():
-            g.attrs[k] = v
+        _set_attrs(g, attrs)
 
     def check(self):
         """Raise a one-line UserError if a write failed (disk full, file size limit)."""
@@ -436,8 +575,7 @@ class RunWriter:
             self._out.abort()
             return
         try:
-            for prn in list(self._buffers):
-                self._flush_channel(prn, final=True)
+            self._flush_channels_final()
             for group in list(self._tables):
                 self._flush_table(group, final=True)
             self._write_stats()
