@@ -75,21 +75,67 @@ class _Spectra:
         j = np.arange(n1)
         # bin index of decimated line j for Doppler d: (m * j + shift_d) mod n
         self.idx = (m * j[None, :] + shift[:, None]) % n                               # (n_dopp, n1)
-        self.n1, self.k, self.n_dopp = n1, k, len(dopplers)
+        self.n1, self.k, self.n_dopp, self.m = n1, k, len(dopplers), m
+        # the same lines as m ((j + q_d) mod n1) + rho_d: line q of residue rho (lines 1 kHz apart)
+        self.q, self.rho = shift // m, shift % m
+        self._residues = {}
+
+    def _residue_spectra(self, r):
+        """(K, m, n1): block k's spectrum for fraction r, line m q + rho at [k, rho, q]."""
+        if r not in self._residues:
+            s = self.spectra[r].reshape(self.k, self.n1, self.m)
+            self._residues[r] = np.ascontiguousarray(s.transpose(0, 2, 1))
+        return self._residues[r]
 
     def power(self, cf):
-        """Non-coherently summed correlation power (n_dopp, n1) for the conjugate code spectrum cf."""
-        power = np.zeros((self.n_dopp, self.n1), np.float32)
+        """Non-coherently summed correlation power (n_dopp, n1) for the conjugate code spectrum cf.
+
+        Doppler bin d multiplies the lines (j + q_d) mod n1 of its residue's spectrum by cf[j].  |IFFT|
+        does not change when that product is shifted circularly, so line j' of the spectrum meets
+        cf[(j' - q_d) mod n1] instead: the code spectrum is shifted once per PRN and Doppler (the same
+        pairs of numbers multiplied as before; no gather of the block spectra per block)."""
+        n1 = self.n1
+        power = np.zeros((self.n_dopp, n1), np.float32)
+        code = np.empty((self.n_dopp, n1), np.complex64)
+        _roll_rows(cf, self.q, code)                                                  # cf[(j - q_d) mod n1]
         for r in self.fracs:
             sel = np.flatnonzero(self.frac == r)
-            idx = self.idx[sel]
-            prod = np.empty((len(sel), self.n1), np.complex64)
+            spec = self._residue_spectra(r)
+            rho = self.rho[sel]
+            code_r = np.ascontiguousarray(code[sel])
+            prod = np.empty((len(sel), n1), np.complex64)
             for k in range(self.k):
-                _gather(self.spectra[r][k], idx, prod)           # prod[i] = spectrum[idx[i]]
-                np.multiply(prod, cf[None, :], out=prod)         # (numpy's complex product, as before)
+                _mul_rows(spec[k].view(np.float32), rho, code_r.view(np.float32), prod.view(np.float32))
                 corr = np.fft.ifft(prod, axis=1, out=prod)
                 _add_power(corr, sel, power)                     # power[sel] += |corr|^2
         return power
+
+
+@njit(cache=True, nogil=True)
+def _mul_rows(spec, rho, code, out):
+    """out[i, j] = spec[rho[i], j] * code[i, j] for complex64 arrays seen as float32 (re, im) pairs: the
+    products numpy's complex multiply forms (re = a c - b d, im = a d + b c)."""
+    for i in range(out.shape[0]):
+        s = spec[rho[i]]
+        c = code[i]
+        o = out[i]
+        for j in range(out.shape[1] // 2):
+            a, b, cr, ci = s[2 * j], s[2 * j + 1], c[2 * j], c[2 * j + 1]
+            o[2 * j] = a * cr - b * ci
+            o[2 * j + 1] = a * ci + b * cr
+
+
+@njit(cache=True, nogil=True)
+def _roll_rows(cf, shifts, out):
+    """out[i, j] = cf[(j - shifts[i]) mod n]: the code spectrum shifted circularly per Doppler row."""
+    n = cf.shape[0]
+    for i in range(out.shape[0]):
+        s = shifts[i] % n
+        for j in range(n):
+            k = j - s
+            if k < 0:
+                k += n
+            out[i, j] = cf[k]
 
 
 @njit(cache=True, nogil=True)
@@ -132,9 +178,19 @@ def _code_wipe(x, code, phase, ratio):
     modulo the code length) and the same products as numpy's."""
     out = np.empty(x.shape[0], x.dtype)
     n_code = code.shape[0]
+    if phase < 0.0 or ratio < 0.0 or ratio >= n_code:
+        for i in range(x.shape[0]):
+            out[i] = x[i] * code[np.int64(np.floor(phase + i * ratio)) % n_code]
+        return out
+    # phase + i ratio >= 0 and grows by less than a code length per sample: the truncation is the floor,
+    # and the modulo a running multiple of the code length (half the time of floor and modulo per sample)
+    base = 0
     for i in range(x.shape[0]):
-        c = code[np.int64(np.floor(phase + i * ratio)) % n_code]
-        out[i] = x[i] * c
+        k = np.int64(phase + i * ratio) - base
+        if k >= n_code:
+            base += n_code
+            k -= n_code
+        out[i] = x[i] * code[k]
     return out
 
 
@@ -243,6 +299,23 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
     return map_ordered(one, list(prns)) if parallel else [one(p) for p in prns]
 
 
+def _folded_power(samples, fs, if_hz, dopplers, m, k, cf):
+    """The power grid of :meth:`_Spectra.power` for a few Doppler bins: each coherent block of m code periods,
+    carrier wiped off at the bin's frequency, folded onto one period (the sum of its m periods: the same
+    as taking every m-th line of the block's spectrum), then one FFT of one period."""
+    n1 = int(round(fs * 1e-3))
+    n = n1 * m
+    t = np.arange(n) / fs
+    blocks = samples[:n * k].reshape(k, n)
+    power = np.zeros((len(dopplers), n1), np.float32)
+    for i, d in enumerate(dopplers):
+        mix = np.exp(-2j * np.pi * (if_hz + d) * t).astype(np.complex64)
+        folded = (blocks * mix[None, :]).reshape(k, m, n1).sum(axis=1)
+        corr = np.fft.ifft(np.fft.fft(folded, axis=1) * cf[None, :], axis=1)
+        power[i] = (corr.real ** 2 + corr.imag ** 2).sum(axis=0)
+    return power
+
+
 def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: AcqResult,
            coherent_ms: int, noncoherent: int, doppler_step_hz: float | None = None, pfa: float = 1e-3,
            threshold: float = 1.0, signal=None, window_chips: float = 1.5) -> bool:
@@ -254,8 +327,7 @@ def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: 
     n1 = int(round(fs * 1e-3))
     step = doppler_step_hz or 1.0 / (2.0 * coherent_ms * 1e-3)
     dopplers = res.doppler_hz + step * np.array([-1.0, 0.0, 1.0])
-    sp = _Spectra(samples, fs, if_hz, dopplers, coherent_ms, noncoherent)
-    power = sp.power(_code_fft(sig, res.prn, fs, n1))
+    power = _folded_power(samples, fs, if_hz, dopplers, coherent_ms, noncoherent, _code_fft(sig, res.prn, fs, n1))
     pn = power / _row_floor(power, noncoherent)[:, None]
     cols = verify_columns(res, start_index, fs, sig, window_chips)
     thr = _threshold(pfa, 3 * cols.size, noncoherent)
@@ -402,13 +474,9 @@ def _line_powers(y: np.ndarray, f0: float, ks: np.ndarray, nfft: int) -> np.ndar
     if d < 20 or len(ks) < 3 * _TAYLOR_TERMS:
         return _line_powers_direct(y, f0, ks, nfft)
     q = -(-n // d)
-    z = np.zeros((b, q * d), np.complex128)
-    np.multiply(y, np.exp(-2j * np.pi * np.arange(n) * f0), out=z[:, :n])
     p = np.arange(_TAYLOR_TERMS)
-    r = (np.arange(d) / d)[:, None] ** p[None, :]                   # (D, P)
-    zr = z.reshape(b * q, d)
-    mom = (zr.real @ r) + 1j * (zr.imag @ r)                        # (B Q, P): M_p[b, q]
-    mom = np.ascontiguousarray(mom.reshape(b, q, len(p)).transpose(0, 2, 1)).reshape(b * len(p), q)
+    powers = (np.arange(d) / d)[None, :] ** p[:, None]              # (P, D): (r / D)^p
+    mom = _segment_moments(y, np.exp(-2j * np.pi * np.arange(n) * f0), d, powers).reshape(b * len(p), q)
     qd = (np.outer(np.arange(q) * d, ks) % nfft) / nfft             # q D k / nfft, reduced exactly
     v = np.exp(-2j * np.pi * qd)                                    # (Q, K)
     t = (mom @ v).reshape(b, len(p), len(ks))                       # (B, P, K), one matrix product
@@ -416,6 +484,34 @@ def _line_powers(y: np.ndarray, f0: float, ks: np.ndarray, nfft: int) -> np.ndar
     coef = (-2j * np.pi * ks[None, :] * d / nfft) ** p[:, None] / fact[:, None]     # (P, K)
     x = (t * coef[None, :, :]).sum(axis=1)                          # (B, K)
     return (x.real ** 2 + x.imag ** 2).sum(axis=0)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _segment_moments(y, ramp, d, powers):
+    """mom[b, p, q] = sum_r z[b, q d + r] powers[p, r] with z = y x ramp (the carrier wiped off; rows of y
+    are blocks, the last segment may be short): one pass over the samples, no complex128 copy of y."""
+    nb, n = y.shape
+    P = powers.shape[0]
+    nq = (n + d - 1) // d
+    mom = np.zeros((nb, P, nq), np.complex128)
+    zr = np.empty(d)
+    zi = np.empty(d)
+    for b in range(nb):
+        for q in range(nq):
+            m0 = q * d
+            cnt = min(d, n - m0)
+            for r in range(cnt):
+                w = np.complex128(y[b, m0 + r]) * ramp[m0 + r]
+                zr[r] = w.real
+                zi[r] = w.imag
+            for p in range(P):
+                sr = 0.0
+                si = 0.0
+                for r in range(cnt):
+                    sr += zr[r] * powers[p, r]
+                    si += zi[r] * powers[p, r]
+                mom[b, p, q] = complex(sr, si)
+    return mom
 
 
 def cross_correlation_image(strong: AcqResult, weak: AcqResult, fs: float, coherent_ms: int,

@@ -156,3 +156,60 @@ def test_high_sensitivity_block_powers_equal_the_numpy_formulation():
             ref[kk & 1, rows] += np.take_along_axis(p, (cols[None, :] - sh[:, None]) % n1, axis=1)
     np.testing.assert_array_equal(got, ref)
     assert np.rint(np.abs(drift)).max() >= 1             # the shifts were exercised
+
+
+@pytest.mark.parametrize("m,k,centre_hz,step_hz", [(4, 10, 0.0, None), (1, 6, -790.0, 300.0), (2, 3, 1234.5, None)])
+def test_search_power_equals_the_gathered_formulation(m, k, centre_hz, step_hz):
+    """The fast search's power grid (code spectrum shifted per Doppler row, block spectra used as they
+    are) equals the formulation where each Doppler row gathers its lines of the block spectrum, to float32
+    rounding, with the same peak cell in every row; and the signal is found where it was put."""
+    from receiver.acquisition import _code_fft, _Spectra
+    fs = FS
+    x = make_signal([dict(prn=12, doppler_hz=centre_hz + 1510.0, code_phase_chips=512.3, cn0_dbhz=45.0)], fs,
+                    m * k * 1e-3 + 0.001, seed=2).astype(np.complex64)
+    step = step_hz or 1.0 / (2 * m * 1e-3)
+    dopplers = centre_hz + np.arange(-5000.0, 5000.0 + step / 2, step)
+    sp = _Spectra(x, fs, 0.0, dopplers, m, k)
+    cf = _code_fft(GPS_L1CA, 12, fs, sp.n1)
+    got = sp.power(cf)
+    ref = np.zeros_like(got)
+    for r in sp.fracs:
+        rows = np.flatnonzero(sp.frac == r)
+        for kk in range(k):
+            corr = np.fft.ifft(sp.spectra[r][kk][sp.idx[rows]] * cf[None, :], axis=1)
+            ref[rows] += (corr.real ** 2 + corr.imag ** 2).astype(np.float32)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=2e-6 * ref.max())
+    assert np.array_equal(np.argmax(got, axis=1), np.argmax(ref, axis=1))
+    d, s = np.unravel_index(np.argmax(got), got.shape)
+    assert abs(dopplers[d] - (centre_hz + 1510.0)) <= step
+    chips = (-s * GPS_L1CA.chip_rate / fs) % 1023
+    assert abs((chips - 512.3 + 511.5) % 1023 - 511.5) < 0.5
+
+
+@pytest.mark.parametrize("m,k", [(4, 10), (1, 5), (2, 7)])
+def test_verification_power_equals_the_search_power(m, k):
+    """The verification dwell's power (each block's carrier wiped off at the bin, folded onto one code
+    period, one FFT of a period) equals the search's (every m-th line of the block spectrum) at off-grid
+    Dopplers, to float32 rounding."""
+    from receiver.acquisition import _code_fft, _folded_power, _Spectra
+    x = make_signal([dict(prn=7, doppler_hz=-2233.3, code_phase_chips=100.7, cn0_dbhz=42.0)], FS,
+                    m * k * 1e-3 + 0.001, seed=5).astype(np.complex64)
+    dopplers = -2233.3 + np.array([-1.0, 0.0, 1.0]) / (2 * m * 1e-3) + 37.0
+    cf = _code_fft(GPS_L1CA, 7, FS, 2600)
+    ref = _Spectra(x, FS, 0.0, dopplers, m, k).power(cf)
+    got = _folded_power(x, FS, 0.0, dopplers, m, k, cf)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=2e-6 * ref.max())
+    assert int(np.argmax(got[1])) == int(np.argmax(ref[1]))
+
+
+@pytest.mark.parametrize("phase,ratio", [(930.93, 1.023e6 * (1 + 726 / 1575.42e6) / 2.6e6), (1022.9999, 0.9999),
+                                         (0.0, 0.25), (-3.7, 0.3934)])
+def test_code_wipe_equals_the_sampled_code(phase, ratio):
+    """The fine Doppler's compiled code wipe-off (running code-length offset instead of a modulo per
+    sample) multiplies every sample by the chip numpy's sample_code picks, across code-period ends."""
+    from receiver.acquisition import _code_wipe
+    rng = np.random.default_rng(1)
+    x = (rng.normal(size=30000) + 1j * rng.normal(size=30000)).astype(np.complex64)
+    code = GPS_L1CA.code(5)
+    ref = x * sample_code(code, ratio * FS, FS, len(x), phase)
+    np.testing.assert_array_equal(_code_wipe(x, code, phase, ratio), ref)
