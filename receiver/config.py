@@ -293,8 +293,9 @@ RECEIVER_SCHEMA = {
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
         "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and decimate by this "
                                      "integer factor before acquisition and tracking (auto: the largest factor "
-                                     "that keeps >= 3 chip rates and the code-phase grid, 1 below ~6 MS/s; 1: "
-                                     "off); README \"High sample rates\""),
+                                     "that keeps >= 3 chip rates and the code-phase grid, 1 below ~6 MS/s, and a "
+                                     "rate that is not a whole number of samples per ms, e.g. 16.3676 MS/s, "
+                                     "resampled to one; 1: off); README \"High sample rates\""),
         "skip_s": P(0.0, "float", "seconds skipped at the start of the file", lo=0.0),
         "duration_s": P(None, "float", "seconds processed (empty: to the end of the file)",
                         nullable=True, lo=0.0),

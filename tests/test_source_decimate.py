@@ -200,3 +200,50 @@ def test_unpack_kernel_gives_the_table_values_at_any_field_and_offset(fmt):
             _unpack_real(raw, table, first, x, 4, n)
             assert np.array_equal(x[4:4 + n], fields[first:first + n]), (first, n)
             assert np.all(x[:4] == -7.0) and np.all(x[4 + n:] == -7.0)
+
+
+def _rate_out(fs, lm):
+    return fs * lm[0] / lm[1]
+
+
+@pytest.mark.parametrize("fs", [16.3676e6, 16.3671e6, 2.0461e6, 3.0005e6])
+def test_plan_auto_rates_that_are_not_whole_samples_per_ms(fs):
+    """A front end's rate that is not a whole number of samples per millisecond (the SiGe GN3S's 16.3676
+    MS/s: 16367.6 per ms) is resampled to one, which acquisition needs: high rates to the lowest whole rate
+    from 4 MS/s up, low rates slightly up; the ratio's integers stay <= MAX_L; the code-phase grid stays
+    fine (not a rate commensurate with the chip rate)."""
+    from receiver.source.decimate import MAX_L
+    lm = plan("auto", fs, 1.023e6)
+    out = _rate_out(fs, lm)
+    assert max(lm) <= MAX_L and lm != (1, 1)
+    assert abs(out * 1e-3 - round(out * 1e-3)) < 1e-6
+    if fs > 6e6:
+        assert 4e6 <= out <= 4.1e6
+    else:
+        assert fs < out <= 1.01 * fs
+    assert phase_grid(out, 1.023e6) > 100
+    with pytest.raises(UserError, match="whole number of samples per millisecond"):
+        plan(1, fs, 1.023e6)                                       # the stage switched off: a clear error
+
+
+def test_plan_auto_whole_rates_unchanged_and_unreachable_rate():
+    assert plan("auto", 2.048e6, 1.023e6) == (1, 1) and plan("auto", 4.092e6, 1.023e6) == (1, 1)
+    with pytest.raises(UserError, match="resample the recording"):
+        plan("auto", 2046100.3, 1.023e6)                           # 20461003 / 10: no small ratio
+
+
+def test_acquisition_at_a_rate_that_is_not_whole_samples_per_ms():
+    """2.0461 MS/s complex samples (2046.1 per ms) through the stage `auto` plans: the satellite is found
+    at its Doppler and code phase (before the stage, acquisition cannot fold code periods)."""
+    from receiver.acquisition import search
+    from synth import make_signal
+    fs = 2.0461e6
+    x = make_signal([dict(prn=9, doppler_hz=-1730.0, code_phase_chips=400.25, cn0_dbhz=44.0)], fs, 0.25,
+                    seed=3).astype(np.complex64)
+    d = DecimatingReader(ArrayReader(x, fs, real=False), *plan("auto", fs, 1.023e6), 0.0, 1.023e6)
+    y = d.read(d.first, int(0.2 * d.fs))
+    r = search(y, d.first, d.fs, 0.0, [9, 10])
+    assert r[0].detected and not r[1].detected
+    assert abs(r[0].doppler_hz + 1730.0) < 20.0
+    # the code phase at the stream's first sample (time 0) is the simulated one
+    assert abs((r[0].code_phase_chips - 400.25 + 511.5) % 1023 - 511.5) < 0.5

@@ -88,29 +88,65 @@ def _ratio(fs_out: float, fs_in: float):
     return f.numerator, f.denominator
 
 
+def _whole_ms(fs: float) -> bool:
+    """fs is a whole number of samples per millisecond (what acquisition needs: it folds code periods)."""
+    return abs(fs * 1e-3 - round(fs * 1e-3)) <= 1e-6
+
+
+def _whole_ms_ratio(fs_in: float, k_lo: int, k_hi: int):
+    """(L, M), both <= MAX_L, taking fs_in exactly to the lowest rate of k_lo..k_hi whole samples per
+    millisecond (k kHz); None when there is none.  A rate like 16.3676 MS/s (16367.6 samples per ms) reaches
+    no round rate with small integers but e.g. 4.233 MS/s = 15/58 of it."""
+    f_in = Fraction(repr(float(fs_in)))
+    for k in range(max(1, k_lo), k_hi + 1):
+        f = Fraction(1000 * k) / f_in
+        if f.numerator <= MAX_L and f.denominator <= MAX_L:
+            return f.numerator, f.denominator
+    return None
+
+
 def plan(setting, fs_in: float, chip_rate: float):
     """``input.decimate`` ('auto' or an integer N >= 1) -> (L, M): the stream runs at fs_in L / M;
-    (1, 1) = no stage.  UserError when N would cut into the signal's band."""
+    (1, 1) = no stage.  UserError when N would cut into the signal's band, or when the stream's rate would
+    not be a whole number of samples per millisecond (acquisition folds whole code periods): ``auto``
+    resamples such a rate to a whole one (the lowest it reaches with L, M <= MAX_L)."""
     edge = chip_rate + EDGE_HZ
     if setting in (None, "auto"):
         target = math.ceil(AUTO_CHIPS * chip_rate / 1e6) * 1e6
-        if fs_in < AUTO_MIN_RATIO * target:
-            return 1, 1
-        lm = _ratio(target, fs_in)
-        if lm is None:                        # no exact ratio: the largest integer decimation that fits
+        if fs_in >= AUTO_MIN_RATIO * target:
+            lm = _ratio(target, fs_in)
+            if lm is not None:
+                return lm
+            # no exact ratio: the largest integer decimation that fits
             n = max(1, int(fs_in // target))
-            while n > 1 and abs(fs_in / n * 1e-3 - round(fs_in / n * 1e-3)) > 1e-6:
+            while n > 1 and not _whole_ms(fs_in / n):
                 n -= 1
-            return 1, n
+            if n > 1:
+                return 1, n
+            # none either: the lowest whole rate from the target up that a ratio of small integers reaches
+            lm = _whole_ms_ratio(fs_in, math.ceil(target * 1e-3), math.ceil(1.5 * target * 1e-3))
+            if lm is not None:
+                return lm
+        if _whole_ms(fs_in):
+            return 1, 1
+        # a low rate that is not a whole number of samples per millisecond: resampled (slightly up) to a
+        # whole one, the signal's band kept
+        lm = _whole_ms_ratio(fs_in, math.ceil(fs_in * 1e-3), math.ceil(1.25 * fs_in * 1e-3))
+        if lm is None:
+            raise UserError(f"input sample rate {fs_in:g} Hz is not a whole number of samples per millisecond "
+                            f"(acquisition needs that) and no resampling ratio with integers <= {MAX_L} "
+                            f"reaches one within +25 %: resample the recording")
         return lm
     n = setting
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise UserError(f"config key 'input.decimate' must be auto or an integer >= 1, got {setting!r}")
+    if n == 1 and not _whole_ms(fs_in):
+        raise UserError(f"config key 'input.decimate' = 1: the input's {fs_in / 1e6:g} MS/s is not a whole "
+                        f"number of samples per millisecond, which acquisition needs (use auto: it resamples)")
     if n > 1 and fs_in / n < 2.1 * edge:
         raise UserError(f"config key 'input.decimate' = {n}: {fs_in / n / 1e6:g} MS/s cannot hold the signal's "
                         f"+/-{edge / 1e6:g} MHz (largest factor {max(1, int(fs_in // (2.1 * edge)))})")
-    per_ms = fs_in / n * 1e-3
-    if n > 1 and abs(per_ms - round(per_ms)) > 1e-6:
+    if n > 1 and not _whole_ms(fs_in / n):
         raise UserError(f"config key 'input.decimate' = {n}: {fs_in / n / 1e6:g} MS/s is not a whole number of "
                         f"samples per millisecond, which acquisition needs (use auto)")
     return 1, n
@@ -124,6 +160,10 @@ def design(fs_in: float, l: int, m: int, chip_rate: float, stop_db: float = STOP
     edge = chip_rate + EDGE_HZ
     fstop = min(max(fs_out - edge, edge * 1.05), fs_in / 2)     # folds onto |f| > edge only
     fp = min(max(edge, PASS_FRACTION * fs_out), 0.5 * (edge + fstop) + 0.4 * (fstop - edge))
+    if fp >= 0.95 * fstop:
+        # a recording narrower than the signal's band (e.g. 2.0461 MS/s I/Q resampled to a whole rate):
+        # keep 90 % of what it holds
+        fp = 0.9 * fstop
     width = (fstop - fp) / (fs_in / 2)
     # Kaiser's design formulas (no scipy.signal import: ~1 s of start-up): length for the attenuation and
     # transition width, window shape beta, windowed-sinc low-pass cut at the middle of the transition
