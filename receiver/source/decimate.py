@@ -80,14 +80,6 @@ def phase_grid(fs: float, chip_rate: float, max_den: int = 100000) -> int:
     return Fraction(fs / chip_rate).limit_denominator(max_den).numerator
 
 
-def _ratio(fs_out: float, fs_in: float):
-    """(L, M) with fs_in L / M == fs_out exactly (to 1e-9 relative), L <= MAX_L; None when there is none."""
-    f = Fraction(fs_out / fs_in).limit_denominator(MAX_L)
-    if f.numerator == 0 or abs(fs_in * f.numerator / f.denominator - fs_out) > 1e-9 * fs_out:
-        return None
-    return f.numerator, f.denominator
-
-
 def _whole_ms(fs: float) -> bool:
     """fs is a whole number of samples per millisecond (what acquisition needs: it folds code periods)."""
     return abs(fs * 1e-3 - round(fs * 1e-3)) <= 1e-6
@@ -114,7 +106,8 @@ def plan(setting, fs_in: float, chip_rate: float):
     if setting in (None, "auto"):
         target = math.ceil(AUTO_CHIPS * chip_rate / 1e6) * 1e6
         if fs_in >= AUTO_MIN_RATIO * target:
-            lm = _ratio(target, fs_in)
+            k = round(target * 1e-3)
+            lm = _whole_ms_ratio(fs_in, k, k)              # exactly the target
             if lm is not None:
                 return lm
             # no exact ratio: the largest integer decimation that fits
