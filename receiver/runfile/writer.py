@@ -403,14 +403,19 @@ class RunWriter:
         cols = [(name, np.ascontiguousarray(records[name]), rounded.get(name)) for name in EPOCH_DTYPE.names]
         return prn, cols, self._direct_columns(*self._groups.get(prn, (None, None)), cols)
 
-    def _write_channel(self, prn: int, cols, pre: dict):
-        g, cache = self._groups.get(prn, (None, None))
-        if g is None:
+    def _channel_group(self, prn: int):
+        """(group, dataset cache) of prn's /channels group, created (with its prn / state_mapping
+        attributes) on first use."""
+        hit = self._groups.get(prn)
+        if hit is None:
             g = self.f["channels"].require_group(sat_label(prn, self.system))
             if "prn" not in g.attrs:
                 _set_attrs(g, {"prn": prn, "state_mapping": STATE_MAPPING})
-            cache = {}
-            self._groups[prn] = (g, cache)
+            hit = self._groups[prn] = (g, {})
+        return hit
+
+    def _write_channel(self, prn: int, cols, pre: dict):
+        g, cache = self._channel_group(prn)
         for name, col, digits in cols:
             _append(g, name, col, self.compression, digits, rows=self.chunk_rows, cache=cache,
                     chunks=pre.get(name))
@@ -479,10 +484,7 @@ class RunWriter:
 
     def _write_stats(self):
         for prn, st in self._stats.items():
-            g = self._groups.get(prn, (None,))[0] or self.f["channels"].require_group(sat_label(prn, self.system))
-            if "prn" not in g.attrs:
-                _set_attrs(g, {"prn": prn, "state_mapping": STATE_MAPPING})
-            _set_attrs(g, st.attrs())
+            _set_attrs(self._channel_group(prn)[0], st.attrs())
 
     # ------------------------------------------------------------------ navigation
     def _append_table(self, group: str, rows: np.ndarray):
