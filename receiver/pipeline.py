@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .acquisition import _has_energy, reject_cross_correlations, search, verify
+from .acquisition.code_search import _has_energy, reject_cross_correlations, search, verify
 from . import interrupt, threads
 from .stagetimes import stage
 from .errors import UserError, warn
@@ -167,7 +167,7 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
     found, search the others again over +/- acquisition.lo_search_hz; when fewer than
     acquisition.high_sensitivity.min_found, search them with the high-sensitivity pass
-    (receiver/acquisition_hs.py).  ``sensitive``: run that pass on the PRNs not found whatever the count
+    (receiver/acquisition/high_sensitivity.py).  ``sensitive``: run that pass on the PRNs not found whatever the count
     (cold searches while few channels track; ``known_hz``: their Dopplers narrow its range).  Lines for
     the user are appended to ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched
     instead of the configured +/- acquisition.doppler_max_hz (the channel manager's cold searches once a
@@ -218,7 +218,7 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     hs = a.high_sensitivity
     if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and _has_energy(block) and \
             (sensitive or (widen and sum(r.detected for r in res) < hs.min_found)):       # GPS L1 C/A
-        from .acquisition_hs import second_pass
+        from .acquisition.high_sensitivity import second_pass
         res, line = second_pass(a, reader, start, if_hz, res, sig, known_hz, centre)
         if line and widen:
             notes.append(line)

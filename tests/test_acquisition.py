@@ -212,7 +212,7 @@ def test_b1i_hot_search_doppler_free_of_symbol_sign_changes():
     predicted Doppler, keep every GEO and NH satellite within 15 Hz at 45 dB-Hz and 40 Hz at 38 dB-Hz
     (30 trials: RMS 2.7 / 11.8 Hz; they were 40-350 Hz off); GPS keeps the plain phase advance."""
     from receiver.gnss.signals_bds import BDS_B1I
-    from receiver.tracking.reacq import narrow_search
+    from receiver.acquisition.reacquisition import narrow_search
     fs = 4.0e6
     sats = [{"prn": 1, "doppler_hz": -779.0, "code_phase_chips": 1661.3, "cn0_dbhz": 45},
             {"prn": 8, "doppler_hz": -410.0, "code_phase_chips": 1716.3, "cn0_dbhz": 45},

@@ -115,7 +115,7 @@ def test_cold_search_window_before_a_fix_covers_every_satellite(tokyo_run):
 def test_segmented_line_powers_equal_the_direct_dft(fs, block_ms, n_blocks, bin_hz):
     """The fine Doppler's line powers by segment moments (Taylor series within a segment) equal the direct
     DFT at the lines to rounding."""
-    from receiver.acquisition import _line_powers, _line_powers_direct
+    from receiver.acquisition.code_search import _line_powers, _line_powers_direct
     rng = np.random.default_rng(11)
     n = int(round(block_ms * 1e-3 * fs))
     nfft = 1 << int(np.ceil(np.log2(n * 8)))
@@ -130,11 +130,11 @@ def test_segmented_line_powers_equal_the_direct_dft(fs, block_ms, n_blocks, bin_
 
 
 def test_high_sensitivity_block_powers_equal_the_numpy_formulation():
-    """acquisition_hs._BlockSpectra.powers (compiled gather / shifted power sum) gives bit for bit the
+    """acquisition.high_sensitivity._BlockSpectra.powers (compiled gather / shifted power sum) gives bit for bit the
     block sums of the numpy formulation it replaced (fancy-index gather, square, take_along_axis, add)."""
     import scipy.fft as sfft
 
-    from receiver.acquisition_hs import _BlockSpectra, _code_fft
+    from receiver.acquisition.high_sensitivity import _BlockSpectra, _code_fft
     fs, m, k = FS, 10, 20
     x = make_signal([dict(prn=5, doppler_hz=4345.0, code_phase_chips=300.0, cn0_dbhz=38.0)], fs, 0.2,
                     seed=4).astype(np.complex64)
@@ -163,7 +163,7 @@ def test_search_power_equals_the_gathered_formulation(m, k, centre_hz, step_hz):
     """The fast search's power grid (code spectrum shifted per Doppler row, block spectra used as they
     are) equals the formulation where each Doppler row gathers its lines of the block spectrum, to float32
     rounding, with the same peak cell in every row; and the signal is found where it was put."""
-    from receiver.acquisition import _code_fft, _Spectra
+    from receiver.acquisition.code_search import _code_fft, _Spectra
     fs = FS
     x = make_signal([dict(prn=12, doppler_hz=centre_hz + 1510.0, code_phase_chips=512.3, cn0_dbhz=45.0)], fs,
                     m * k * 1e-3 + 0.001, seed=2).astype(np.complex64)
@@ -191,7 +191,7 @@ def test_verification_power_equals_the_search_power(m, k):
     """The verification dwell's power (each block's carrier wiped off at the bin, folded onto one code
     period, one FFT of a period) equals the search's (every m-th line of the block spectrum) at off-grid
     Dopplers, to float32 rounding."""
-    from receiver.acquisition import _code_fft, _folded_power, _Spectra
+    from receiver.acquisition.code_search import _code_fft, _folded_power, _Spectra
     x = make_signal([dict(prn=7, doppler_hz=-2233.3, code_phase_chips=100.7, cn0_dbhz=42.0)], FS,
                     m * k * 1e-3 + 0.001, seed=5).astype(np.complex64)
     dopplers = -2233.3 + np.array([-1.0, 0.0, 1.0]) / (2 * m * 1e-3) + 37.0
@@ -207,7 +207,7 @@ def test_verification_power_equals_the_search_power(m, k):
 def test_code_wipe_equals_the_sampled_code(phase, ratio):
     """The fine Doppler's compiled code wipe-off (running code-length offset instead of a modulo per
     sample) multiplies every sample by the chip numpy's sample_code picks, across code-period ends."""
-    from receiver.acquisition import _code_wipe
+    from receiver.acquisition.code_search import _code_wipe
     rng = np.random.default_rng(1)
     x = (rng.normal(size=30000) + 1j * rng.normal(size=30000)).astype(np.complex64)
     code = GPS_L1CA.code(5)

@@ -46,8 +46,8 @@ def b1i_false_lock(tmp_path_factory):
     phase differences (its squared form off): C32 (MEO, 45 dB-Hz, NH code) is acquired 98 Hz off and its
     5-ms carrier loop settles at +100 Hz = 1/(2 T) from the truth while the DLL keeps the code on C32
     (code-minus-carrier -19 m/s); 4 GEO satellites give the common code-minus-carrier rate."""
-    import receiver.acquisition as acq
-    import receiver.tracking.reacq as reacq
+    import receiver.acquisition.code_search as acq
+    import receiver.acquisition.reacquisition as reacq
 
     class _SignsIgnored:                       # the signal as the former hot-search Doppler saw it
         def __init__(self, sig):

@@ -70,7 +70,7 @@ def _fix_errors(run_h5, truth):
 def test_narrow_search_finds_the_signal_in_its_window_only():
     x = make_signal([{"prn": 7, "doppler_hz": 1234.0, "code_phase_chips": 345.6, "cn0_dbhz": 40}],
                     duration_s=0.03, seed=1)
-    from receiver.tracking.reacq import narrow_search
+    from receiver.acquisition.reacquisition import narrow_search
     r = narrow_search(x, 0, 2.6e6, 0.0, 7, 1200.0, 100.0, 344.5, 2.0)
     assert r is not None
     assert abs(r.doppler_hz - 1234.0) < 10.0

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from .estimation.stats import gamma_isf, gamma_median, median_last_axis
+from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
 
-from .gnss.signals import GPS_L1CA, sample_code
-from .runfile.record import ACQ_REASONS
-from .threads import map_ordered, threads
+from ..gnss.signals import GPS_L1CA, sample_code
+from ..runfile.record import ACQ_REASONS
+from ..threads import map_ordered, threads
 
 
 @dataclass

@@ -9,7 +9,7 @@ A detected peak is refined: the code phase by a triangle through the peak and it
 from the phase advance of 1-ms prompt correlations at that code phase over the whole search block (data-bit
 flips cost 1 product in 20).
 
-``narrow_search(...) -> HotResult | None``; conventions as receiver.acquisition.search (carrier wipe-off
+``narrow_search(...) -> HotResult | None``; conventions as receiver.acquisition.code_search (carrier wipe-off
 exp(-j 2 pi (IF + Doppler) t), code phase of the signal at the block's first sample, chips).
 """
 from __future__ import annotations

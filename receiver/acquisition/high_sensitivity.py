@@ -26,11 +26,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from .estimation.stats import gamma_isf, gamma_median, median_last_axis
-from .acquisition import (AcqResult, _Spectra, _add_power_shifted, _gather, cross_correlation_image,
+from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
+from .code_search import (AcqResult, _Spectra, _add_power_shifted, _gather, cross_correlation_image,
                           verify_columns)
-from .gnss.signals import GPS_L1CA, sample_code
-from .threads import map_ordered, threads
+from ..gnss.signals import GPS_L1CA, sample_code
+from ..threads import map_ordered, threads
 
 N_STATS = 3         # all blocks, even blocks, odd blocks
 
