@@ -125,7 +125,8 @@ def test_lo_offset_widens_the_search_and_warns(tmp_path):
     """A front end whose LO is 20 kHz off puts every satellite outside +/-10 kHz: fewer than 4 found, the
     search widens to +/-25 kHz, finds them and the common offset is reported."""
     from receiver.config import load_receiver_config
-    from receiver.pipeline import acquire, open_input
+    from receiver.acquisition.stage import acquire
+    from receiver.pipeline import open_input
     dops = {3: 18500.0, 8: 21300.0, 14: 19800.0, 22: 23100.0}
     sats = [dict(prn=p, doppler_hz=d, code_phase_chips=37.0 * p, cn0_dbhz=45.0) for p, d in dops.items()]
     _write_int8(tmp_path / "lo.bin", make_signal(sats, FS, 0.08, seed=13))

@@ -83,7 +83,8 @@ def test_simulator_writes_the_tag_and_run_equals_explicit(rec):
 def test_int8x2_q_sign_is_undone(rec):
     """A PocketSDR INT8X2 file stores -Q: with its tag the receiver swaps I and Q (a spectral inversion
     back, up to a constant phase) and finds the satellites at the Doppler of the original file."""
-    from receiver.pipeline import acquire, open_input
+    from receiver.acquisition.stage import acquire
+    from receiver.pipeline import open_input
     d, paths = rec
     raw = np.fromfile(paths["if"], np.int8).copy()
     raw[1::2] = -np.maximum(raw[1::2], -127)

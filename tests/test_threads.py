@@ -101,7 +101,7 @@ def test_background_writer_keeps_the_order_and_reports_write_errors():
     import numpy as np
 
     from receiver.errors import UserError
-    from receiver.pipeline import BackgroundWriter
+    from receiver.runfile.background import BackgroundWriter
 
     class Fake:
         def __init__(self):
@@ -146,14 +146,15 @@ def test_background_writer_keeps_the_order_and_reports_write_errors():
 
 
 def test_read_ahead_gives_the_samples_of_plain_reads():
-    """pipeline.PrefetchingReader: chunks read ahead (conditioning state copied) equal plain sequential
+    """source.prefetch.PrefetchingReader: chunks read ahead (conditioning state copied) equal plain sequential
     reads, also when another read (a search elsewhere) comes in between and the read-ahead is discarded."""
     if not TOKYO_REC.exists():
         pytest.skip("../shared/data reference recording absent")
     import numpy as np
 
     from receiver.config import load_receiver_config
-    from receiver.pipeline import PrefetchingReader, open_input
+    from receiver.pipeline import open_input
+    from receiver.source.prefetch import PrefetchingReader
     cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml", [("input.path", str(TOKYO_REC))])
     plain, ahead = open_input(cfg), PrefetchingReader(open_input(cfg))
     assert ahead._ok and hasattr(ahead._r, "canceller")          # the conditioning stage is outermost
@@ -177,7 +178,7 @@ def test_background_writer_queues_acquisition_tables_from_a_snapshot():
     import numpy as np
 
     from receiver.acquisition import AcqResult
-    from receiver.pipeline import BackgroundWriter
+    from receiver.runfile.background import BackgroundWriter
 
     gate = threading.Event()
 
