@@ -466,7 +466,7 @@ def _line_powers(y: np.ndarray, f0: float, ks: np.ndarray, nfft: int) -> np.ndar
     x exp(-2 pi i r k / nfft), the second factor as its Taylor series in r / D (D such that the argument
     stays within 0.02 rad: 8 terms are exact to rounding).  Per block the moments M_p[q] = sum_r z[qD + r]
     (r / D)^p (one matrix product), then X_k = sum_p (-2 pi i k D / nfft)^p / p! sum_q exp(-2 pi i q D k /
-    nfft) M_p[q] (a second).  The same values to ~1e-15 relative (tests/test_acquisition_cost.py).  Few
+    nfft) M_p[q] (a second).  The same values to ~1e-15 relative (tests/unit/acquisition/test_acquisition_cost.py).  Few
     lines or short segments (wide bins, short blocks): the direct DFT, which is then as cheap."""
     b, n = y.shape
     kk = max(1, int(np.max(np.abs(ks))))
