@@ -17,14 +17,14 @@ venv: $(VENV)/.installed
 	@$(PY) -m compileall -q receiver > /dev/null
 
 demo: venv
-	$(PY) scripts/demo.py
+	$(PY) scripts/tools/demo.py
 
 test: venv
 	$(PY) -m pytest -q -n auto --dist loadfile
 
 bench: venv
-	$(PY) scripts/bench_tracking.py
-	$(PY) scripts/bench_simulate.py
+	$(PY) scripts/bench/bench_tracking.py
+	$(PY) scripts/bench/bench_simulate.py
 
 # Figure runs: FIGJOBS = runs / processes at a time (vector batch -j, carrier --jobs; the LEO Monte Carlo is one
 # process); FIGDIR = tables and figures; FIGDATA = the vector batch cache (recordings, run files): a second run
@@ -34,25 +34,25 @@ FIGDIR ?= figures
 FIGDATA ?= out/vector
 
 figures: figures-leo figures-vector figures-carrier
-	$(PY) scripts/figures_index.py $(FIGDIR)
+	$(PY) scripts/figures/figures_index.py $(FIGDIR)
 
 figures-leo: venv
-	$(PY) scripts/figures_leo.py --out $(FIGDIR)/leo $(FIGLEO_ARGS)
+	$(PY) scripts/figures/figures_leo.py --out $(FIGDIR)/leo $(FIGLEO_ARGS)
 
 figures-vector: venv
-	$(PY) scripts/figures_vector.py --out $(FIGDIR)/vector --data $(FIGDATA) -j $(FIGJOBS) $(FIGVECTOR_ARGS)
+	$(PY) scripts/figures/figures_vector.py --out $(FIGDIR)/vector --data $(FIGDATA) -j $(FIGJOBS) $(FIGVECTOR_ARGS)
 
 figures-carrier: venv
-	$(PY) scripts/figures_carrier.py --out $(FIGDIR)/carrier --jobs $(FIGJOBS) $(FIGCARRIER_ARGS)
+	$(PY) scripts/figures/figures_carrier.py --out $(FIGDIR)/carrier --jobs $(FIGJOBS) $(FIGCARRIER_ARGS)
 
 # compare two figure directories (e.g. two FIGDIRs made with different FIGJOBS) within the stated intervals
 figures-compare: venv
-	$(PY) scripts/figures_compare.py $(A) $(B)
+	$(PY) scripts/figures/figures_compare.py $(A) $(B)
 
 # a cheap seeded subset of the three figure scripts against configs/figures_reference.json (a few minutes;
 # not part of `make test`); FIGCHECK_ARGS='--set tracking.carrier.ekf.bn_hz=12' shows it failing
 figures-check: venv
-	$(PY) scripts/figures_check.py -j $(FIGJOBS) $(FIGCHECK_ARGS)
+	$(PY) scripts/figures/figures_check.py -j $(FIGJOBS) $(FIGCHECK_ARGS)
 
 batch-full: venv
 	$(VENV)/bin/gnssrx batch configs/batch/full.yaml
@@ -60,7 +60,7 @@ batch-full: venv
 
 batch-outages: venv
 	$(VENV)/bin/gnssrx batch configs/batch/outages.yaml
-	$(PY) scripts/outage_table.py out/batch/outages/summary.h5 --out out/batch/outages/acceptance.md
+	$(PY) scripts/tools/outage_table.py out/batch/outages/summary.h5 --out out/batch/outages/acceptance.md
 
 clean:
 	rm -rf out figures .pytest_cache

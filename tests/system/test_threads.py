@@ -1,7 +1,7 @@
 """Parallel tracking (receiver/threads.py): the run file does not depend on the thread count.
 
 Two runs of the first seconds of the reference recording (assisted: fixes within ~2 s), one thread and
-two threads, compared bit for bit with scripts/compare_runs.py (every dataset and attribute except the
+two threads, compared bit for bit with scripts/tools/compare_runs.py (every dataset and attribute except the
 wall-clock ones)."""
 import sys
 
@@ -72,8 +72,7 @@ def test_run_files_are_bit_identical_whatever_the_thread_count(tmp_path, variant
         pytest.skip("../shared/data reference recording absent")
     from receiver.config import load_receiver_config
     from receiver.pipeline import run
-    sys.path.insert(0, str(ROOT / "scripts"))
-    from compare_runs import compare_h5
+    from receiver.runfile.compare import compare_h5
     out = {}
     for n in (1, 2):
         threads.set_threads(n)
