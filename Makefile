@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
+.PHONY: venv demo test test-fast lint bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,13 @@ demo: venv
 
 test: venv
 	$(PY) -m pytest -q -n auto --dist loadfile
+
+# the fast lane (< 1 min): everything not marked slow
+test-fast: venv
+	$(PY) -m pytest -q -n auto --dist loadfile -m "not slow"
+
+lint: venv
+	$(VENV)/bin/ruff check .
 
 bench: venv
 	$(PY) scripts/bench/bench_tracking.py

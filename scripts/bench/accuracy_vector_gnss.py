@@ -1,8 +1,10 @@
 """Scalar vs vector tracking on BeiDou B1I, GPS + BeiDou and GPS + QZSS recordings (README "Vector loops on
 every system").
 
-    PYTHONPATH=. python scripts/bench/accuracy_vector_gnss.py OUTDIR            # 25 s, every satellite in view, handover 10 s
-    PYTHONPATH=. python scripts/bench/accuracy_vector_gnss.py OUTDIR --short    # tests/system/test_vector_gnss.py's 7-s scenarios
+    PYTHONPATH=. python scripts/bench/accuracy_vector_gnss.py OUTDIR            # 25 s, every satellite in view,
+    handover 10 s
+    PYTHONPATH=. python scripts/bench/accuracy_vector_gnss.py OUTDIR --short    # tests/system/test_vector_gnss.py's
+    7-s scenarios
 
 Simulates (45 dB-Hz, static Tokyo, 5 MS/s complex baseband, one file per signal recorded at the same instant;
 QZSS case: 42 dB-Hz, 2.6 MS/s), writes the simulator's ephemerides as RINEX (assisted mode, mixed file for

@@ -127,7 +127,8 @@ def main():
         rows.append(r)
         if suffix and not a.keep:
             Path(f"{stem}.bin").unlink()
-        print(f"{a.scenario}{suffix} seed {seed} [{a.tag}]: acquired {len(r['acquired'])}/{len(r['above15'])} above 15 deg "
+        print(f"{a.scenario}{suffix} seed {seed} [{a.tag}]: "
+              f"acquired {len(r['acquired'])}/{len(r['above15'])} above 15 deg "
               f"(tracked {len(r['tracked_above15'])}), first fix {r['ttff_s']}, fixes {r['n_fixes']} "
               f"(availability {r['availability']:.2f}), 3D RMS {r['rms3d_m']}, mean sats {r['n_sats_mean']}",
               flush=True)

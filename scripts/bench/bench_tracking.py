@@ -6,8 +6,8 @@ Uses the third-party recording (../shared/data/gpssim_static_tokyo.bin) when pre
 the channels' epoch loop (correlators, discriminators, loop filters) is timed, first on one thread and
 then on all cores (channels in parallel, as ``gnssrx run`` does); "per CPU second" is the one-core figure.
 
-    python scripts/bench/bench_tracking.py [--seconds 20] [--channels 8] [--carrier pll|cpll_atan|ekf|pli_ekf|kf|adaptive_kf]
-           [--threads 1,2] [--python-loop]
+    python scripts/bench/bench_tracking.py [--seconds 20] [--channels 8]
+           [--carrier pll|cpll_atan|ekf|pli_ekf|kf|adaptive_kf] [--threads 1,2] [--python-loop]
 """
 import argparse
 import os

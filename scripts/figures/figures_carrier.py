@@ -15,7 +15,8 @@ simulator + receiver runs in tests/system/test_carrier_corrsim.py):
     at T = 1, 5, 10, 20 ms (data wiped off); tracking threshold = true C/N0 at the end of the last 1 s
     window in lock (Costas-folded phase-error std < 30 deg).
 Runs: receiver.evaluate.corrloop.run (all epochs in one numba function with the loops' compiled
-twins); --engine python runs the numpy + Python-loop reference path receiver.sim.corrsim.run (the same numbers: tests/unit/tracking/test_corrsim_compiled.py).
+twins); --engine python runs the numpy + Python-loop reference path receiver.sim.corrsim.run (the same numbers:
+tests/unit/tracking/test_corrsim_compiled.py).
 Outputs in --out: fig1_theory.png, fig2_pli.png, fig4_cn0_phase.png, fig5_phase_std.png, fig6_loss_of_lock.png,
 fig_weak_threshold.png, carrier.h5 (all numbers), table.md, carrier_results.json (the table's numbers per seed).
 """
@@ -163,8 +164,9 @@ def main(argv=None):
                                                    "sweep (default: 1,5,10,20)")
     ap.add_argument("--set", dest="sets", action="append", default=[],
                     help="receiver override key=value applied to every loop (e.g. a perturbed loop parameter)")
-    ap.add_argument("--json", default=None, help="the table's numbers (mean, CI, per seed; default: "
-                                                 "OUT/carrier_results.json, read by scripts/figures/figures_compare.py)")
+    ap.add_argument("--json", default=None,
+                    help="the table's numbers (mean, CI, per seed; default: "
+                         "OUT/carrier_results.json, read by scripts/figures/figures_compare.py)")
     ap.add_argument("--duration", type=float, default=None, help="seconds per scintillation run "
                                                                  "(default 120, FULL=1: 600)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
@@ -296,7 +298,8 @@ def main(argv=None):
             fig, ax = plt.subplots(figsize=(8, 4))
             for j, name in enumerate(SCINT_LOOPS):
                 m = [ci95(data[i, j]) for i in range(nS)]
-                ax.bar(x + (j - (nL - 1) / 2) * 0.2, [a for a, _ in m], 0.2, yerr=[b for _, b in m], capsize=3, label=name)
+                ax.bar(x + (j - (nL - 1) / 2) * 0.2, [a for a, _ in m], 0.2, yerr=[b for _, b in m], capsize=3,
+                       label=name)
             ax.set_xticks(x)
             ax.set_xticklabels([f"({a}, {b})" for a, b in SCENARIOS])
             ax.set_xlabel("(S4, sigma_phi)")

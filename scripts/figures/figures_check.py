@@ -76,7 +76,8 @@ def _carrier(py, tmp, sets, jobs, log, out, engine="compiled"):
 
 def _leo(py, tmp, log, out):
     lj = os.path.join(tmp, "leo.json")
-    run([py, os.path.join(ROOT, "scripts", "figures", "figures_leo.py"), "--out", os.path.join(tmp, "leo"), "--runs", "40",
+    run([py, os.path.join(ROOT, "scripts", "figures", "figures_leo.py"), "--out", os.path.join(tmp, "leo"),
+         "--runs", "40",
          "--seeds", "2", "--sens-runs", "0", "--skip-figures", "--quiet", "--json", lj], log)
     with open(lj) as fh:
         lb = json.load(fh)["blocks"]
@@ -149,8 +150,8 @@ def main(argv=None):
         measured = measure(tmp, args.sets, args.jobs, log, parts, args.carrier_engine)
     wall = time.perf_counter() - t0
     if args.update:
-        doc = {"about": "reference numbers of `make figures-check` (scripts/figures/figures_check.py): value and tolerance "
-                        "|measured - value| <= max(tol_abs, tol_rel * |value|)",
+        doc = {"about": "reference numbers of `make figures-check` (scripts/figures/figures_check.py): value "
+                        "and tolerance |measured - value| <= max(tol_abs, tol_rel * |value|)",
                "tolerance_classes": {k: {"abs": a, "rel": r} for k, (a, r) in TOL.items()},
                "values": {k: {"value": v, "tol_abs": TOL[c][0], "tol_rel": TOL[c][1], "class": c}
                           for k, (v, c) in sorted(measured.items())}}

@@ -558,8 +558,9 @@ def write_h5(path, mc, met, sens, div, t_s, over, args, blocks_met=()):
 @click.option("--seeds", default=5, show_default=True,
               help="seed blocks: the --runs runs are split into this many blocks of runs/seeds runs, each from its "
                    "own seed; the tables give mean ± 95 % interval over the blocks")
-@click.option("--json", "json_out", default=None, help="the table numbers per block (default: OUT/leo_results.json, read by "
-                                                          "scripts/figures/figures_compare.py)")
+@click.option("--json", "json_out", default=None,
+              help="the table numbers per block (default: OUT/leo_results.json, read by "
+                   "scripts/figures/figures_compare.py)")
 @click.option("--skip-figures", is_flag=True, help="numbers only (figures-check)")
 @click.option("--quiet", is_flag=True, help="no progress bars")
 def main(out, runs, sens_runs, noise_hz, seed, seeds, json_out, skip_figures, quiet):

@@ -24,7 +24,6 @@ from click.testing import CliRunner
 
 from receiver.cli import main
 from receiver.config import load_receiver_config
-from receiver.errors import UserError
 
 from repo_paths import ROOT
 SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"

@@ -8,7 +8,7 @@ import pytest
 from receiver.config import load_receiver_config
 from receiver.gnss.registry import get_signal
 from receiver.gnss.signals import C_LIGHT
-from receiver.navigation.engine import ChannelNav
+from receiver.navigation.channel import ChannelNav
 from receiver.pipeline import run
 from receiver.runfile.record import EPOCH_DTYPE, STATE_BIT_SYNC
 from receiver.sim.simulate import simulate

@@ -2,7 +2,6 @@
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 from repo_paths import SCRIPTS
 SCRIPT = SCRIPTS / "figures" / "figures_index.py"

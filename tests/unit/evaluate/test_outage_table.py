@@ -1,7 +1,6 @@
 """scripts/tools/outage_table.py: acceptance verdicts of issue 14 from batch summary rows."""
 import importlib.util
 import math
-from pathlib import Path
 
 import pytest
 

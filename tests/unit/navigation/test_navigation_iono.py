@@ -2,7 +2,6 @@
 fallback set while no broadcast set is known, the broadcast set from the moment a channel decodes subframe 4
 page 18.  Measurements: synthetic pseudoranges from the real broadcast orbits of brdc0010.22n, delayed by an
 ionosphere that is NOT the fallback set's (the nominal constellation's Klobuchar set, another day's)."""
-from pathlib import Path
 
 import numpy as np
 import pytest

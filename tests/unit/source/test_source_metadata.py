@@ -1,7 +1,6 @@
 """SigMF metadata beside a recording: written by the simulator, read by the receiver; a run with no input
 keys equals the run with the explicit input section; disagreeing explicit keys are one-line errors."""
 import json
-import sys
 from pathlib import Path
 
 import pytest

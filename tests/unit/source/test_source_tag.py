@@ -2,7 +2,6 @@
 the simulator writing one, a run with no input keys equal to the explicit one, and INT8X2's opposite Q
 sign undone by iq_swap (the satellites are found at their Doppler)."""
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
