@@ -35,9 +35,6 @@ from .gnss.registry import get_signal
 from .gnss.satid import MIXED, sat_key, sat_label
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
-from . import _numba_start
-
-_numba_start.prepare()          # numba's first cache load without importing scipy.linalg (receiver/_numba_start.py)
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03

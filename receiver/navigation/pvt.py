@@ -1,4 +1,4 @@
-"""Single-point positioning: iterative weighted least squares on L1 C/A pseudoranges,
+"""Single-point positioning: iterative weighted least squares on code pseudoranges (GPS, QZSS, BeiDou),
 velocity and clock drift from Doppler.
 
 Measurement model (all in metres):

@@ -20,7 +20,7 @@ import click
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a scenario key")
 @click.option("--quiet", "-q", is_flag=True, help="no progress bar or summary")
 def simulate(scenario, out, sets, quiet):
-    """Simulate a GPS L1 C/A IF recording with truth from a SCENARIO YAML file."""
+    """Simulate an IF recording (GPS L1 C/A, QZSS, BeiDou B1I) with truth from a SCENARIO YAML file."""
     from .simulate import simulate as run_sim
     if out is None:
         out = os.path.splitext(os.path.basename(scenario))[0] + ".bin"

@@ -1,4 +1,4 @@
-"""Truth-tagged GPS L1 C/A IF simulator: ``simulate(scenario, out_path)``.
+"""Truth-tagged IF simulator (GPS L1 C/A, QZSS, BeiDou B1I): ``simulate(scenario, out_path)``.
 
 Time conventions (see also the README of the simulator and the truth file attributes)
 -----------------------------------------------------------------------------------
@@ -11,7 +11,7 @@ Time conventions (see also the README of the simulator and the truth file attrib
   ``c tau = |r_rx(t) - R_z(omega_e tau) r_sat(t - tau)| + I + T`` (Sagnac by rotating the satellite into
   the ECEF frame at reception; I, T ionospheric and tropospheric group delays, metres).  The code it
   carries is the satellite clock time ``t - tau + dt_sv`` (dt_sv: af0.. + relativistic - TGD, as
-  :func:`receiver.nav.ephemeris.sat_state`).  The carrier arrives with the ionosphere ADVANCED:
+  :func:`receiver.gnss.ephemeris.sat_state`).  The carrier arrives with the ionosphere ADVANCED:
   its phase is that of satellite time ``t - tau_c + dt_sv`` with ``c tau_c = rho - I + T``.
 * Hence with D_code = b + tau - dt_sv and D_carr = b + tau_c - dt_sv (seconds, functions of T):
     pseudorange_m        = c D_code   (= c (receiver clock reading - satellite transmit time))
@@ -193,7 +193,7 @@ class _Cn0:
 class SatelliteTrack:
     """Satellite position, velocity and clock at TRUE GPS times, by cubic Hermite interpolation.
 
-    :func:`receiver.nav.ephemeris.sat_state` is evaluated at nodes ``step`` apart (true time; position,
+    :func:`receiver.gnss.ephemeris.sat_state` is evaluated at nodes ``step`` apart (true time; position,
     velocity, clock offset and drift at each node) covering [t_lo, t_hi]; between nodes the cubic Hermite
     interpolant of (value, derivative) is accurate to far below a micrometre for GPS orbits at
     step = 0.1 s (error ~ step^4 n^4 a / 384).

@@ -28,10 +28,11 @@ import os
 import time
 from multiprocessing import Pool
 
-# BLAS on one thread before numpy loads (as receiver/__init__.py does): the runs of -j 1 execute in this
-# process, and a threaded BLAS sums in a thread-count-dependent order (results must not depend on -j)
-for _v in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+import receiver
+
+# BLAS on one thread before numpy loads: the runs of -j 1 execute in this process, and a threaded BLAS sums
+# in a thread-count-dependent order (results must not depend on -j)
+receiver.limit_blas_threads()
 
 import numpy as np  # noqa: E402
 

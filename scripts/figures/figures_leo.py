@@ -21,8 +21,10 @@ start-up.
 """
 import os
 
-for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+import receiver
+
+receiver.limit_blas_threads()          # before numpy loads
+
 
 import sys  # noqa: E402
 import time  # noqa: E402
