@@ -8,6 +8,8 @@ the velocity itself), satellites used and DOP, and the receiver clock.  Periods 
 
 Channel records are reduced to at most ``MAX_POINTS`` time bins per channel (mean C/N0 and Doppler, the
 lock state), one channel at a time.
+
+One module for the report: its panels share the run's arrays and the layout.
 """
 from __future__ import annotations
 

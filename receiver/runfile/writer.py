@@ -3,6 +3,9 @@
 The file is written under a temporary name and renamed when the run finishes; a failed run leaves no
 output file behind.  Per-channel datasets are appended chunk by chunk, so memory does not grow with the
 length of the recording.
+
+The module is the one owner of the run file's write side (layout, dtypes, compression, the close-time work),
+so its size follows the file's layout; reading is receiver.runfile.reader.
 """
 from __future__ import annotations
 

@@ -29,6 +29,9 @@ receiver time (on the truth rows) and carried to a 1 ms grid by cubic Hermite in
 and their exact rates; receiver clock, scintillation and visibility are evaluated on the 1 ms grid; the
 numba kernel interpolates code phase, carrier phase and amplitude linearly between grid points.  The
 truth file is appended block by block (buffered), so memory does not grow with the duration.
+
+The simulator's time base, per-satellite state and block synthesis stay together: they share the truth
+conventions above; the compiled synthesis is receiver.sim.kernel.
 """
 from __future__ import annotations
 

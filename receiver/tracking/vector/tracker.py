@@ -34,6 +34,9 @@ run over several signals the channels are keyed like the navigation engine's (re
 state per system after the reference one, in the navigation solution's order and grouping (clock group =
 the signal's system letter: QZSS shares GPS's clock, as in receiver.navigation.pvt), started from the
 handover fix's ``isb_m``.
+
+The tracker's Python bookkeeping (channels joining and leaving, geometry, diagnostics, fixes) is one class;
+the compiled epoch loop is receiver.tracking.vector.loop.
 """
 from __future__ import annotations
 
