@@ -437,6 +437,7 @@ class DecimatingReader:
             e = max(a, min(hi, r.end))
             k = r._table.shape[1]                         # fields per byte
             b0 = a // k
+            r.release_before(a)                           # (resident memory flat along the file)
             raw = np.asarray(r._raw[b0:-(-e // k)]) if e > a else np.zeros(1, np.uint8)
             _resample_packed_real(raw, r._table, a - b0 * k, a, e, lo, hi, self._real_step, _LUT, _LUT_FINE,
                                   self._hr, self._hi, self._inv, c, l, m, k0, out)
