@@ -795,6 +795,11 @@ def resolve_path(value: str, config_path=None) -> str:
 
 
 def load_receiver_config(path=None, overrides=None) -> Section:
+    """Load and validate a receiver configuration: the YAML file ``path`` (None: the defaults) merged over
+    the schema's defaults, then ``overrides`` applied (a list of ``(dotted_key, value)`` pairs, as
+    ``--set``).  ``path`` and the relative file names inside it are looked up as ``gnssrx run`` does
+    (current directory, then the checkout and the shipped files); a bad key or value raises
+    :class:`receiver.errors.UserError` naming it."""
     if path is not None:
         path = find_file(path)
     raw = read_yaml(path) if path is not None else {}

@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""Draw the diagrams of the documentation site into docs/img/ (small PNGs, committed).
+
+    python scripts/docs_figures.py
+
+pipeline.png        the receiver's stages and what flows between them
+channel_states.png  a tracking channel's life: acquisition, pull-in, tracking, loss, re-acquisition
+"""
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import FancyArrowPatch, FancyBboxPatch  # noqa: E402
+
+OUT = Path(__file__).resolve().parents[1] / "docs" / "img"
+
+
+def _box(ax, x, y, w, h, title, lines=(), color="#dfe6f7"):
+    ax.add_patch(FancyBboxPatch((x, y), w, h, boxstyle="round,pad=0.02,rounding_size=0.08",
+                                fc=color, ec="#3f51b5", lw=1.2))
+    ax.text(x + w / 2, y + h - 0.22, title, ha="center", va="top", fontsize=10.5, weight="bold")
+    for i, t in enumerate(lines):
+        ax.text(x + w / 2, y + h - 0.62 - 0.3 * i, t, ha="center", va="top", fontsize=8.2)
+
+
+def _arrow(ax, a, b, text=None, dy=0.12, rad=0.0):
+    ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=13, lw=1.2, color="#333",
+                                 connectionstyle=f"arc3,rad={rad}"))
+    if text:
+        ax.text((a[0] + b[0]) / 2, (a[1] + b[1]) / 2 + dy, text, ha="center", va="bottom", fontsize=7.8,
+                style="italic", color="#333")
+
+
+def pipeline():
+    fig, ax = plt.subplots(figsize=(11, 3.6), dpi=110)
+    ax.set_xlim(0, 22)
+    ax.set_ylim(0, 7.2)
+    ax.axis("off")
+    w, h, y = 2.75, 2.4, 3.9
+    xs = [0.1, 3.95, 7.8, 11.65, 15.5, 19.15]
+    boxes = [("IF recording", ["int8/16, float,", "1/2/4-bit packed", "SigMF / .tag metadata"], "#eeeeee"),
+             ("Input stage", ["unpack, resample", "DC, tone notches,", "pulse blanking"], None),
+             ("Acquisition", ["FFT code search", "Pfa threshold, checks", "high sensitivity"], None),
+             ("Tracking", ["correlator, PLL/DLL", "or Kalman loops;", "vector loops"], None),
+             ("Navigation", ["LNAV / D1 / D2", "observables", "WLS / EKF / CKF PVT"], None),
+             ("Run file", ["HDF5: every epoch,", "every fix, config", "→ RINEX, NMEA, report"],
+              "#e3f2e1")]
+    for x, (t, lines, c) in zip(xs, boxes):
+        _box(ax, x, y, w, h, t, lines, c or "#dfe6f7")
+    labels = ["samples", "baseband\nstream", "PRN, code\nphase, Doppler", "epoch\nrecords", "fixes,\nobservables"]
+    for i in range(5):
+        a, b = (xs[i] + w, y + h / 2), (xs[i + 1], y + h / 2)
+        _arrow(ax, a, b)
+        ax.text((a[0] + b[0]) / 2, y + h / 2 - 0.2, labels[i], ha="center", va="top", fontsize=7.5,
+                style="italic", color="#333")
+    # channel manager below tracking
+    _box(ax, 9.6, 0.3, 4.0, 1.9, "Channel manager", ["loss of signal, hot / warm", "re-acquisition, cold searches"],
+         "#fdf1dc")
+    _arrow(ax, (11.65 + w / 2, y), (11.9, 2.2), "lost / found", dy=0.0)
+    _arrow(ax, (9.6, 1.25), (7.8 + w / 2, y), "search", dy=0.0, rad=-0.25)
+    _arrow(ax, (15.5 + 0.3, y), (13.6, 1.5), "fix: prediction", dy=-0.05, rad=0.2)
+    ax.text(11.0, 7.0, "per 0.5-s chunk:  read → (acquire) → track every channel → manage channels → navigate → write",
+            ha="center", va="top", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(OUT / "pipeline.png")
+    plt.close(fig)
+
+
+def channel_states():
+    fig, ax = plt.subplots(figsize=(10, 3.4), dpi=110)
+    ax.set_xlim(0, 17.3)
+    ax.set_ylim(0, 6.0)
+    ax.axis("off")
+    w, h = 3.5, 1.9
+    pos = {"search": (0.2, 3.8), "pull-in": (4.65, 3.8), "track": (9.1, 3.8), "bit sync": (13.55, 3.8),
+           "lost": (13.55, 0.5), "re-acquire": (6.9, 0.5)}
+    info = {"search": ["cold FFT search", "(acquisition)"], "pull-in": ["FLL-assisted PLL,", "wide DLL, 300 ms"],
+            "track": ["PLL + DLL, 1 ms,", "C/N0, lock"], "bit sync": ["data-bit edges known,", "up to 20 ms coherent"],
+            "lost": ["presence test or", "lock detectors"],
+            "re-acquire": ["narrow search around", "the predicted code, Doppler"]}
+    for k, (x, y) in pos.items():
+        _box(ax, x, y, w, h, k, info[k], "#fdf1dc" if k in ("lost", "re-acquire") else "#dfe6f7")
+
+    def edge(a, b, text, side="h", rad=0.0):
+        (xa, ya), (xb, yb) = pos[a], pos[b]
+        if side == "h":
+            _arrow(ax, (xa + w, ya + h / 2), (xb, yb + h / 2), text, rad=rad)
+        else:
+            _arrow(ax, (xa + w / 2, ya), (xb + w / 2, yb + h), text, rad=rad)
+    edge("search", "pull-in", "detected")
+    edge("pull-in", "track", "settled")
+    edge("track", "bit sync", "edges found")
+    edge("bit sync", "lost", "", side="v")
+    ax.text(pos["lost"][0] + w / 2 + 0.15, 3.1, "signal gone\n(~20-40 ms)", fontsize=7.8, style="italic", va="center")
+    _arrow(ax, (pos["lost"][0], 1.45), (pos["re-acquire"][0] + w, 1.45), "after 0.15 s, every 0.125 s")
+    _arrow(ax, (pos["re-acquire"][0] + w / 2, 2.4), (pos["pull-in"][0] + w / 2 + 0.5, 3.8), "found: 40-ms pull-in",
+           dy=0.0)
+    _arrow(ax, (pos["re-acquire"][0], 1.45), (pos["search"][0] + w / 2, 3.8), "outage > max_age_s:\ncold search",
+           dy=0.0, rad=-0.3)
+    fig.tight_layout()
+    fig.savefig(OUT / "channel_states.png")
+    plt.close(fig)
+
+
+def main():
+    OUT.mkdir(parents=True, exist_ok=True)
+    pipeline()
+    channel_states()
+    for p in ("pipeline.png", "channel_states.png"):
+        print(f"wrote {OUT / p} ({(OUT / p).stat().st_size // 1024} KB)")
+
+
+if __name__ == "__main__":
+    main()
