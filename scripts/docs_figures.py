@@ -34,35 +34,40 @@ def _arrow(ax, a, b, text=None, dy=0.12, rad=0.0):
 
 
 def pipeline():
-    fig, ax = plt.subplots(figsize=(11, 3.6), dpi=110)
+    fig, ax = plt.subplots(figsize=(9.5, 3.7), dpi=120)
     ax.set_xlim(0, 22)
-    ax.set_ylim(0, 7.2)
+    ax.set_ylim(0, 7.6)
     ax.axis("off")
-    w, h, y = 2.75, 2.4, 3.9
-    xs = [0.1, 3.95, 7.8, 11.65, 15.5, 19.15]
-    boxes = [("IF recording", ["int8/16, float,", "1/2/4-bit packed", "SigMF / .tag metadata"], "#eeeeee"),
-             ("Input stage", ["unpack, resample", "DC, tone notches,", "pulse blanking"], None),
-             ("Acquisition", ["FFT code search", "Pfa threshold, checks", "high sensitivity"], None),
-             ("Tracking", ["correlator, PLL/DLL", "or Kalman loops;", "vector loops"], None),
-             ("Navigation", ["LNAV / D1 / D2", "observables", "WLS / EKF / CKF PVT"], None),
-             ("Run file", ["HDF5: every epoch,", "every fix, config", "→ RINEX, NMEA, report"],
-              "#e3f2e1")]
+    w, h, y = 2.9, 2.5, 4.2
+    xs = [0.05, 3.85, 7.65, 11.45, 15.25, 19.05]
+    boxes = [("Recording", ["IF samples", "+ metadata"], "#eeeeee"),
+             ("Input", ["resample,", "DC, notches"], None),
+             ("Acquisition", ["FFT search,", "integrity"], None),
+             ("Tracking", ["scalar loops,", "vector loops"], None),
+             ("Navigation", ["messages,", "PVT"], None),
+             ("Run file", ["HDF5 →", "RINEX, NMEA"], "#e3f2e1")]
     for x, (t, lines, c) in zip(xs, boxes):
-        _box(ax, x, y, w, h, t, lines, c or "#dfe6f7")
-    labels = ["samples", "baseband\nstream", "PRN, code\nphase, Doppler", "epoch\nrecords", "fixes,\nobservables"]
+        ax.add_patch(FancyBboxPatch((x, y), w, h, boxstyle="round,pad=0.02,rounding_size=0.1",
+                                    fc=c or "#dfe6f7", ec="#3f51b5", lw=1.3))
+        ax.text(x + w / 2, y + h - 0.3, t, ha="center", va="top", fontsize=12, weight="bold")
+        for i, line in enumerate(lines):
+            ax.text(x + w / 2, y + h - 1.05 - 0.55 * i, line, ha="center", va="top", fontsize=10)
+    labels = ["samples", "stream", "detections", "records", "fixes"]
     for i in range(5):
         a, b = (xs[i] + w, y + h / 2), (xs[i + 1], y + h / 2)
         _arrow(ax, a, b)
-        ax.text((a[0] + b[0]) / 2, y + h / 2 - 0.2, labels[i], ha="center", va="top", fontsize=7.5,
-                style="italic", color="#333")
-    # channel manager below tracking
-    _box(ax, 9.6, 0.3, 4.0, 1.9, "Channel manager", ["loss of signal, hot / warm", "re-acquisition, cold searches"],
-         "#fdf1dc")
-    _arrow(ax, (11.65 + w / 2, y), (11.9, 2.2), "lost / found", dy=0.0)
-    _arrow(ax, (9.6, 1.25), (7.8 + w / 2, y), "search", dy=0.0, rad=-0.25)
-    _arrow(ax, (15.5 + 0.3, y), (13.6, 1.5), "fix: prediction", dy=-0.05, rad=0.2)
-    ax.text(11.0, 7.0, "per 0.5-s chunk:  read → (acquire) → track every channel → manage channels → navigate → write",
-            ha="center", va="top", fontsize=9)
+        ax.text((a[0] + b[0]) / 2, y - 0.15, labels[i], ha="center", va="top", fontsize=9, style="italic",
+                color="#333")
+    cx, cw, ch = 9.3, 4.6, 2.0
+    ax.add_patch(FancyBboxPatch((cx, 0.25), cw, ch, boxstyle="round,pad=0.02,rounding_size=0.1",
+                                fc="#fdf1dc", ec="#3f51b5", lw=1.3))
+    ax.text(cx + cw / 2, 0.25 + ch - 0.3, "Channel manager", ha="center", va="top", fontsize=12, weight="bold")
+    ax.text(cx + cw / 2, 0.25 + ch - 1.05, "losses, re-acquisition", ha="center", va="top", fontsize=10)
+    _arrow(ax, (11.45 + w / 2, y), (12.3, 0.25 + ch))
+    _arrow(ax, (cx, 1.25), (7.65 + w / 2, y), rad=-0.25)
+    _arrow(ax, (15.25 + 0.4, y), (cx + cw, 1.4), rad=0.2)
+    ax.text(11.0, 7.5, "every 0.5-s chunk: read → (acquire) → track → manage channels → navigate → write",
+            ha="center", va="top", fontsize=10)
     fig.tight_layout()
     fig.savefig(OUT / "pipeline.png")
     plt.close(fig)
