@@ -30,7 +30,7 @@ key out with its default.  A configuration file only needs the keys it changes; 
 are an error (with a suggestion), as are values of the wrong type or outside their range.  Any key can be
 overridden on the command line with `--set dotted.key=value` (the value is parsed as YAML).
 
-Types: `float`, `int`, `bool`, `str`, `list` / `list_int` / `list_float`, `dict`; *one of* lists the
+Types: `float`, `int`, `bool`, `str`, `list` / `list_int` / `list_float`, `dict`; *One of* lists the
 accepted values; `null` means "empty" (the meaning says what empty does).
 """
 
@@ -72,12 +72,12 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def _kind(kind: str) -> str:
-    """'str (a|b|c)' -> 'str, one of `a`, `b`, `c`'."""
+def _kind(kind: str) -> tuple[str, str]:
+    """'str (a|b|c)' -> ('str', ' One of `a`, `b`, `c`.'): the choices go to the meaning column."""
     if " (" in kind and kind.endswith(")"):
         base, choices = kind[:-1].split(" (", 1)
-        return f"{base}, one of " + ", ".join(f"`{c}`" for c in choices.split("|"))
-    return kind
+        return base, " One of " + ", ".join(f"`{c}`" for c in choices.split("|")) + "."
+    return kind, ""
 
 
 def reference_md(rows, intro: str) -> str:
@@ -92,7 +92,9 @@ def reference_md(rows, intro: str) -> str:
         out += ["", f"## `{g}`" if g != "(top level)" else "## Top-level keys", "",
                 "| key | type | default | meaning |", "|---|---|---|---|"]
         for key, kind, default, doc in groups[g]:
-            out.append(f"| `{key}` | {_cell(_kind(kind))} | `{_cell(_value(default))}` | {_cell(doc)} |")
+            base, choices = _kind(kind)
+            stop = "." if choices and not doc.rstrip().endswith(".") else ""
+            out.append(f"| `{key}` | {base} | `{_cell(_value(default))}` | {_cell(doc)}{stop}{_cell(choices)} |")
     return "\n".join(out) + "\n"
 
 

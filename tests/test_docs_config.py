@@ -56,7 +56,10 @@ def test_every_key_with_its_full_default():
             shown = table[key][1].strip("`")
             # the default cell parses back to the schema's default (nothing cut off)
             assert yaml.safe_load(shown) == default, (page, key, shown)
-            assert table[key][2] == doc.replace("\n", " "), (page, key)
+            assert table[key][2].startswith(doc.replace("\n", " ")), (page, key)
+            if "(" in _kind and _kind.endswith(")"):       # the choices, in order, after the meaning
+                choices = _kind[:-1].split(" (", 1)[1].split("|")
+                assert table[key][2].endswith("One of " + ", ".join(f"`{c}`" for c in choices) + "."), key
 
 
 def test_prns_default_lists_every_prn():
