@@ -5,7 +5,11 @@
 
 pipeline.png        the receiver's stages and what flows between them
 channel_states.png  a tracking channel's life: acquisition, pull-in, tracking, loss, re-acquisition
+acquisition.png     the code-phase x Doppler search of one satellite of a real recording (drawn only when
+                    ../shared/data/real/ is beside the checkout; otherwise the committed picture stays)
 """
+import os
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -15,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import FancyArrowPatch, FancyBboxPatch  # noqa: E402
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "img"
+sys.path.insert(0, str(OUT.parents[1]))
 
 
 def _box(ax, x, y, w, h, title, lines=(), color="#dfe6f7"):
@@ -109,11 +114,63 @@ def channel_states():
     plt.close(fig)
 
 
+#: the shared data beside the checkout (GNSSRX_SHARED_DIR overrides), as in tests/test_docs_tutorials.py
+SHARED = Path(os.environ.get("GNSSRX_SHARED_DIR", Path(__file__).resolve().parents[2] / "shared"))
+REAL = SHARED / "data" / "real" / "pocketsdr_L1_20211202_084700_4MHz_IQ.bin"
+
+
+def acquisition_grid(prn: int = 26, fs: float = 4e6, coherent_ms: int = 4, noncoherent: int = 10):
+    """The search grid of PRN 26 in the PocketSDR sample (4 MS/s int8 I/Q, Q inverted): coherent
+    4 ms x 10 non-coherent, +/-5 kHz in 125 Hz bins, each row over its median (as the detector sees it)."""
+    import numpy as np
+
+    from receiver.gnss.signals import GPS_L1CA, ca_code, sample_code
+    if not REAL.exists():
+        return False
+    raw = np.fromfile(REAL, dtype=np.int8, count=2 * int(fs * 1e-3 * coherent_ms * noncoherent))
+    x = (raw[1::2] + 1j * raw[0::2]).astype(np.complex64)          # I/Q swapped
+    n = int(fs * 1e-3 * coherent_ms)
+    t = np.arange(n) / fs
+    code = sample_code(ca_code(prn), GPS_L1CA.chip_rate, fs, n)
+    cf = np.conj(np.fft.fft(code))
+    dopplers = np.arange(-5000.0, 5000.0 + 1, 125.0)
+    power = np.zeros((len(dopplers), int(fs * 1e-3)))
+    for i, f in enumerate(dopplers):
+        wipe = np.exp(-2j * np.pi * f * t)
+        for k in range(noncoherent):
+            c = np.fft.ifft(np.fft.fft(x[k * n:(k + 1) * n] * wipe) * cf)
+            p = np.abs(c) ** 2
+            power[i] += p[: power.shape[1]]                      # one code period of lags
+    power /= np.median(power, axis=1, keepdims=True)
+    chips = np.arange(power.shape[1]) * GPS_L1CA.chip_rate / fs
+    di, si = np.unravel_index(np.argmax(power), power.shape)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(9.5, 3.2), dpi=110, gridspec_kw={"width_ratios": [2.2, 1]})
+    a1.plot(chips, power[di], lw=0.7, color="#3f51b5")
+    a1.set_xlabel("code phase of the replica (chips)")
+    a1.set_ylabel("power / row median")
+    a1.set_title(f"Doppler row {dopplers[di]:+.0f} Hz: the correlation peak over all code phases", fontsize=9.5)
+    a1.set_xlim(0, 1023)
+    a2.plot(dopplers / 1e3, power[:, si], ".-", lw=0.8, ms=3, color="#c62828")
+    a2.set_xlabel("Doppler (kHz)")
+    a2.set_title("at the peak's code phase, over Doppler", fontsize=9.5)
+    for ax in (a1, a2):
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"Acquisition of G{prn:02d} in the PocketSDR L1 sample ({coherent_ms} ms coherent x {noncoherent})",
+                 fontsize=10.5)
+    fig.tight_layout()
+    fig.savefig(OUT / "acquisition.png")
+    plt.close(fig)
+    return True
+
+
 def main():
     OUT.mkdir(parents=True, exist_ok=True)
     pipeline()
     channel_states()
-    for p in ("pipeline.png", "channel_states.png"):
+    made = ["pipeline.png", "channel_states.png"]
+    if acquisition_grid():
+        made.append("acquisition.png")
+    for p in made:
         print(f"wrote {OUT / p} ({(OUT / p).stat().st_size // 1024} KB)")
 
 
