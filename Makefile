@@ -30,10 +30,10 @@ $(VENV)/.docs-installed: docs/requirements.txt | venv
 
 docs: $(VENV)/.docs-installed
 	$(PY) scripts/gen_config_docs.py --check
-	$(VENV)/bin/mkdocs build --strict
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 docs-serve: $(VENV)/.docs-installed
-	$(VENV)/bin/mkdocs serve
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve
 
 bench: venv
 	$(PY) scripts/bench_tracking.py

@@ -29,3 +29,31 @@ def test_site_builds_strict(tmp_path):
         assert (tmp_path / "site" / page).exists(), page
     api = (tmp_path / "site" / "reference" / "api" / "index.html").read_text()
     assert "load_receiver_config" in api and "RunFile" in api       # mkdocstrings rendered the docstrings
+
+
+def _hook(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "docs_hooks" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_optional_pages_join_the_nav_only_when_present(tmp_path):
+    hook = _hook("optional_pages")
+    (tmp_path / "snapshot.md").write_text("# Snapshot\n")
+    nav = [{"Home": "index.md"}, {"Your own recording": "own-recording.md"},
+           {"Tutorials": [{"High sensitivity": "tutorials/high-sensitivity.md"}, {"LEO": "tutorials/leo.md"}]},
+           {"Benchmarks": "benchmarks.md"}]
+    hook.on_config({"docs_dir": str(tmp_path), "nav": nav})
+    assert nav[2]["Tutorials"][1] == {"Snapshot fixes": "snapshot.md"}          # after High sensitivity
+    assert all("probe.md" not in str(item) for item in nav)                       # absent: not in the nav
+    md = "see [the probe](probe.md) and [snapshots](../snapshot.md) and [LEO](leo.md)"
+    assert hook.on_page_markdown(md, None, None, None) == \
+        "see the probe and [snapshots](../snapshot.md) and [LEO](leo.md)"
+
+
+def test_sphinx_roles_are_dropped():
+    hook = _hook("sphinx_roles")
+    html = 'raises :class:<code>UserError</code>; see :func:<a href="#x">run</a>; ratio 3:4'
+    assert hook.on_page_content(html, None, None, None) == \
+        'raises <code>UserError</code>; see <a href="#x">run</a>; ratio 3:4'
