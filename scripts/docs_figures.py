@@ -18,8 +18,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import FancyArrowPatch, FancyBboxPatch  # noqa: E402
 
-OUT = Path(__file__).resolve().parents[1] / "docs" / "img"
-sys.path.insert(0, str(OUT.parents[1]))
+#: the checkout: the first parent holding pyproject.toml (the script may live in scripts/ or a subfolder)
+ROOT = next(p for p in Path(__file__).resolve().parents if (p / "pyproject.toml").exists())
+OUT = ROOT / "docs" / "img"
+sys.path.insert(0, str(ROOT))
 
 
 def _box(ax, x, y, w, h, title, lines=(), color="#dfe6f7"):
@@ -115,7 +117,7 @@ def channel_states():
 
 
 #: the shared data beside the checkout (GNSSRX_SHARED_DIR overrides), as in tests/test_docs_tutorials.py
-SHARED = Path(os.environ.get("GNSSRX_SHARED_DIR", Path(__file__).resolve().parents[2] / "shared"))
+SHARED = Path(os.environ.get("GNSSRX_SHARED_DIR", ROOT.parent / "shared"))
 REAL = SHARED / "data" / "real" / "pocketsdr_L1_20211202_084700_4MHz_IQ.bin"
 
 

@@ -10,7 +10,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _gen():
-    spec = importlib.util.spec_from_file_location("gen_config_docs", ROOT / "scripts" / "gen_config_docs.py")
+    (script,) = ROOT.glob("scripts/**/gen_config_docs.py")          # scripts/ or scripts/tools/
+    spec = importlib.util.spec_from_file_location("gen_config_docs", script)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
