@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test test-fast lint bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
+.PHONY: venv demo test test-fast lint docs docs-serve bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,19 @@ test-fast: venv
 
 lint: venv
 	$(VENV)/bin/ruff check .
+
+# the documentation site (mkdocs.yml, docs/): mkdocs --strict fails on any warning (broken link, missing page,
+# unresolved API reference); the HTML goes to site/
+$(VENV)/.docs-installed: docs/requirements.txt | venv
+	$(PY) -m pip install -q -r docs/requirements.txt
+	touch $@
+
+docs: $(VENV)/.docs-installed
+	$(PY) scripts/tools/gen_config_docs.py --check
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
+
+docs-serve: $(VENV)/.docs-installed
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve
 
 bench: venv
 	$(PY) scripts/bench/bench_tracking.py
@@ -70,4 +83,4 @@ batch-outages: venv
 	$(PY) scripts/tools/outage_table.py out/batch/outages/summary.h5 --out out/batch/outages/acceptance.md
 
 clean:
-	rm -rf out figures .pytest_cache
+	rm -rf out figures site .pytest_cache

@@ -42,6 +42,10 @@ OVERLAP_S = 0.03
 
 @dataclass
 class RunSummary:
+    """What :func:`run` returns (and ``gnssrx run`` prints): the output path, the signal duration and wall
+    time, the satellites tracked with their mean C/N0, the number of fixes and the first fix time, the
+    mean position and its east/north/up scatter, and counters (parity failures, re-acquisitions, false
+    locks restarted, non-finite samples, fixes per ionospheric parameter set)."""
     output: str
     duration_s: float
     wall_s: float

@@ -1,6 +1,6 @@
 """Truth-tagged IF simulator (GPS L1 C/A, QZSS, BeiDou B1I): ``simulate(scenario, out_path)``.
 
-Time conventions (see also the README of the simulator and the truth file attributes)
+Time conventions (see also docs/how-it-works/simulator.md and the truth file attributes)
 -----------------------------------------------------------------------------------
 * Receiver clock = sample counter: the receiver time of sample n is ``T = tow_s + n / fs`` (fs nominal).
   ``time_s`` in the truth file is ``n / fs``.

@@ -1,6 +1,6 @@
 """IF sample files: formats, chunked (memory-mapped) reading and quantised writing.
 
-Formats (``input.format``; the table ``FORMATS``; README "Input formats" maps devices to them):
+Formats (``input.format``; the table ``FORMATS``; docs/own-recording.md maps devices to them):
 
   int8_iq, int16_iq      interleaved I, Q signed integers (HackRF, bladeRF SC8/SC16, USRP sc8/sc16)
   uint8_iq               interleaved I, Q unsigned offset binary, centre 127.5 (RTL-SDR): value = u - 127.5
@@ -360,7 +360,7 @@ def quantize(x: np.ndarray, fmt: str, scale: float = 1.0, bit_order: str = "msb_
     by scale.
 
     Integer formats round and saturate; uint8_iq stores round(x + 127.5); packed formats take the
-    nearest level (README) and need a whole number of bytes' worth of samples.  For real formats the
+    nearest level (docs/own-recording.md) and need a whole number of bytes' worth of samples.  For real formats the
     real part is written.
     """
     f = resolve_format(fmt)

@@ -130,7 +130,7 @@ class ChannelManager:
 
     def _open(self, prn, doppler, code_phase, sample, cn0_est=None):
         sat = self._sat(prn)
-        weak = cn0_est is not None and cn0_est < self.cfg.tracking.weak.cn0_dbhz     # README "Weak signals"
+        weak = cn0_est is not None and cn0_est < self.cfg.tracking.weak.cn0_dbhz     # docs: tracking, weak signals
         ch = Channel(prn, doppler, code_phase, sample, self.cfg.tracking, self.fs, self.if_hz,
                      channel_id=sat.channel_id, signal=self.signal, weak=weak)
         self.channels[prn] = ch
