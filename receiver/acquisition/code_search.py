@@ -31,6 +31,9 @@ from ..threads import map_ordered, threads
 
 @dataclass
 class AcqResult:
+    """Outcome of the search for one PRN: detected or not, carrier Doppler (Hz), code phase (chips) of the signal
+    at file sample ``sample_index`` (the searched block's first), detection metrics, C/N0 estimate (dB-Hz),
+    why a peak was rejected and the verification dwell's result."""
     prn: int
     detected: bool
     doppler_hz: float          # carrier Doppler (fine if detected)

@@ -27,6 +27,8 @@ from .tasks import execute_run, simulate_recording
 # ------------------------------------------------------------------------------------------ batch
 @dataclass
 class BatchResult:
+    """What a batch did: run counts (executed, cached, failed), recordings simulated, wall time (s), one summary
+    row per run and the paths of the summary and group files written."""
     name: str
     output_dir: str
     n_runs: int
@@ -42,6 +44,7 @@ class BatchResult:
     executor: str = ""
 
     def text(self) -> str:
+        """Summary of the batch for the terminal: counts, wall time, executor and the files written."""
         return (f"batch {self.name}: {self.n_runs} runs ({self.executed} executed, {self.cached} cached, "
                 f"{self.failed} failed), {self.simulated} recordings simulated, {self.wall_s:.1f} s "
                 f"[{self.executor}]\nsummary: {self.summary_csv}\n         {self.summary_h5}\n"

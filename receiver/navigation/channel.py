@@ -185,6 +185,9 @@ class ChannelNav:
         return base + tb * k
 
     def add(self, recs: np.ndarray, bit_offset: int):
+        """Take a chunk of this channel's epoch records (EPOCH_DTYPE): lock, C/N0 and the recent records; with bit
+        sync (``bit_offset`` >= 0: the code period where bit 0 starts) the prompt sums become data bits fed to the
+        message decoder, whose subframes set the transmit-time reference."""
         if len(recs) == 0:
             return
         self.recent.append(recs)
@@ -291,6 +294,7 @@ class ChannelNav:
 
     @property
     def has_time(self) -> bool:
+        """True when the channel's code periods are tied to GPS time (frame sync, or an assisted offset)."""
         return self.tow_ref is not None
 
     @property

@@ -60,6 +60,8 @@ def _same_attr(x, y) -> bool:
 
 
 def compare_h5(a: Path, b: Path, out: list[str], label: str = "") -> None:
+    """Compare two HDF5 files group by group, dataset by dataset (bit for bit) and attribute by attribute;
+    appends one line per difference to `out`, prefixed with `label`."""
     ra, rb = str(a.parent.resolve()), str(b.parent.resolve())
     with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
         def walk(ga, gb, path):
@@ -91,6 +93,8 @@ def compare_h5(a: Path, b: Path, out: list[str], label: str = "") -> None:
 
 
 def compare_files(a: Path, b: Path, out: list[str], label: str = "") -> None:
+    """Compare two output files by type: HDF5 as :func:`compare_h5`, text with each side's directory replaced,
+    anything else byte for byte; appends one line per difference to `out`."""
     if a.suffix == ".h5":
         compare_h5(a, b, out, label)
     elif a.suffix in TEXT_SUFFIXES:

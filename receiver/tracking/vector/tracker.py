@@ -100,6 +100,8 @@ class RunChannels(MutableMapping):
 
 
 class VectorTracker:
+    """The vector tracking stage after the scalar-to-vector handover (see the module docstring):
+    :meth:`process` runs a chunk's vector channels under the navigation filter ``filt``."""
     # (class defaults: GPS L1 C/A alone, one clock; __init__ sets them from its arguments)
     signals = [(GPS_L1CA, 0.0)]
     block_of = {"G": 0}
