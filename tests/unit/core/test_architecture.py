@@ -14,6 +14,7 @@ import ast
 from pathlib import Path
 
 from repo_paths import ROOT
+import pytest
 PKG = ROOT / "receiver"
 
 #: bottom -> top; a module's layer is that of the longest prefix listed here (``receiver`` itself: the
@@ -106,6 +107,7 @@ def test_every_module_has_a_layer():
         layer_of(m)
 
 
+@pytest.mark.slow
 def test_imports_go_down_the_layers():
     modules, graph = _graph()
     bad = []
@@ -126,6 +128,7 @@ PRINT_ALLOWED_SUFFIX = ".cli"
 PRINT_EXCEPTIONS: set[str] = set()
 
 
+@pytest.mark.slow
 def test_library_code_does_not_print():
     """Library code reports through logging (receiver.logs); only the CLI modules print."""
     bad = []
@@ -175,6 +178,7 @@ def strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
+@pytest.mark.slow
 def test_no_import_cycles():
     _, graph = _graph()
     edges = {m: {d for d, _ in deps if d != m} for m, deps in graph.items()}
