@@ -172,11 +172,15 @@ def run(config, input_path, output, sets, quiet, n_threads, timings):
     with stage("config"):
         cfg = _load(config, input_path, sets, output)
     log = logging.getLogger("receiver.pipeline").info
+    from .probe.hints import explain_no_fix, warn_format
+    warn_format(cfg)                             # the file's bytes against input.format (1 MiB read)
     summary = run_pipeline(cfg, quiet=quiet, log=log, reads=[config])
     with stage("export"):
         from .export import export_all      # standard outputs (output.rinex, nmea, ...) from the closed run file
         export_all(summary.output, cfg.output, log=None if quiet else log)
     click.echo(summary.text())                   # --quiet silences the progress bar only
+    for line in explain_no_fix(cfg, summary):    # what was acquired / tracked, what to check
+        click.echo(line)
     if timings:
         import time
         wall, _ = _since_process_start()
@@ -221,7 +225,9 @@ def _since_process_start() -> tuple[float, float]:
 def acquire(config, input_path, sets):
     """Acquire all configured PRNs and print a table."""
     from .pipeline import acquire as do_acquire, open_input
+    from .probe.hints import no_satellite_lines, warn_format
     cfg = _load(config, input_path, sets)
+    warn_format(cfg)
     reader = open_input(cfg)
     start = reader.first + int(round(cfg.acquisition.start_s * reader.fs))
     notes = []
@@ -234,6 +240,9 @@ def acquire(config, input_path, sets):
     click.echo(f"detected: {' '.join(str(r.prn) for r in res if r.detected) or 'none'}")
     for line in (reader.summary_lines() if hasattr(reader, "summary_lines") else []) + notes:
         click.echo(line)
+    if not any(r.detected for r in res):
+        for line in no_satellite_lines(cfg, reader):
+            click.echo(line)
 
 
 #: commands that live in their own packages: name -> (module, attribute), imported when the command is

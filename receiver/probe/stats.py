@@ -161,14 +161,15 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
         what = (f"only the values {' '.join(f'{x:+d}' for x in lv)} occur" if len(lv) <= 16
                 else f"{len(lv)} values occur")
         st.evidence.append(f"the byte histogram is centred on 0 as signed bytes (mean {s.mean():+.2f}, RMS "
-                           f"{np.sqrt(np.mean(s ** 2)):.1f}; {what}): int8, not uint8 offset binary")
+                           f"{np.sqrt(np.mean(s ** 2)):.1f}; {what}): int8 samples (offset binary uint8 would be "
+                           f"centred on 127.5)")
         st.candidates = [Candidate("int8_iq"), Candidate("int8_real")]
         return st
     if sd_u < 0.6 * sd_s:
         st.family = "uint8"
         st.clip_fraction = float(((u == 0) | (u == 255)).mean())
         st.evidence.append(f"the byte histogram is centred on {u.mean():.1f} as unsigned bytes (RMS about it "
-                           f"{sd_u:.1f}): uint8 offset binary (value - 127.5), not int8")
+                           f"{sd_u:.1f}): uint8 offset binary (value - 127.5; int8 would be centred on 0)")
         st.candidates = [Candidate("uint8_iq")]
         return st
     # packed fields: the width / encoding whose field values look most like a quantiser's output (1 bit
