@@ -7,7 +7,8 @@ The tests, in order (the first that fits decides the family; ``Stats.evidence`` 
   int16     the odd bytes (little-endian high bytes) carry >= 1 bit less entropy than the even bytes, or
             their histograms differ (total variation > 0.3; I/Q or successive 8-bit samples share one), and
             the odd bytes are centred on 0: int16_iq or int16_real;
-  int8      the bytes read as signed values spread much less than read as unsigned (centred on 0):
+  int8      the bytes read as signed values spread much less than read as unsigned (centred on 0) and
+            their histogram is one smooth hump (or uses <= 16 values):
             int8_iq or int8_real (how many levels are used is reported: +/-1 +/-3 is a 2-bit front end
             stored in bytes);
   uint8     the reverse (centred on 127.5): uint8_iq offset binary (RTL-SDR);
@@ -92,11 +93,11 @@ def _quantiser_fit(vals: np.ndarray, counts: np.ndarray, tol: float = 0.2) -> tu
     if asym > tol:
         return None, f"asymmetric ({asym:.2f})"
     mags = sorted({abs(v) for v in dist})
-    pm = [dist.get(m, 0.0) + (dist.get(-m, 0.0) if m else 0.0) for m in mags]
+    pm = [(dist.get(m, 0.0) + dist.get(-m, 0.0)) / 2 if m else dist.get(0.0, 0.0) for m in mags]  # per value
     for a, b in zip(pm, pm[1:]):
-        if b > a + 0.025:
+        if b > a + 0.0125:
             return None, "not falling with |value|"
-    if len(pm) > 1 and pm[0] < pm[1] + 0.05:
+    if len(pm) > 1 and pm[0] < 1.1 * pm[1]:
         return None, "flat"
     return asym, ""
 
@@ -152,7 +153,19 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
     sd_s, sd_u = s.std(), u.std()
     hist = np.bincount(raw, minlength=256)
     used = np.flatnonzero(hist > 1e-4 * len(raw))
-    if sd_s < 0.6 * sd_u:
+    few = len(used) <= 16                                 # a low-resolution converter stored in bytes
+
+    def smooth(h):
+        """One hump (a sampled noise distribution), not the spiky byte histogram of packed fields: the
+        histogram's total variation is ~2x its peak for one hump."""
+        return 0.5 * np.abs(np.diff(h)).sum() / h.max() < 8.0
+
+    # two 4-bit fields of one distribution in every byte (int4_iq, packed4) before 8-bit samples: an 8-bit
+    # sample's high nibble is spread far less than its low one
+    nibbles = not few and any(_packed_fit(raw, 4, enc, integer)[0] is not None for enc, integer in
+                              (("twos_complement", True), ("sign_magnitude", False), ("twos_complement", False),
+                               ("offset_binary", False)))
+    if sd_s < 0.6 * sd_u and (few or smooth(np.roll(hist, 128))) and not nibbles:
         st.family = "int8"
         lv = sorted(int(x) for x in used.astype(np.uint8).view(np.int8))
         st.levels = lv if len(lv) <= 16 else []
@@ -165,7 +178,7 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
                            f"centred on 127.5)")
         st.candidates = [Candidate("int8_iq"), Candidate("int8_real")]
         return st
-    if sd_u < 0.6 * sd_s:
+    if sd_u < 0.6 * sd_s and (few or smooth(hist)) and not nibbles:
         st.family = "uint8"
         st.clip_fraction = float(((u == 0) | (u == 255)).mean())
         st.evidence.append(f"the byte histogram is centred on {u.mean():.1f} as unsigned bytes (RMS about it "
