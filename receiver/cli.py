@@ -52,6 +52,12 @@ class _Group(click.Group):
             except ValueError:          # not the main thread
                 pass
 
+    def parse_args(self, ctx, args):
+        if not args:                 # bare ``gnssrx``: the help, and success (click's default exits 2)
+            click.echo(ctx.get_help())
+            ctx.exit(0)
+        return super().parse_args(ctx, args)
+
     def invoke(self, ctx):
         try:
             result = super().invoke(ctx)

@@ -23,9 +23,9 @@ def _fail(exc: UserError):
 
 
 def _check_output(path):
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise UserError(f"output directory does not exist: {d}")
+    """Missing directories are made, as for every command's outputs (receiver/safeio.py check_output)."""
+    from ..safeio import check_output
+    check_output(path, suffixes=())
 
 
 @click.group("leo")
