@@ -142,7 +142,7 @@ def _merge(schema: dict, user: dict, prefix: str) -> dict:
         raise UserError(f"config section '{prefix.rstrip('.') or '<top>'}' must be a mapping")
     unknown = [k for k in user if k not in schema]
     if unknown:
-        raise UserError(f"unknown config key '{prefix}{unknown[0]}'" + did_you_mean(prefix + unknown[0], [prefix + k for k in schema]))
+        raise UserError(f"unknown config key '{prefix}{unknown[0]}'" + did_you_mean(unknown[0], schema, prefix))
     out = {}
     for name, spec in schema.items():
         key = prefix + name

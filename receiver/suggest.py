@@ -5,32 +5,41 @@ from __future__ import annotations
 import difflib
 import os
 
+import numpy as np
+
 from .errors import UserError
 
 #: bytes looked at to tell a binary file from text
 _PEEK = 1 << 16
 
 
-def did_you_mean(word, options) -> str:
-    """``" (did you mean 'x'?)"`` for the closest of ``options`` to ``word``, or "" when none is close."""
+def did_you_mean(word, options, prefix: str = "") -> str:
+    """``" (did you mean 'x'?)"`` for the closest of ``options`` to ``word``, or "" when none is close;
+    ``prefix`` (a dotted section, 'tracking.') is put before the suggestion, not compared."""
     opts = [str(o) for o in options]
     m = difflib.get_close_matches(str(word), opts, n=1, cutoff=0.6)
     if not m:                     # a different case or separator: 'PLL_BW_HZ', 'pll-bw-hz'
         norm = {o.lower().replace("-", "_"): o for o in opts}
         hit = norm.get(str(word).lower().replace("-", "_"))
         m = [hit] if hit else []
-    return f" (did you mean '{m[0]}'?)" if m else ""
+    return f" (did you mean '{prefix}{m[0]}'?)" if m else ""
 
 
 def looks_binary(data: bytes) -> bool:
-    """NUL bytes, or bytes that are not UTF-8 text (the cut at the end of the peek excepted)."""
+    """NUL bytes, or many control characters or bytes >= 0x80 that are not UTF-8: samples, not text (a
+    text in another encoding -- Latin-1 -- has a few high bytes among printable ASCII; read_utf8 names
+    it)."""
+    if not data:
+        return False
     if b"\x00" in data:
         return True
+    b = np.frombuffer(data, "u1")
+    control = ((b < 0x20) & ~((b == 9) | (b == 10) | (b == 13) | (b == 12))).mean()
     try:
         data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        return exc.start < len(data) - 4
-    return False
+        return control > 0.05
+    except UnicodeDecodeError:
+        return control > 0.05 or (b >= 0x80).mean() > 0.3
 
 
 def refuse_binary(path, what: str = "file") -> None:
