@@ -35,6 +35,7 @@ COHERENT_MS = 2
 DOPPLER_MAX_HZ = 8000.0         # first passes; then +/- 20 kHz (front-end LO offsets)
 WIDE_DOPPLER_HZ = 20000.0
 PFA = 1e-3
+BLANK = 10.0                    # spectral bins this far over the median power are zeroed (tones, DC)
 THRESHOLD = 1.25                # the receiver's default factor on the Pfa threshold
 STRONG_METRIC = 3.0             # one detection this far over the threshold is enough on its own
 #: common front-end sample rates (Hz), the most frequent first
@@ -137,6 +138,11 @@ def baseband(x: np.ndarray, fs: float, if_hz: float, real: bool) -> np.ndarray:
     keep = (f_in > lo) & (f_in < hi)
     idx = np.round(f_in * T).astype(np.int64) % n
     Y = np.where(keep, X[idx], 0)
+    # blank CW tones, DC and their leakage: bins 10x over the median power (the GPS signals are far below
+    # the noise in every bin)
+    p = np.abs(Y) ** 2
+    if keep.any():
+        Y[p > BLANK * np.median(p[keep])] = 0
     return (np.fft.ifft(Y) * (m / n)).astype(np.complex64)
 
 
@@ -371,12 +377,21 @@ def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float =
         if t is not None:
             best.found = sorted(best.found + t.found, key=lambda r: -r.metric)
             best.prns = tuple(range(1, 33))
+    f = FORMATS[best.cand.fmt]
+    if f.kind == "packed" and not f.integer:            # the other bit order: real samples in a wrong order
+        other = Candidate(best.cand.fmt, "lsb_first" if best.cand.bit_order == "msb_first" else "msb_first",
+                          best.cand.encoding)         # still correlate in part: keep the better one
+        t = _try(src_of(other), other, best.fs, best.if_hz, range(1, 33), wide)
+        result.tried += 1
+        if t is not None and t.score > best.score:
+            best, src = t, src_of(other)
     for fs in rates:
         if fs != best.fs and abs(fs / best.fs - 1) < 1e-3:
             t = _try(src, best.cand, fs, best.if_hz, range(1, 33), wide)
             result.tried += 1
             if t is not None and t.score > 1.3 * best.score:      # else the more common rate (listed first)
                 best = t
+    src = src_of(best.cand)
     coh = COHERENT_MS if best.confirmed or src.n_file / best.fs >= 2 * COHERENT_MS * 1e-3 else 1
     best.found = [r for r in reject_cross_correlations(best.found, coh, fs=BB_FS) if r.detected]
     result.best = best
