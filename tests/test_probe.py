@@ -60,11 +60,18 @@ def test_two_bit_levels_in_int8_bytes_are_int8():
 def test_baseband_moves_the_if_to_zero():
     fs, f0 = 10.4e6, 2.6e6 + 1234.0
     n = np.arange(int(fs * 0.01))
-    y = baseband(np.cos(2 * np.pi * f0 / fs * n).astype(np.complex64), fs, 2.6e6, real=True)
+    tone = np.cos(2 * np.pi * f0 / fs * n)
+    y = baseband(tone.astype(np.complex64), fs, 2.6e6, real=True, blank=False)
     spec = np.abs(np.fft.fft(y))
     f = np.fft.fftfreq(len(y), 1 / 2.048e6)
     assert abs(f[np.argmax(spec)] - 1234.0) <= 100.0      # one bin of a 10-ms block
     assert len(y) == 20480
+    # a CW tone 20 dB over the noise is blanked, the noise (where the GPS signals are) kept
+    noise = np.random.default_rng(0).normal(size=len(n))
+    y = baseband((noise + 10 * tone).astype(np.complex64), fs, 2.6e6, real=True)
+    spec = np.abs(np.fft.fft(y)) ** 2
+    near = np.abs(f - 1234.0) < 300.0
+    assert spec[near].max() < 10 * np.median(spec) and np.count_nonzero(spec == 0) < 0.01 * len(spec)
 
 
 def test_name_hints():

@@ -125,7 +125,7 @@ def iq_hint(path) -> str | None:
     return None
 
 
-def baseband(x: np.ndarray, fs: float, if_hz: float, real: bool) -> np.ndarray:
+def baseband(x: np.ndarray, fs: float, if_hz: float, real: bool, blank: bool = True) -> np.ndarray:
     """The block ``x`` (taken at ``fs``) as complex baseband at BB_FS: its spectrum from IF - 1.024 MHz to
     IF + 1.024 MHz moved to 0 Hz (bins outside the sampled band set to zero)."""
     n = len(x)
@@ -141,7 +141,7 @@ def baseband(x: np.ndarray, fs: float, if_hz: float, real: bool) -> np.ndarray:
     # blank CW tones, DC and their leakage: bins 10x over the median power (the GPS signals are far below
     # the noise in every bin)
     p = np.abs(Y) ** 2
-    if keep.any():
+    if blank and keep.any():
         Y[p > BLANK * np.median(p[keep])] = 0
     return (np.fft.ifft(Y) * (m / n)).astype(np.complex64)
 
