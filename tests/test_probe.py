@@ -127,7 +127,9 @@ def test_probe_cli_noise_and_bad_input(tmp_path):
     path = _write(tmp_path / "n.bin", noise, "int8_iq")
     res = CliRunner().invoke(main, ["probe", path, "--rate", "2.6e6"])
     assert res.exit_code == 1 and "no reading of the file found a satellite" in res.output
-    for args in (["probe", str(tmp_path / "missing.bin")], ["probe", path, "--rate", "12"]):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("input:\n  format: int8_iq\n")
+    for args in (["probe", str(tmp_path / "missing.bin")], ["probe", path, "--rate", "12"], ["probe", str(cfg)]):
         res = CliRunner().invoke(main, args)
         assert res.exit_code == 2 and res.output.count("\n") == 1 and "Traceback" not in res.output, res.output
 

@@ -27,6 +27,7 @@ from ..acquisition import reject_cross_correlations, search, verify
 from ..errors import UserError
 from ..gnss.signals import CA_CHIP_RATE, L1_HZ, ca_code, sample_code
 from ..source.io import FORMATS, SampleReader
+from ..suggest import looks_binary
 from .stats import Candidate, Stats, byte_stats, component_stats, spectrum_centre
 
 BB_FS = 2.048e6                 # the common baseband rate of every candidate
@@ -273,6 +274,10 @@ def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float =
         raise UserError(f"input file not found: {path}")
     if os.path.getsize(path) <= header_bytes:
         raise UserError(f"input file {path} holds no samples ({os.path.getsize(path)} bytes)")
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    if not looks_binary(head) and head.strip():
+        raise UserError(f"{path} is text (a config?), not a recording of samples")
     st = byte_stats(path, header_bytes)
     result = ProbeResult(path, st, None, header_bytes=header_bytes)
     meta = {}
