@@ -123,3 +123,22 @@ def test_a_file_too_short_for_an_ephemeris_says_why_there_is_no_fix(tmp_path):
     why = [ln for ln in res.output.splitlines() if ln.startswith("why no fix")]
     assert why and "acquired 3 satellites (5 17 28)" in why[0]
     assert "too short" not in why[0] and "0.19 s" in res.output and "gnssrx snapshot" in res.output
+
+
+def test_acquire_on_a_wrong_format_warns_and_says_what_to_check(tmp_path):
+    from tests.synth import make_signal
+    from receiver.source.io import quantize
+    x = make_signal([{"prn": 9, "doppler_hz": 500.0, "code_phase_chips": 10.0, "cn0_dbhz": 50.0}], fs=2.6e6,
+                    duration_s=0.1, seed=8)
+    rec = tmp_path / "r.bin"
+    quantize(x, "int8_iq", 8.0).tofile(rec)
+    args = ["acquire", str(ROOT / "configs" / "gpssim_static_tokyo.yaml"), "--input", str(rec),
+            "--set", "acquisition.high_sensitivity.enabled=false", "--set", "acquisition.lo_search_hz=0",
+            "--set", "acquisition.prns=[9, 20]"]
+    res = CliRunner().invoke(main, args + ["--set", "input.format=int16_iq"])
+    assert res.exit_code == 0, res.output
+    assert "gnssrx: warning: input.format int16_iq does not fit the file's bytes" in res.output
+    assert "no satellite found: check input.format" in res.output and f"gnssrx probe {rec}" in res.output
+    res = CliRunner().invoke(main, args)                    # the right format: no warning, no hint
+    assert res.exit_code == 0 and "detected: 9" in res.output, res.output
+    assert "warning" not in res.output and "no satellite found" not in res.output
