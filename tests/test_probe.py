@@ -57,6 +57,18 @@ def test_two_bit_levels_in_int8_bytes_are_int8():
     assert st.family == "int8" and st.levels == [-3, -1, 1, 3]
 
 
+def test_imbalanced_int8_iq_is_not_int16(tmp_path):
+    """I and Q of different power (6 dB) and a DC on I: still int8 (the run's format warning must not
+    misfire on such a front end)."""
+    rng = np.random.default_rng(6)
+    a = np.empty(200000, np.int8)
+    a[0::2] = np.clip(np.rint(rng.normal(3, 8, 100000)), -128, 127)
+    a[1::2] = np.clip(np.rint(rng.normal(0, 16, 100000)), -128, 127)
+    a.tofile(tmp_path / "imb.bin")
+    assert byte_stats(tmp_path / "imb.bin").family == "int8"
+    assert hints.format_mismatch(tmp_path / "imb.bin", "int8_iq") is None
+
+
 def test_baseband_moves_the_if_to_zero():
     fs, f0 = 10.4e6, 2.6e6 + 1234.0
     n = np.arange(int(fs * 0.01))

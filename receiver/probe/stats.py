@@ -5,8 +5,8 @@ The tests, in order (the first that fits decides the family; ``Stats.evidence`` 
   float32   >= 99 % of the aligned 4-byte words are finite floats of plausible magnitude (1e-30 .. 1e12
             or exactly 0): complex64 or float32_real;
   int16     the odd bytes (little-endian high bytes) carry >= 1 bit less entropy than the even bytes, or
-            their histograms differ (total variation > 0.3; I/Q or successive 8-bit samples share one), and
-            the odd bytes are centred on 0: int16_iq or int16_real;
+            their histograms differ (total variation > 0.3; I/Q or successive 8-bit samples share one), the
+            even bytes spread > 3x as much as the odd ones and the odd bytes are centred on 0: int16_iq or int16_real;
   int8      the bytes read as signed values spread much less than read as unsigned (centred on 0) and
             their histogram is one smooth hump (or uses <= 16 values):
             int8_iq or int8_real (how many levels are used is reported: +/-1 +/-3 is a 2-bit front end
@@ -140,7 +140,9 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
     h_even, h_odd = _entropy(np.bincount(even, minlength=256)), _entropy(np.bincount(odd, minlength=256))
     hi = odd.view(np.int8).astype(np.float64)
     tv = 0.5 * np.abs(np.bincount(even, minlength=256) / len(even) - np.bincount(odd, minlength=256) / len(odd)).sum()
-    if (h_even - h_odd > 1.0 or tv > 0.3) and abs(hi.mean()) < 0.25 * (hi.std() + 1):
+    lo = even.view(np.int8).astype(np.float64)
+    # the high bytes vary far less than the low ones (an I/Q imbalance of 8-bit samples: ~1-2x)
+    if (h_even - h_odd > 1.0 or tv > 0.3) and lo.std() > 3 * hi.std() and abs(hi.mean()) < 0.25 * (hi.std() + 1):
         st.family = "int16"
         s16 = raw.view("<i2").astype(np.float64)
         st.clip_fraction = float((np.abs(s16) >= 32767).mean())
