@@ -2,12 +2,15 @@
 
 Panels: C/N0 per channel, sky plot (labels placed clear of each other), Doppler per channel (with a legend),
 horizontal scatter, lock status per channel (tracking state, PLL lock, satellite used in the fix), a summary
-table, position and velocity over the span of the fixes (not the whole file) in the local East/North/Up frame (errors against a truth file when one is given, else deviations from the mean position /
-the velocity itself), satellites used and DOP, and the receiver clock.  Periods in vector-tracking mode
+table, position and velocity over the span of the fixes (not the whole file) in the local East/North/Up frame
+(errors against a truth file when one is given, else deviations from the mean position / the velocity
+itself), satellites used and DOP, and the receiver clock.  Periods in vector-tracking mode
 (``/navigation/mode`` = 1) are shaded in the time panels.
 
 Channel records are reduced to at most ``MAX_POINTS`` time bins per channel (mean C/N0 and Doppler, the
 lock state), one channel at a time.
+
+One module for the report: its panels share the run's arrays and the layout.
 """
 from __future__ import annotations
 
@@ -222,7 +225,8 @@ def make_figure(run: RunData, truth=None, channels=None):
         ch = channels.get(p)
         if ch is None:
             continue
-        ax_cn0.plot(*_broken(ch["time_s"], ch["cn0"], ch["gap"]), lw=0.9, color=colors[p], label=sat_label(p, run.system))
+        ax_cn0.plot(*_broken(ch["time_s"], ch["cn0"], ch["gap"]), lw=0.9, color=colors[p],
+                    label=sat_label(p, run.system))
         ax_dop.plot(*_broken(ch["time_s"], ch["doppler"] / 1e3, ch["gap"]), lw=1.2, color=colors[p],
                     label=sat_label(p, run.system))
     _cn0_ylim(ax_cn0, channels)

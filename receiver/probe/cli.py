@@ -17,6 +17,7 @@ def _fmt_hz(v: float) -> str:
 
 
 def report_lines(r, show_path: str) -> list[str]:
+    """The lines ``gnssrx probe`` prints for a :class:`~receiver.probe.search.ProbeResult`."""
     from ..source.io import FORMATS
     out = [f"gnssrx probe: {show_path} ({os.path.getsize(r.path):,} bytes)"]
     out += [f"  bytes: {e}" for e in r.stats.evidence]

@@ -13,6 +13,7 @@ EPHEMERIS_S = 30.0
 
 
 def family_of(fmt: str) -> str:
+    """The byte-statistics family (receiver/probe/stats.py) of a format name."""
     f = resolve_format(fmt)
     if f.integer:
         return "int4"

@@ -51,6 +51,8 @@ FIRST_PRNS = (1, 4, 7, 10, 13, 16, 19, 22, 25, 28, 31, 2)
 
 @dataclass
 class Trial:
+    """One reading tried (format, rate, IF) and the satellites it found."""
+
     cand: Candidate
     fs: float
     if_hz: float
@@ -60,9 +62,11 @@ class Trial:
 
     @property
     def score(self) -> float:
+        """Sum of the detection metrics (each capped at 10)."""
         return sum(min(r.metric, 10.0) for r in self.found)
 
     def confident(self) -> bool:
+        """Two confirmed satellites, or one far above the threshold (short files: 1.5x each)."""
         if not self.found:
             return False
         best = max(r.metric for r in self.found)
@@ -73,6 +77,8 @@ class Trial:
 
 @dataclass
 class ProbeResult:
+    """The outcome of :func:`probe`: statistics, the winning reading, the spectrum's sign, notes."""
+
     path: str
     stats: Stats
     best: Trial | None
@@ -312,8 +318,8 @@ def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float =
         first_iq = next(c for c in cands if FORMATS[c.fmt].complex)
         _, width = spectrum_centre(src_of(first_iq).head[:1 << 17])
         hint = "real" if width > 0.6 else "iq"
-        result.notes.append(f"read as I/Q the spectrum's spread is {width:.2f} of the sample rate "
-                            f"({'> 0.6: the band sits at +/- fs/2, a real IF recording' if width > 0.6 else 'a band about 0 Hz: I/Q'})")
+        why = "> 0.6: the band sits at +/- fs/2, a real IF recording" if width > 0.6 else "a band about 0 Hz: I/Q"
+        result.notes.append(f"read as I/Q the spectrum's spread is {width:.2f} of the sample rate ({why})")
     if hint:
         cands.sort(key=lambda c: FORMATS[c.fmt].complex != (hint == "iq"))
 

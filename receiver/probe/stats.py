@@ -15,8 +15,9 @@ The tests, in order (the first that fits decides the family; ``Stats.evidence`` 
   packed    otherwise the bytes are spread over all 256 values: fields of 4, 2 or 1 bits.  For each width
             and encoding, the field values at every position of a byte must have the same
             distribution, symmetric about 0 and falling with |value| (a quantiser's output); the first
-            width / encoding that fits best is taken (1 bit when none of 2 or 4 bits fits).  The bit order (which field comes first) and I/Q vs real
-            leave these marginals unchanged: the acquisition decides them (receiver/probe/search.py).
+            width / encoding that fits best is taken (1 bit when none of 2 or 4 bits fits).  The bit order
+            (which field comes first) and I/Q vs real leave these marginals unchanged: the acquisition
+            decides them (receiver/probe/search.py).
 """
 from __future__ import annotations
 
@@ -39,6 +40,7 @@ class Candidate:
     encoding: str = "sign_magnitude"
 
     def keys(self) -> dict:
+        """The input config keys of this reading (bit_order / encoding only where they matter)."""
         d = {"format": self.fmt}
         if FORMATS[self.fmt].kind == "packed" and not FORMATS[self.fmt].integer:
             d["bit_order"] = self.bit_order
@@ -47,11 +49,14 @@ class Candidate:
         return d
 
     def label(self) -> str:
+        """``packed2_iq bit_order=msb_first encoding=sign_magnitude``."""
         return " ".join(f"{v}" if k == "format" else f"{k}={v}" for k, v in self.keys().items())
 
 
 @dataclass
 class Stats:
+    """What the bytes say: the family, the sentences why, and the readings to try."""
+
     family: str                         # float32, int16, int8, uint8, packed4, packed2, packed1, int4, unknown
     evidence: list = field(default_factory=list)      # sentences, most telling first
     candidates: list = field(default_factory=list)    # Candidate, most likely first
@@ -67,6 +72,7 @@ def _entropy(counts: np.ndarray) -> float:
 
 
 def read_head(path, header_bytes: int = 0, n: int = STATS_BYTES) -> np.ndarray:
+    """The first ``n`` bytes after the header (a multiple of 8)."""
     size = os.path.getsize(path) - header_bytes
     with open(path, "rb") as fh:
         fh.seek(header_bytes)
@@ -122,6 +128,7 @@ def _packed_fit(raw: np.ndarray, bits: int, encoding: str, integer: bool = False
 
 
 def byte_stats(path, header_bytes: int = 0) -> Stats:
+    """The sample family of ``path`` from its first MiB (module docstring)."""
     raw = read_head(path, header_bytes)
     st = Stats("unknown", n_bytes=len(raw))
     if len(raw) < 64:
@@ -147,7 +154,8 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
         s16 = raw.view("<i2").astype(np.float64)
         st.clip_fraction = float((np.abs(s16) >= 32767).mean())
         st.evidence.append(f"the odd bytes carry {h_odd:.1f} bits of entropy, the even ones {h_even:.1f} (their "
-                           f"histograms differ by {tv:.2f}): little-endian 16-bit samples (RMS {np.sqrt(np.mean(s16 ** 2)):.0f})")
+                           f"histograms differ by {tv:.2f}): little-endian 16-bit samples "
+                           f"(RMS {np.sqrt(np.mean(s16 ** 2)):.0f})")
         st.candidates = [Candidate("int16_iq"), Candidate("int16_real")]
         return st
     s = raw.view(np.int8).astype(np.float64)
