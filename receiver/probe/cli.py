@@ -72,7 +72,7 @@ def report_lines(r, show_path: str) -> list[str]:
               help="the sample rate, when known (default: try the common front-end rates)")
 @click.option("--header-bytes", type=click.IntRange(min=0), default=0, show_default=True,
               help="bytes before the first sample")
-@click.option("--max-seconds", type=click.FloatRange(min=1.0), default=60.0, show_default=True,
+@click.option("--max-seconds", type=click.FloatRange(min=1.0), default=30.0, show_default=True,
               help="give up searching after this long")
 @click.option("--verbose", "-v", is_flag=True, help="list every reading tried")
 def probe(file, rate, header_bytes, max_seconds, verbose):

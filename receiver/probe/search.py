@@ -271,7 +271,7 @@ def _swap_test(src: _Source, best: Trial, result: ProbeResult):
         result.swap_note = f"the spectrum's sign (iq_swap) could not be told (code drift slope {slope:+.2f})"
 
 
-def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float = 60.0,
+def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float = 30.0,
           log=None) -> ProbeResult:
     """Name the format, sample rate and IF that find satellites in ``path`` (module docstring)."""
     t0 = time.perf_counter()
@@ -368,7 +368,7 @@ def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float =
         if best is not None:
             break
         if time.perf_counter() - t0 > max_s:
-            result.notes.append(f"stopped after {max_s:.0f} s of searching")
+            result.notes.append(f"stopped after {max_s:.0f} s of searching (--max-seconds)")
             break
     if best is None:
         weak = [t for t in found.values() if t.found]
