@@ -7,7 +7,6 @@ length of the recording.
 from __future__ import annotations
 
 import math
-import os
 import time
 import zlib
 

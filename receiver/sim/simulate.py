@@ -44,6 +44,7 @@ import yaml
 from .. import __version__
 from .. import interrupt
 from ..errors import UserError
+from ..suggest import did_you_mean
 from ..estimation.interpolation import hermite
 from ..safeio import TMP_SUFFIX, GuardedFile, OutputLock, check_output, write_error_message
 from ..gnss.geodesy import ecef2lla
@@ -165,7 +166,8 @@ class _Cn0:
                 raise UserError(f"config key '{key}' must be a mapping with t_s and dbhz lists")
             unknown = set(item) - {"prns", "t_s", "dbhz"}
             if unknown:
-                raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'")
+                raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'"
+                                + did_you_mean(sorted(unknown)[0], ("prns", "t_s", "dbhz")))
             try:
                 t = np.asarray(item["t_s"], dtype=float).ravel()
                 v = np.asarray(item["dbhz"], dtype=float).ravel()
@@ -400,12 +402,11 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     if len(set(map(os.path.abspath, paths.values()))) < len(paths):
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
-    for kind, p in paths.items():
+    sim = _Simulator(sc)                 # input errors surface here, before any file or directory is made
+    for kind, p in paths.items():        # missing directories are made (as for every command's outputs)
         check_output(p, reads, what={"if": "output", "truth": "truth file",
                                      "yaml": "receiver-input fragment", "sigmf": "SigMF metadata",
-                                     "tag": "PocketSDR tag"}[kind],
-                     make_dirs=False)
-    sim = _Simulator(sc)                 # input errors surface here, before any file is touched
+                                     "tag": "PocketSDR tag"}[kind])
     lock = OutputLock(paths["if"]).acquire()
     tmp = {k: v + TMP_SUFFIX for k, v in paths.items()}
     try:

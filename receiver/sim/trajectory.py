@@ -23,6 +23,7 @@ import os
 import numpy as np
 
 from ..errors import UserError
+from ..suggest import did_you_mean
 from ..gnss.geodesy import enu_matrix, lla2ecef
 
 TRAJECTORY_KINDS = ("static", "constant_velocity", "segments", "figure8", "csv")
@@ -213,7 +214,8 @@ def _segments(raw):
                             "jerk_enu_mps3")
         unknown = set(seg) - {"duration_s", "accel_enu_mps2", "jerk_enu_mps3"}
         if unknown:
-            raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'")
+            raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'"
+                            + did_you_mean(sorted(unknown)[0], ("duration_s", "accel_enu_mps2", "jerk_enu_mps3")))
         d = seg.get("duration_s")
         if isinstance(d, bool) or not isinstance(d, (int, float)) or not d > 0:
             raise UserError(f"config key '{key}.duration_s' must be a positive number")

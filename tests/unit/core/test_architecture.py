@@ -21,7 +21,7 @@ PKG = ROOT / "receiver"
 #: package's __init__ only).  A new top-level module must be placed here (and in the README) explicitly.
 LAYERS: list[tuple[str, ...]] = [
     ("receiver", "receiver.errors", "receiver.config", "receiver.logs", "receiver.safeio", "receiver.threads",
-     "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start"),
+     "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start", "receiver.suggest"),
     ("receiver.gnss",),
     ("receiver.estimation",),
     ("receiver.runfile",),
@@ -30,7 +30,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.tracking",),
     ("receiver.navigation",),
     ("receiver.pipeline",),
-    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate"),
+    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.probe"),
     ("receiver.cli",),
 ]
 
