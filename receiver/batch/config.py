@@ -101,6 +101,8 @@ class Variant:
 
 @dataclass
 class InputSpec:
+    """One input of a batch: a scenario (simulated per seed, with its ``set`` overrides and ``assisted``) or a
+    recording (its receiver ``config``, ``truth`` or ``reference_llh``); paths resolved to absolute ones."""
     name: str
     kind: str                       # "scenario" | "recording"
     scenario: Any = None            # path (absolute) or mapping
@@ -116,6 +118,8 @@ class InputSpec:
 
 @dataclass
 class Batch:
+    """A loaded batch file (:func:`load_batch`): the validated config, resolved paths and directories, the
+    variants expanded over their sweep points and the inputs."""
     cfg: Section
     path: str | None                # the batch file (None: built from a mapping)
     name: str

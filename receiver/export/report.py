@@ -140,6 +140,11 @@ def _shade_vector(ax, t, mode, label=True):
 
 # -------------------------------------------------------------------------------------------------- stats
 def summary_stats(run: RunData, truth=None) -> dict:
+    """Summary numbers of a run for the report's table: ``n_fixes``, ``duration_s`` and ``t0_s`` (the span
+    read, s), and over the fixes with a finite position: ``ttff_s`` (first fix after the span start, s),
+    ``mean_llh`` (deg, deg, m), ``scatter_enu_m`` (1-sigma about the mean), ``n_vector``, ``n_sats_mean``,
+    ``pdop_mean``.  With a truth (:func:`load_truth`'s dict) also the errors in ENU at the truth:
+    ``truth_n``, ``err_3d_rms_m``, ``err_h_rms_m``, ``err_v_rms_m``, ``err_mean_enu_m``, ``vel_3d_rms_mps``."""
     fx = run.fixes
     fs = float(run.attrs.get("sample_rate_hz", np.nan))
     first = float(run.attrs.get("first_sample", 0)) / fs if np.isfinite(fs) else 0.0
@@ -180,6 +185,9 @@ def summary_stats(run: RunData, truth=None) -> dict:
 
 # -------------------------------------------------------------------------------------------------- figure
 def make_figure(run: RunData, truth=None, channels=None):
+    """The report as a matplotlib Figure (the panels of the module docstring), not saved.  ``truth``:
+    :func:`load_truth`'s dict or None; ``channels``: :func:`read_channels` of the run (read from the run
+    file when None).  Fills the missing azimuth/elevation of ``run.obs`` in place (:meth:`RunData.fill_azel`)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -50,6 +50,11 @@ def _tones(items):
 
 
 class Impairments:
+    """The front-end impairments of one simulated stream (the module docstring), built from the scenario's
+    ``impairments`` section for sample rate ``fs`` and IF ``if_hz`` (Hz), noise ``sigma`` per component and a
+    complex or real format; a tone outside the sampled band, a bad dc_offset or filter band is a UserError.
+    ``active`` is False when nothing is configured (:meth:`apply` then returns the block unchanged)."""
+
     def __init__(self, cfg, fs: float, if_hz: float, sigma: float, complex_fmt: bool):
         self.fs, self.if_hz, self.sigma, self.cplx = fs, if_hz, sigma, complex_fmt
         self.tones = _tones(cfg.tones)
