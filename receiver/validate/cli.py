@@ -1,6 +1,6 @@
 """``gnssrx validate`` (``make validate``; from a checkout ``python -m receiver.cli validate``): run the outside-simulator matrix.
 
-    gnssrx validate [MATRIX.yaml] [-j N] [--cache DIR] [--only SUBSTR,...] [--no-doc]
+    gnssrx validate [MATRIX.yaml] [-j N] [--cache DIR] [--only SUBSTR,...] [--no-doc] [--rescore] [--dry-run]
 
 Prints the table and, for a full run of the default matrix, writes it into docs/validation.md's
 generated section.  No GPS-SDR-SIM / C compiler / ../shared: one line on stderr, exit 2.
@@ -18,7 +18,9 @@ from ..errors import UserError
 @click.option("--cache", default=None, help="cache / work directory (default out/validate)")
 @click.option("--only", default="", help="comma-separated substrings of the row names to run")
 @click.option("--no-doc", is_flag=True, help="print the table only")
-def validate(matrix, jobs, cache, only, no_doc):
+@click.option("--rescore", is_flag=True, help="recompute the cached rows' metrics from their kept run files")
+@click.option("--dry-run", is_flag=True, help="run nothing: the table of what is cached")
+def validate(matrix, jobs, cache, only, no_doc, rescore, dry_run):
     """Run the GPS-SDR-SIM validation matrix (configs/validate/matrix.yaml; docs/validation.md)."""
     import yaml
 
@@ -36,7 +38,7 @@ def validate(matrix, jobs, cache, only, no_doc):
     cache = cache or str(DEFAULT_CACHE)
     sel = [s for s in only.split(",") if s]
     try:
-        res = run_matrix(rows, jobs, cache, sel)
+        res = run_matrix(rows, jobs, cache, sel, rescore=rescore, dry_run=dry_run)
     except SimulatorUnavailable as e:
         raise UserError(f"validate: {e}") from None
     tab = table(rows, res)

@@ -68,12 +68,33 @@ def load_matrix(path=MATRIX) -> list[dict]:
 
 
 def receiver_hash() -> str:
+    """Hash of the receiver's sources (receiver/**.py outside receiver/validate)."""
     h = hashlib.sha256()
     for p in sorted((ROOT / "receiver").rglob("*.py")):
         if "validate" in p.relative_to(ROOT / "receiver").parts:
             continue
         h.update(str(p.relative_to(ROOT)).encode())
         h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _code_only(path) -> str:
+    """The module's syntax tree without docstrings (comments and docs do not change the recordings)."""
+    import ast
+    tree = ast.parse(Path(path).read_text())
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.Expr) and \
+                isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree)
+
+
+def generator_hash() -> str:
+    """Hash of the case generator's code (scenarios, GPS-SDR-SIM driver, post-processing): part of the key."""
+    h = hashlib.sha256()
+    for name in ("scenarios.py", "gpssdrsim.py", "postprocess.py"):
+        h.update(_code_only(Path(__file__).parent / name).encode())
     return h.hexdigest()[:16]
 
 
@@ -89,7 +110,7 @@ def job_key(row, k, variant, sim_id, rx_id) -> str:
     blob = json.dumps({"scenario": scn, "recording": rec, "mode": row.get("mode", "assisted"),
                        "variant": variant, "sets": row.get("sets") or [],
                        "config": Path(row.get("config") or RECEIVER_CONFIG).read_text(),
-                       "sim": sim_id, "rx": rx_id}, sort_keys=True, default=str)
+                       "sim": sim_id, "rx": rx_id, "gen": generator_hash()}, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
@@ -131,6 +152,11 @@ def _run_job(row, k, variants, keys, work, results):
                      "ttff_s": math.nan}
             m.update({"row": row["name"], "seed": k, "variant": v, "place": scn["place"], "start": scn["start"],
                       "t_make_s": t_make, "t_run_s": time.time() - t1, "failed": check(m, row.get("expect"))})
+            if h5.is_file():            # kept with its truth for --rescore
+                shutil.move(str(h5), Path(results) / f"{key}.h5")
+                shutil.copy(case.truth_path, Path(results) / f"{key}.truth.npy")
+                case_k = type(case)(**{**case.__dict__, "truth_path": str(Path(results) / f"{key}.truth.npy")})
+                case_k.save(Path(results) / f"{key}.case.json")
             (Path(results) / f"{key}.json").write_text(json.dumps(m, default=float))
             out[v] = m
     finally:
@@ -138,8 +164,20 @@ def _run_job(row, k, variants, keys, work, results):
     return out
 
 
-def run_matrix(rows, jobs=2, cache_dir=DEFAULT_CACHE, only=None) -> dict:
-    """Run (or read from the cache) every (row, seed, variant); returns {(row, seed, variant): metrics}."""
+def _rescore(results, key, m, row):
+    from . import Case
+    h5, cj = results / f"{key}.h5", results / f"{key}.case.json"
+    if h5.is_file() and cj.is_file():
+        keep = {k: m[k] for k in ("row", "seed", "variant", "place", "start", "t_make_s", "t_run_s", "error")
+                if k in m}
+        m = {**score_run(h5, Case.load(cj)), **keep}
+    m["failed"] = check(m, row.get("expect"))
+    return m
+
+
+def run_matrix(rows, jobs=2, cache_dir=DEFAULT_CACHE, only=None, rescore=False, dry_run=False) -> dict:
+    """Run (or read from the cache) every (row, seed, variant); returns {(row, seed, variant): metrics}.
+    ``rescore``: recompute the cached metrics from the kept run files; ``dry_run``: run nothing."""
     exe = simulator(cache_dir)
     sim_id, rx_id = simulator_id(exe), receiver_hash()
     results = Path(cache_dir) / "results"
@@ -156,14 +194,15 @@ def run_matrix(rows, jobs=2, cache_dir=DEFAULT_CACHE, only=None) -> dict:
             for v, key in zip(variants, keys):
                 f = results / f"{key}.json"
                 if f.is_file():
-                    out[(row["name"], k, v)] = json.loads(f.read_text())
+                    m = json.loads(f.read_text())
+                    out[(row["name"], k, v)] = _rescore(results, key, m, row) if rescore else m
                 else:
                     missing.append((v, key))
             if missing:
                 todo.append((row, k, [m[0] for m in missing], [m[1] for m in missing]))
     log.info(f"validate: {len(out)} cached, {sum(len(t[2]) for t in todo)} to run ({len(todo)} recordings), "
         f"{jobs} at a time")
-    if todo:
+    if todo and not dry_run:
         with ProcessPoolExecutor(max_workers=max(1, jobs)) as ex:
             futs = {ex.submit(_run_job, row, k, vs, ks, work, results): (row["name"], k) for row, k, vs, ks in todo}
             for n, f in enumerate(as_completed(futs), 1):

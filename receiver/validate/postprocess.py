@@ -13,7 +13,7 @@ The impairments mapping (every key optional)::
                             doubled, IF = simulator rate / 2)
     bits: null              ADC bits 1..8 with an AGC on each block's total power (MSE-optimal step of a
                             Gaussian input, receiver/sim/impairments.py); null: 8 for 8-bit formats, for
-                            int16 a scale of 1000 LSB per noise sigma
+                            int16 the AGC scales each block's RMS to 1000 LSB
     filter: {bandwidth_hz: null, order: 4}     Butterworth low-pass (two-sided bandwidth) of the baseband
     iq_imbalance: {gain_db: 0, phase_deg: 0}   Q branch gain and phase error (complex formats)
     dc: [0, 0]              DC offset (I, Q) in units of the noise sigma, after the filter
@@ -231,7 +231,7 @@ def _quantize(y, fmt, bits, real, sigma):
     for c in comps:
         rms = math.sqrt(float(np.mean(c * c))) or 1.0
         if fmt.startswith("int16") and not bits:
-            out.append(np.rint(c * (1000.0 / sigma)))
+            out.append(np.rint(c * (1000.0 / rms)))       # AGC: 1000 LSB RMS, 30 dB of headroom
             continue
         b = int(bits or 8)
         if b == 1:

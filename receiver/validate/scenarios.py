@@ -20,7 +20,7 @@ DYNAMICS (defaults):
   static   fixed antenna
   walk     1.4 m/s, a 90 deg turn (30 deg/s) every 10 s
   drive    from rest: 2.5 m/s^2 to 15 m/s, cruise, 90 deg turns of 9 deg/s (2.4 m/s^2 lateral), braking
-           to a 3-s stop; repeated (a 28-s cycle)
+           to a 3-s stop; repeated (a 33-s cycle at 15 m/s)
   circle   constant speed (8 m/s) on a circle of radius 20 m (3.2 m/s^2)
   figure8  lemniscate of Gerono, peak speed 50 m/s, size 1000 m (~5 m/s^2 peak)
   highg    circle at 50 m/s, radius 64 m (39 m/s^2 = 4 g)
