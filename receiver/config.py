@@ -77,7 +77,7 @@ class Section:
 
     def to_yaml(self) -> str:
         """The section as YAML (libyaml's emitter when PyYAML has it: ~4x faster than the pure-Python one,
-        the same text for every shipped config, tests/test_config_yaml_dump.py)."""
+        the same text for every shipped config, tests/unit/core/test_config_yaml_dump.py)."""
         return yaml.dump(self.to_dict(), Dumper=_SAFE_DUMPER, sort_keys=False)
 
     def __repr__(self):
@@ -259,13 +259,13 @@ def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, st
 # The receiver's schema
 # --------------------------------------------------------------------------------------------------
 # the formats of receiver/source/io.py (FORMATS), then the GNSS-SDR / SigMF aliases (ALIASES);
-# tests/test_registries.py checks both
+# tests/unit/core/test_registries.py checks both
 INPUT_FORMATS = ("int8_iq", "int16_iq", "uint8_iq", "complex64", "float32_real", "int8_real", "int16_real",
                  "int4_iq", "packed1_real", "packed1_iq", "packed2_real", "packed2_iq", "packed4_real", "packed4_iq")
 INPUT_FORMAT_ALIASES = ("gr_complex", "cshort", "ishort", "cbyte", "ibyte", "byte", "short", "float",
                         "cf32_le", "ci16_le", "ci8", "cu8", "rf32_le", "ri16_le", "ri8")
 REAL_FORMAT_ALIASES = ("byte", "short", "float", "rf32_le", "ri16_le", "ri8")
-#: the signal names of receiver.gnss.registry (a lower layer may not import it; tests/test_registries.py)
+#: the signal names of receiver.gnss.registry (a lower layer may not import it; tests/unit/core/test_registries.py)
 SIGNAL_CHOICES = ("gps_l1ca", "bds_b1i")
 CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
 
@@ -807,7 +807,7 @@ def load_receiver_config(path=None, overrides=None) -> Section:
     return cfg
 
 
-#: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/test_registries.py)
+#: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/unit/core/test_registries.py)
 SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 64))}
 
 

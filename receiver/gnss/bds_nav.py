@@ -228,7 +228,7 @@ def _unpack(layout, info) -> dict:
 
 def _join(parts_hi, parts_lo, base):
     nn, lsb, signed = SPLIT[base]
-    (hi, nh), (lo, nl) = parts_hi, parts_lo
+    (hi, _), (lo, nl) = parts_hi, parts_lo
     raw = (hi << nl) | lo
     if signed and raw >> (nn - 1):
         raw -= 1 << nn

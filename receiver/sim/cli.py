@@ -24,7 +24,8 @@ def simulate(scenario, out, sets, quiet):
     from .simulate import simulate as run_sim
     if out is None:
         out = os.path.splitext(os.path.basename(scenario))[0] + ".bin"
-    paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet and sys.stderr.isatty())   # no bar off a terminal
+    # (no progress bar off a terminal)
+    paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet and sys.stderr.isatty())
     if not quiet:
         from ..runfile.truth import TruthFile
         with TruthFile(paths["truth"]) as tf:

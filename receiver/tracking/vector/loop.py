@@ -136,7 +136,6 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs,
     m = ST.shape[0]
     n = x.shape[0]
     step = prm[P_GRID]
-    T = step / fs
     s_ref = prm[P_SREF]
     G = np.zeros(m, np.int64)
     for j in range(m):
