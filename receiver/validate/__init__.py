@@ -115,9 +115,10 @@ def make_case(scenario: dict, recording: dict, out_dir, name: str = "case", cach
 
 
 def receiver_command(case: Case, out_h5, assisted: bool = True, vector: bool = False, config=None,
-                     sets=(), threads: int = 1) -> list[str]:
+                     sets=(), threads: int | None = None) -> list[str]:
+    """The ``receiver.cli run`` command line of a case (``threads`` None: the receiver's default)."""
     cmd = [sys.executable, "-m", "receiver.cli", "run", str(config or RECEIVER_CONFIG), "--input", case.path,
-           "-o", str(out_h5), "--quiet", "--threads", str(threads)]
+           "-o", str(out_h5), "--quiet"] + (["--threads", str(threads)] if threads is not None else [])
     allsets = case.input_sets()
     if assisted:
         allsets.append(f"navigation.ephemeris={NAV_FILE}")
@@ -130,7 +131,7 @@ def receiver_command(case: Case, out_h5, assisted: bool = True, vector: bool = F
 
 
 def run_receiver(case: Case, out_h5, assisted: bool = True, vector: bool = False, config=None, sets=(),
-                 threads: int = 1, timeout: float | None = None) -> Path:
+                 threads: int | None = None, timeout: float | None = None) -> Path:
     """Run ``python -m receiver.cli run`` on the case (this checkout's receiver); returns the run file.
     A failed run raises RuntimeError with the receiver's last line."""
     cmd = receiver_command(case, out_h5, assisted, vector, config, sets, threads)

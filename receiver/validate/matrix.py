@@ -144,7 +144,7 @@ def _run_job(row, k, variants, keys, work, results):
             try:
                 run_receiver(case, h5, assisted=row.get("mode", "assisted") == "assisted",
                              vector=v == "vector", config=row.get("config"), sets=row.get("sets") or [],
-                             timeout=float(row.get("timeout_s", 1800)))
+                             threads=1, timeout=float(row.get("timeout_s", 1800)))
                 m = score_run(h5, case)
                 m["error"] = None
             except Exception as e:       # a crash is a result too

@@ -37,7 +37,15 @@ def _fixes(run_h5):
         for name in rf.channel_names():
             a = rf.group_attrs(f"channels/{name}") or {}
             v = a.get("cn0_locked_mean_dbhz")
-            if v is not None and np.isfinite(v) and int(a.get("epochs_locked", 0)) > 0:
+            if v is None:                           # older run files: the records' mean over tracking
+                g = rf.channel(name, ("cn0_dbhz", "state"))
+                c = g.get("cn0_dbhz")
+                if c is not None and "state" in g:
+                    c = c[g["state"] >= 1]
+                v = float(np.mean(c)) if c is not None and c.size else None
+                if v is not None:
+                    cn0.append(v)
+            elif np.isfinite(v) and int(a.get("epochs_locked", 0)) > 0:
                 cn0.append(float(v))
         rate = float((rf.config().get("navigation") or {}).get("rate_hz") or 10.0)
     return nav, cn0, rate

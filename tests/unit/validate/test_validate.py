@@ -208,3 +208,27 @@ def test_gpssdrsim_power_and_length(tmp_path):
     assert abs(nsat - round(nsat)) < 0.05 * nsat and 6 <= round(nsat) <= 16
     again = gpssdrsim.generate(rows, "2022/01/01,02:00:00", 2.048e6, tmp_path)
     assert again == path                                   # cached by hash
+
+
+def test_table_and_generated_section(tmp_path):
+    """The table has one line per (row, variant) with what the seeds measured; the doc's generated
+    section is replaced, not appended, on a second write."""
+    from receiver.validate.matrix import table, write_doc
+    rows = [r for r in load_matrix() if r["name"] in ("static_2600", "fig8_outage8")]
+    ok = {"ttff_s": 1.3, "availability": 1.0, "rms_3d_m": 0.8, "max_err_m": 2.0, "max_err_meas_m": 2.0,
+          "recovery_s": [], "max_recovery_s": math.nan, "cn0_dbhz": 44.1, "error": None, "failed": []}
+    never = {**ok, "recovery_s": [math.nan], "max_recovery_s": math.inf, "failed": ["max_recovery_s"]}
+    res = {("static_2600", k, "scalar"): ok for k in range(3)}
+    res.update({("fig8_outage8", k, "scalar"): never for k in range(3)})
+    text = table(rows, res)
+    lines = text.splitlines()
+    assert len(lines) == 2 + 2                       # header, rule, two rows (fig8 vector: no results)
+    fig8, static = lines[2], lines[3]                # the matrix's order
+    assert "| static_2600 |" in static and static.rstrip().endswith("| 3/3 |")
+    assert "| fig8_outage8 |" in fig8 and "never" in fig8 and fig8.rstrip().endswith("| 0/3 |")
+    doc = tmp_path / "v.md"
+    doc.write_text("# title\n\ntext\n")
+    write_doc(text, doc)
+    write_doc(text, doc)
+    body = doc.read_text()
+    assert body.startswith("# title") and body.count("| static_2600 |") == 1
