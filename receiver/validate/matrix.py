@@ -12,7 +12,8 @@
     rows:
       - {name: ..., label: ..., scenario: {...}, recording: {...}, expect: {...}}
 
-Seed k of a row: scenarios.seed_scenario (place and time of day rotated by k, heading), noise seed
+Rows run seed by seed (every row's seed 0, then seed 1 ...; ``priority: 0`` rows first in each round), so
+a partial run covers every row.  Seed k of a row: scenarios.seed_scenario (place and time of day rotated by k, heading), noise seed
 1000 * k + the row's index.  A (row, seed, variant) passes when every ``expect`` bound holds (upper bounds,
 but ``availability``, a lower bound); a missing first fix fails all.
 
@@ -200,6 +201,8 @@ def run_matrix(rows, jobs=2, cache_dir=DEFAULT_CACHE, only=None, rescore=False, 
                     missing.append((v, key))
             if missing:
                 todo.append((row, k, [m[0] for m in missing], [m[1] for m in missing]))
+    # every row's first seed first, then the second ...; rows with priority 0 first within a round
+    todo.sort(key=lambda t: (t[1], int(t[0].get("priority", 1)), t[0]["index"]))
     log.info(f"validate: {len(out)} cached, {sum(len(t[2]) for t in todo)} to run ({len(todo)} recordings), "
         f"{jobs} at a time")
     if todo and not dry_run:

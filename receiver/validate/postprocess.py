@@ -17,7 +17,9 @@ The impairments mapping (every key optional)::
     filter: {bandwidth_hz: null, order: 4}     Butterworth low-pass (two-sided bandwidth) of the baseband
     iq_imbalance: {gain_db: 0, phase_deg: 0}   Q branch gain and phase error (complex formats)
     dc: [0, 0]              DC offset (I, Q) in units of the noise sigma, after the filter
-    outages: [{start_s, end_s, atten_db: inf}]  signal attenuated (inf: removed) in [start, end) of true
+    outages: [{start_s, end_s, atten_db: inf, dropout: false}]  signal attenuated (inf: removed) in
+                            [start, end) of true time; dropout: the front end delivers zeros there (no noise,
+                            no interference either: a dead front end / lost USB transfers)
                             time; the noise and interference stay
     interference: [{kind: cw | swept | pulsed, freq_hz, power_db, start_s: 0, end_s: inf,
                     sweep_hz (swept: +/- span), period_s (swept / pulsed), duty (pulsed)}]
@@ -160,6 +162,8 @@ class _Chain:
             raise ValueError("bits must be 1 .. 8")
         if self.fmt == "uint8_iq" and self.bits not in (None, 8):
             raise ValueError("uint8_iq is an 8-bit format (bits: 8)")
+        self.dropouts = [(float(o["start_s"]), float(o["end_s"])) for o in imp.get("outages") or []
+                         if o.get("dropout")]
 
     def apply(self, y, n0):
         n, fs = y.size, self.fs
@@ -177,7 +181,16 @@ class _Chain:
             y = y.real + 1j * (self.iq_g * (y.imag * math.cos(self.iq_ph) + y.real * math.sin(self.iq_ph)))
         if self.dc:
             y = y + (self.dc.real if self.real else self.dc)
-        return _quantize(y, self.fmt, self.bits, self.real, self.sigma)
+        raw = _quantize(y, self.fmt, self.bits, self.real, self.sigma)
+        if self.dropouts:
+            t = k / (fs * (1.0 + self.eps))
+            dead = np.zeros(n, bool)
+            for a, b in self.dropouts:
+                dead |= (t >= a) & (t < b)
+            if dead.any():
+                dead = dead if self.real else np.repeat(dead, 2)
+                raw[dead] = 128 if self.fmt == "uint8_iq" else 0
+        return raw
 
 
 def process(src, dst, fs_sim: float, imp: dict, block_s: float = 0.1) -> dict:

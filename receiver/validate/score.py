@@ -16,6 +16,8 @@ Metrics (``score_run``):
   recovery_s                 per outage window: time from the signal's return to the first measured fix
                              within 10 m (NaN: none before the next outage / the end)
   max_recovery_s             the largest of them (inf when one never recovered)
+  along_track_m              mean error along the direction of motion over the measured fixes at > 1 m/s
+                             (a time-tag offset dt between the fixes and the motion file shows as v dt)
   cn0_dbhz                   median over the channels of their locked mean C/N0 (the receiver's estimate)
   n_channels                 channels that reached lock
 """
@@ -59,7 +61,7 @@ def score_run(run_h5, case) -> dict:
     windows = [(float(o["start_s"]), float(o["end_s"])) for o in case.outages]
     total = [(float(o["start_s"]), float(o["end_s"])) for o in case.outages
              if math.isinf(float(o.get("atten_db", math.inf)))]
-    out = {"n_fixes": 0, "ttff_s": math.nan, "availability": 0.0, "rms_3d_m": math.nan,
+    out = {"n_fixes": 0, "ttff_s": math.nan, "along_track_m": math.nan, "availability": 0.0, "rms_3d_m": math.nan,
            "p95_3d_m": math.nan, "max_err_m": math.nan, "max_err_meas_m": math.nan,
            "recovery_s": [math.nan] * len(windows), "max_recovery_s": math.inf if windows else math.nan,
            "cn0_dbhz": float(np.median(cn0)) if cn0 else math.nan, "n_channels": len(cn0)}
@@ -73,6 +75,12 @@ def score_run(run_h5, case) -> dict:
     t, pos, mode = t[ok], pos[ok], np.asarray(nav["mode"])[ok]
     true = np.stack([np.interp(t, t_tr, ecef_tr[:, i]) for i in range(3)], axis=1)
     err = np.linalg.norm(pos - true, axis=1)
+    vel = np.stack([np.interp(t, t_tr[1:] - 0.05, np.diff(ecef_tr[:, i]) * 10.0) for i in range(3)], axis=1)
+    speed = np.linalg.norm(vel, axis=1)
+    moving = (speed > 1.0) & (mode != MODE_COAST)
+    if moving.any():
+        along = np.sum((pos - true)[moving] * vel[moving], axis=1) / speed[moving]
+        out["along_track_m"] = float(np.mean(along))
     fx = Fixes(t=t, err=err, coast=mode == MODE_COAST, aided=None)
     meas = ~fx.coast
     out["n_fixes"] = int(fx.t.size)
