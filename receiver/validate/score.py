@@ -81,7 +81,7 @@ def score_run(run_h5, case) -> dict:
     if moving.any():
         along = np.sum((pos - true)[moving] * vel[moving], axis=1) / speed[moving]
         out["along_track_m"] = float(np.mean(along))
-    fx = Fixes(t=t, err=err, coast=mode == MODE_COAST, aided=None)
+    fx = Fixes(t=t, err=err, coast=mode == MODE_COAST)
     meas = ~fx.coast
     out["n_fixes"] = int(fx.t.size)
     out["ttff_s"] = float(fx.t[0])

@@ -232,3 +232,17 @@ def test_table_and_generated_section(tmp_path):
     write_doc(text, doc)
     body = doc.read_text()
     assert body.startswith("# title") and body.count("| static_2600 |") == 1
+
+
+def test_dropout_writes_zeros(tmp_path):
+    """An outage with dropout: true: the front end delivers zeros (no noise) in the window, and only there."""
+    src = tmp_path / "tone.bin"
+    _tone_file(src, 520_000, 5000.0)
+    out = tmp_path / "d.bin"
+    pp.process(src, out, FS, {"format": "int8_iq", "seed": 1,
+                              "outages": [{"start_s": 0.05, "end_s": 0.1, "dropout": True}]})
+    x = np.fromfile(out, np.int8).reshape(-1, 2)
+    t = np.arange(x.shape[0]) / FS
+    dead = (t >= 0.05) & (t < 0.1)
+    assert np.all(x[dead] == 0)
+    assert np.mean(np.all(x[~dead] == 0, axis=1)) < 0.01 and x[~dead].std() > 10
