@@ -88,6 +88,27 @@ def test_weak_static_2048_38_pathloss_osc_2ppm(sim, tmp_path):
     assert check(m, EXPECT) == [], m
 
 
+@pytest.mark.xfail(strict=True, reason="issue 31 (fixw): 33 dB-Hz (every satellite), 8 m/s on a 20-m circle, "
+                   "assisted: fixes from 1.3 s but 3D RMS 51.5 m scalar / 46.6 m vector (matrix row circle_33, "
+                   "seed 0)")
+def test_weak_circle_33(sim, tmp_path):
+    """Matrix row circle_33, one seed (not the matrix's), assisted, scalar."""
+    m = _run(tmp_path, {"dynamics": "circle", "place": "tokyo", "start": "02:00:00", "duration_s": 12},
+             {"sample_rate_hz": 2.6e6, "cn0_dbhz": 33, "seed": 8})
+    assert check(m, EXPECT) == [], m
+
+
+@pytest.mark.xfail(strict=True, reason="issue 31 (fixo): a CW tone 35 dB over the noise switching on mid-file "
+                   "(static, 45 dB-Hz, assisted): fixes before it, then errors of kilometres (matrix row late_cw_6s, "
+                   "seed 0: 3D RMS 1409 m)")
+def test_late_cw(sim, tmp_path):
+    """Matrix row late_cw_6s, shortened: the tone from 4 s in a 10-s file."""
+    m = _run(tmp_path, {"dynamics": "static", "place": "munich", "start": "16:52:00", "duration_s": 10},
+             {"sample_rate_hz": 2.6e6, "cn0_dbhz": 45, "seed": 9,
+              "interference": [{"kind": "cw", "freq_hz": 120000, "power_db": 35, "start_s": 4}]})
+    assert check(m, EXPECT) == [], m
+
+
 @pytest.mark.xfail(strict=True, reason="a file that is not a whole number of milliseconds long (12 s + 6 "
                    "samples) ends the run with a traceback: 'channel is behind the block start'")
 def test_file_not_whole_milliseconds(sim, tmp_path):
