@@ -253,12 +253,15 @@ def table(rows, res) -> str:
     for row in rows:
         for v in row.get("variants") or ["scalar"]:
             ms = [res[(row["name"], k, v)] for k in range(int(row.get("seeds", 3))) if (row["name"], k, v) in res]
+            dyn, fs, fmt, cn0 = describe(row)
             if not ms:
+                lines.append("| " + " | ".join([row["name"], "A" if row.get("mode", "assisted") == "assisted" else "U",
+                                                 dyn, fs, fmt, cn0, row.get("label", ""), v, "not run"]
+                                                + [""] * 8) + " |")
                 continue
             n = len(ms)
             fixed = sum(1 for m in ms if math.isfinite(m.get("ttff_s", math.nan)))
             errs = sorted({m["error"] for m in ms if m.get("error")})
-            dyn, fs, fmt, cn0 = describe(row)
             passed = sum(1 for m in ms if not m["failed"])
             rec = _agg(ms, "max_recovery_s", max) if row.get("recording", {}).get("outages") else math.nan
             lines.append("| " + " | ".join([

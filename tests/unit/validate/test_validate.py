@@ -222,8 +222,9 @@ def test_table_and_generated_section(tmp_path):
     res.update({("fig8_outage8", k, "scalar"): never for k in range(3)})
     text = table(rows, res)
     lines = text.splitlines()
-    assert len(lines) == 2 + 2                       # header, rule, two rows (fig8 vector: no results)
-    fig8, static = lines[2], lines[3]                # the matrix's order
+    assert len(lines) == 2 + 3                       # header, rule, fig8 scalar / vector, static
+    assert "not run" in lines[3]                     # fig8 vector: no results
+    fig8, static = lines[2], lines[4]                # the matrix's order
     assert "| static_2600 |" in static and static.rstrip().endswith("| 3/3 |")
     assert "| fig8_outage8 |" in fig8 and "never" in fig8 and fig8.rstrip().endswith("| 0/3 |")
     doc = tmp_path / "v.md"
