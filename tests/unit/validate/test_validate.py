@@ -247,3 +247,30 @@ def test_dropout_writes_zeros(tmp_path):
     dead = (t >= 0.05) & (t < 0.1)
     assert np.all(x[dead] == 0)
     assert np.mean(np.all(x[~dead] == 0, axis=1)) < 0.01 and x[~dead].std() > 10
+
+
+def test_simulator_needs_a_compiler(tmp_path, monkeypatch):
+    """No prebuilt binary, no $GNSSRX_GPSSDRSIM and no C compiler on PATH: SimulatorUnavailable says so."""
+    from receiver.validate import gpssdrsim
+    monkeypatch.delenv("GNSSRX_GPSSDRSIM", raising=False)
+    monkeypatch.setattr(gpssdrsim, "PREBUILT", tmp_path / "none")
+    if not gpssdrsim.BUILD_SCRIPT.is_file():
+        pytest.skip("../shared/tools absent")
+    monkeypatch.setenv("PATH", str(tmp_path))
+    with pytest.raises(gpssdrsim.SimulatorUnavailable, match="no C compiler"):
+        gpssdrsim.simulator(tmp_path / "cache")
+
+
+@pytest.mark.slow
+def test_simulator_is_built_into_the_cache(tmp_path, monkeypatch):
+    """Without a prebuilt binary the shared build script compiles GPS-SDR-SIM into <cache>/sim-bin."""
+    import shutil
+    from receiver.validate import gpssdrsim
+    monkeypatch.delenv("GNSSRX_GPSSDRSIM", raising=False)
+    monkeypatch.setattr(gpssdrsim, "PREBUILT", tmp_path / "none")
+    if not gpssdrsim.BUILD_SCRIPT.is_file():
+        pytest.skip("../shared/tools absent")
+    if not (shutil.which("gcc") or shutil.which("cc")):
+        pytest.skip("no C compiler")
+    exe = gpssdrsim.simulator(tmp_path / "cache")
+    assert exe == tmp_path / "cache" / "sim-bin" / "gps-sdr-sim" and exe.is_file()
