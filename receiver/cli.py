@@ -273,6 +273,7 @@ LAZY_COMMANDS = {
     "report": ("receiver.export.cli", "report"), "info": ("receiver.export.cli", "info"),
     "batch": ("receiver.batch.cli", "batch"), "compare": ("receiver.batch.cli", "compare"),
     "probe": ("receiver.probe.cli", "probe"),
+    "validate": ("receiver.validate.cli", "validate"),
 }
 
 

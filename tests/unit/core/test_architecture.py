@@ -30,7 +30,8 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.tracking",),
     ("receiver.navigation",),
     ("receiver.pipeline",),
-    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.probe"),
+    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.probe",
+     "receiver.validate"),
     ("receiver.cli",),
 ]
 
