@@ -9,8 +9,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gal_codes import (CS25_LEN, E1_CHIP_RATE, E1_CODE_LEN, E1_HZ, E1_PERIOD_S, E1B_SYMBOL_RATE, GAL_PRNS,
-                        boc11, cs25_signs, e1b_code, e1c_code)
+from .gal_codes import (
+    CS25_LEN,
+    E1_CHIP_RATE,
+    E1_CODE_LEN,
+    E1_HZ,
+    E1_PERIOD_S,
+    E1B_SYMBOL_RATE,
+    GAL_PRNS,
+    boc11,
+    cs25_signs,
+    e1b_code,
+    e1c_code,
+)
 from .signals import SignalDef, sample_code
 
 #: code periods per I/NAV symbol on E1-B (250 sym/s, 4-ms periods) and per CS25 period on E1-C (25 x 4 ms)
