@@ -225,9 +225,20 @@ def test_ggto_not_available():
     assert dec.ggto is not None and not dec.ggto.valid
 
 
-def test_position_from_decoded_ephemeris_is_a_galileo_orbit():
+def test_satellite_state_uses_the_galileo_constants():
+    from receiver.gnss.ephemeris import Ephemeris, sat_state
     e = _ephemeris()
-    p, clk = I.gal_position_clock(e, e.toe + 600.0)
+    t = e.toe + 3600.0
+    p, v, clk, drift = sat_state(e, t)                        # dispatched to GalEphemeris.state
     assert 29.5e6 < np.linalg.norm(p) < 29.7e6                 # MEO radius ~ 29 600 km
-    assert clk == pytest.approx(e.af0 + e.af1 * 600.0 - e.tgd, abs=5e-8)
-    assert math.isfinite(clk)
+    assert 2.5e3 < np.linalg.norm(v) < 4.5e3
+    assert clk == pytest.approx(e.af0 + e.af1 * 3600.0 - e.tgd, abs=5e-8)
+    # the same numbers as a GPS ephemeris but mu = 3.986004418e14 instead of 3.986005e14: after an hour the
+    # mean motion difference (-0.73 ppm) has moved the satellite by ~10 m along track
+    g = Ephemeris(**{f: getattr(e, f) for f in ("prn", "week", "toe", "toc", "af0", "af1", "af2", "tgd", "iode",
+                                                 "iodc", "sqrt_a", "e", "i0", "omega0", "omega", "m0", "delta_n",
+                                                 "idot", "omega_dot", "cuc", "cus", "crc", "crs", "cic", "cis")})
+    pg = sat_state(g, t)[0]
+    n = math.sqrt(I.MU_GAL / e.sqrt_a ** 6)
+    expect = np.linalg.norm(p) * n * 3600.0 * (1 - math.sqrt(3.986005e14 / I.MU_GAL))
+    assert np.linalg.norm(p - pg) == pytest.approx(abs(expect), rel=0.05)

@@ -28,7 +28,6 @@ week; the GGTO (word 10) is the nanosecond-level offset t_GST - t_GPS (ICD Eq. 2
 """
 from __future__ import annotations
 
-import math
 import operator
 from dataclasses import dataclass, field, replace
 
@@ -307,6 +306,15 @@ class GalEphemeris(Ephemeris):
     @property
     def gst_week(self) -> int:
         return self.week - GST_WEEK_OFFSET
+
+    @staticmethod
+    def state(ephs, t_tx):
+        """receiver.gnss.ephemeris.sat_state hands Galileo ephemerides here: the GPS algorithm with the
+        Galileo mu and F (ICD Table 62, Eq. 13), BGD(E1,E5b) as the group delay (Eq. 15).  ``t_tx`` is taken
+        as GST seconds of week (= GPS seconds of week when the GGTO is zero; a GGTO of a few ns is not
+        applied here)."""
+        from .ephemeris import _params, kepler_state
+        return kepler_state(_params(ephs), t_tx, MU_GAL, F_REL_GAL)
 
     @property
     def e1b_hs(self) -> int:
@@ -699,35 +707,6 @@ class InavDecoder:
     def _near(old: GalEphemeris, new: GalEphemeris) -> bool:
         from .signals import C_LIGHT
         t = float(new.toe)
-        p0, c0 = gal_position_clock(old, t)
-        p1, c1 = gal_position_clock(new, t)
-        return float(np.linalg.norm(p1 - p0)) + C_LIGHT * abs(c1 - c0) <= InavDecoder.JUMP_M
-
-
-def gal_position_clock(eph: GalEphemeris, t_gst: float):
-    """ECEF position (m) and E1 clock offset (s, BGD(E1,E5b) applied, relativistic term included) of the
-    satellite at GST seconds of week ``t_gst`` (ICD Table 62 and Eqs. 13, 15)."""
-    a = eph.sqrt_a ** 2
-    tk = (t_gst - eph.toe + HALF_WEEK) % WEEK_S - HALF_WEEK
-    n = math.sqrt(MU_GAL / a ** 3) + eph.delta_n
-    m = eph.m0 + n * tk
-    e_anom = m
-    for _ in range(30):
-        d = (e_anom - eph.e * math.sin(e_anom) - m) / (1.0 - eph.e * math.cos(e_anom))
-        e_anom -= d
-        if abs(d) < 1e-15:
-            break
-    v = math.atan2(math.sqrt(1 - eph.e ** 2) * math.sin(e_anom), math.cos(e_anom) - eph.e)
-    phi = v + eph.omega
-    s2, c2 = math.sin(2 * phi), math.cos(2 * phi)
-    u = phi + eph.cus * s2 + eph.cuc * c2
-    r = a * (1 - eph.e * math.cos(e_anom)) + eph.crs * s2 + eph.crc * c2
-    i = eph.i0 + eph.cis * s2 + eph.cic * c2 + eph.idot * tk
-    x1, y1 = r * math.cos(u), r * math.sin(u)
-    om = eph.omega0 + (eph.omega_dot - OMEGA_E_GAL) * tk - OMEGA_E_GAL * eph.toe
-    pos = np.array([x1 * math.cos(om) - y1 * math.cos(i) * math.sin(om),
-                    x1 * math.sin(om) + y1 * math.cos(i) * math.cos(om),
-                    y1 * math.sin(i)])
-    dt = (t_gst - eph.toc + HALF_WEEK) % WEEK_S - HALF_WEEK
-    clk = eph.af0 + eph.af1 * dt + eph.af2 * dt * dt + F_REL_GAL * eph.e * eph.sqrt_a * math.sin(e_anom) - eph.tgd
-    return pos, clk
+        p0, _, c0, _ = GalEphemeris.state(old, t)
+        p1, _, c1, _ = GalEphemeris.state(new, t)
+        return float(np.linalg.norm(p1 - p0)) + C_LIGHT * abs(float(c1 - c0)) <= InavDecoder.JUMP_M
