@@ -645,8 +645,10 @@ class InavDecoder:
         if t in (5, 6) or (t == 0 and f.get("time") == 2):
             if t != 6:
                 self.gst_week = int(f["wn"])
-            if self.gst_week is not None:
-                self._tow_ref = (page_at, self.gst_week, int(f["tow"]))
+            wk = self.gst_week
+            if wk is None and self.week_hint is not None:
+                wk = int(self.week_hint) - GST_WEEK_OFFSET
+            self._tow_ref = (page_at, wk, int(f["tow"]))     # word 6 has no WN: the week may be unknown
         self._seq += 1
         if t in (1, 2, 3, 4, 5):
             self._words[t] = (f, self._seq)
@@ -664,7 +666,10 @@ class InavDecoder:
             return None
         ref_at, wk, tow = self._tow_ref
         gst = tow + (page_at - ref_at) / 250.0
-        _, gps_tow = gps_from_gst(wk + int(gst // WEEK_S), gst % WEEK_S, self.ggto)
+        if wk is None:                                   # no week yet: the GGTO (ns) is left out
+            gps_tow = gst % WEEK_S
+        else:
+            _, gps_tow = gps_from_gst(wk + int(gst // WEEK_S), gst % WEEK_S, self.ggto)
         return SubframeEvent(bit_index=int(page_at), tow_s=float(gps_tow), subframe_id=int(t),
                              polarity=self.polarity)
 
