@@ -25,7 +25,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.estimation",),
     ("receiver.runfile",),
     ("receiver.source",),
-    ("receiver.acquisition", "receiver.acquisition_hs"),
+    ("receiver.acquisition", "receiver.acquisition_hs", "receiver.acquisition_gal"),
     ("receiver.tracking",),
     ("receiver.navigation",),
     ("receiver.pipeline",),
