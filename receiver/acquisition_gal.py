@@ -113,3 +113,35 @@ def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns,
         out.append(GalAcqResult(int(prn), bool(detected), dop, float(code_phase), int(start_index),
                                 ptm / thr, cn0, fixed))
     return out
+
+
+def refine_pilot(samples, fs, if_hz, prn, code_phase_chips, doppler_hz, n_periods: int = 50,
+                 span_hz: float = 75.0, step_hz: float = 1.0):
+    """(Doppler, CS25 offset) from ``n_periods`` E1-C prompts at the acquired code phase: for each of the 25
+    alignments of CS25 (period k of the block carries chip (k + offset) mod 25) the pilot prompts with the
+    secondary code wiped are summed coherently over the Doppler grid ``doppler_hz`` +/- ``span_hz``; the
+    largest sum gives both (the block's first sample is sample 0 of ``samples``)."""
+    from .gnss.gal_codes import cs25_signs
+    sig = get_signal("gal_e1")
+    n4 = int(round(fs * E1_PERIOD_S))
+    t = np.arange(n4 * n_periods) / fs
+    x = np.asarray(samples[:n4 * n_periods]) * np.exp(-2j * np.pi * (if_hz + doppler_hz) * t)
+    rate = E1_CHIP_RATE * (1.0 + doppler_hz / sig.carrier_hz)
+    ch = code_phase_chips + t * rate
+    rep = sig.replica(prn, "C")
+    v = x * rep[np.floor(2.0 * ch).astype(np.int64) % rep.size]
+    per = np.floor(ch / E1_CODE_LEN).astype(np.int64)            # period of the block each sample is in
+    k = per - per[0]
+    prompts = np.bincount(k, v.real) + 1j * np.bincount(k, v.imag)
+    t_per = np.bincount(k, t) / np.maximum(np.bincount(k), 1)       # mean time of each period's samples
+    cs = cs25_signs()
+    df = np.arange(-span_hz, span_hz + step_hz / 2, step_hz)
+    rot = np.exp(-2j * np.pi * df[:, None] * t_per[None, :])       # (n_f, n_per)
+    best = (-1.0, 0.0, 0)
+    for off in range(25):
+        s = cs[(np.arange(len(prompts)) + per[0] + off) % 25]
+        z = np.abs(rot @ (prompts * s))
+        i = int(np.argmax(z))
+        if z[i] > best[0]:
+            best = (float(z[i]), float(df[i]), off)
+    return doppler_hz + best[1], best[2]
