@@ -32,7 +32,8 @@ from receiver.gnss.geodesy import azel, ecef2lla  # noqa: E402
 from receiver.gnss.signals import C_LIGHT  # noqa: E402
 from receiver.tracking.gal import GalChannel  # noqa: E402
 
-FS = 4.092e6
+FS = 4.0e6        # not a multiple of the chip rate: a commensurate rate (4.092 MS/s) makes the sampled BOC
+                 # correlation a staircase of 1/4-chip steps and the DLL wanders within a step (~0.05 chip)
 
 
 def simulate(out: Path, duration: float, cn0: float, seed: int) -> Path:
