@@ -10,7 +10,9 @@ This path runs beside the receiver pipeline (which does not track gal_e1 yet); t
 iterative least squares (Sagnac, satellite clock with relativity and BGD(E1,E5b), Saastamoinen troposphere as
 simulated, no ionosphere: the scenario has none).
 
-    python scripts/gal_acceptance.py --out /tmp/gal_acc [--duration 45] [--cn0 45]
+    python scripts/gal_acceptance.py --out /tmp/gal_acc [--duration 45] [--cn0 45] [--seed 1]
+
+The recording is configs/scenarios/static_galileo.yaml (static, 4 MS/s int8 I/Q, no ionosphere).
 """
 from __future__ import annotations
 
@@ -32,20 +34,14 @@ from receiver.gnss.geodesy import azel, ecef2lla  # noqa: E402
 from receiver.gnss.signals import C_LIGHT  # noqa: E402
 from receiver.tracking.gal import GalChannel  # noqa: E402
 
-FS = 4.0e6        # not a multiple of the chip rate: a commensurate rate (4.092 MS/s) makes the sampled BOC
-                 # correlation a staircase of 1/4-chip steps and the DLL wanders within a step (~0.05 chip)
 
 
 def simulate(out: Path, duration: float, cn0: float, seed: int) -> Path:
+    """configs/scenarios/static_galileo.yaml with the duration, C/N0 and seed of the command line."""
     from receiver.sim.simulate import simulate as sim
     rec = out / "gal.bin"
-    sim(None, rec, [("time.gps_week", 2300), ("time.tow_s", 345600.3), ("time.duration_s", duration),
-                    ("time.seed", seed), ("signal", "gal_e1"), ("atmosphere.ionosphere", "none"),
-                    ("atmosphere.troposphere", "saastamoinen"), ("frontend.sample_rate_hz", FS),
-                    ("frontend.if_hz", 0.0), ("frontend.format", "int8_iq"), ("cn0.dbhz", cn0),
-                    ("clock.bias_s", 2.5e-4), ("clock.freq_error_ppm", 0.5), ("clock.noise", "tcxo"),
-                    ("receiver.lat_deg", 46.5197), ("receiver.lon_deg", 6.6323), ("receiver.height_m", 400.0)],
-        progress=False)
+    sim(ROOT / "configs" / "scenarios" / "static_galileo.yaml", rec,
+        [("time.duration_s", duration), ("time.seed", seed), ("cn0.dbhz", cn0)], progress=False)
     return rec
 
 
@@ -107,19 +103,20 @@ def main(argv=None) -> int:
     print(f"recording {rec} ({time.time() - t0:.1f} s)")
     import h5py
     truth = h5py.File(str(rec)[:-4] + ".truth.h5")
+    fs = float(truth.attrs["sample_rate_hz"])
     raw = np.memmap(rec, np.int8, "r")
     n_samp = raw.size // 2
-    blk = raw[:2 * int(FS * 0.2)].astype(np.float32)
+    blk = raw[:2 * int(fs * 0.2)].astype(np.float32)
     x0 = (blk[0::2] + 1j * blk[1::2]).astype(np.complex64)
     t1 = time.time()
-    acq = [r for r in search(x0, 0, FS, 0.0, range(1, 37), noncoherent=5, doppler_max_hz=5000.0) if r.detected]
+    acq = [r for r in search(x0, 0, fs, 0.0, range(1, 37), noncoherent=5, doppler_max_hz=5000.0) if r.detected]
     print(f"acquired {[r.prn for r in acq]} ({time.time() - t1:.1f} s)")
     chans = {}
     for r in acq:
-        dop, off = refine_pilot(x0, FS, 0.0, r.prn, r.code_phase_chips, r.doppler_hz)
-        chans[r.prn] = GalChannel(r.prn, FS, 0.0, 0, r.code_phase_chips, dop, off)
+        dop, off = refine_pilot(x0, fs, 0.0, r.prn, r.code_phase_chips, r.doppler_hz)
+        chans[r.prn] = GalChannel(r.prn, fs, 0.0, 0, r.code_phase_chips, dop, off)
     t1 = time.time()
-    n_ep = int(n_samp / FS / 4e-3) + 2
+    n_ep = int(n_samp / fs / 4e-3) + 2
     eps, decs, evs = {}, {}, {}
     for prn, ch in chans.items():
         ep = ch.run(raw, n_ep)
@@ -148,7 +145,7 @@ def main(argv=None) -> int:
     fixes = []
     T0 = None
     xg = np.array([0.0, 0.0, 0.0]) + 1.0
-    for s in np.arange(int(FS * 1.0), n_samp - int(FS * 0.1), int(FS * a.rate)):
+    for s in np.arange(int(fs * 1.0), n_samp - int(fs * 0.1), int(fs * a.rate)):
         sats = []
         for p, ep in eps.items():
             dec = decs[p]
@@ -162,8 +159,8 @@ def main(argv=None) -> int:
         if len(sats) < 4:
             continue
         if T0 is None:
-            T0 = max(t for _, t in sats) + 0.08 - s / FS
-        T = T0 + s / FS
+            T0 = max(t for _, t in sats) + 0.08 - s / fs
+        T = T0 + s / fs
         obs = []
         for p, ttx in sats:
             pos, _, clk, _ = sat_state(decs[p].ephemeris, ttx)
@@ -171,8 +168,8 @@ def main(argv=None) -> int:
         xg, b, r = wls(obs, xg)
         if np.linalg.norm(xg) < 6.0e6:          # first iterations from the Earth's centre: again
             xg, b, r = wls(obs, xg)
-        truth_pos = np.array([np.interp(s / FS, t_truth, ecef_truth[:, k]) for k in range(3)])
-        fixes.append((s / FS, len(obs), xg.copy(), truth_pos, float(np.sqrt(np.mean(r ** 2)))))
+        truth_pos = np.array([np.interp(s / fs, t_truth, ecef_truth[:, k]) for k in range(3)])
+        fixes.append((s / fs, len(obs), xg.copy(), truth_pos, float(np.sqrt(np.mean(r ** 2)))))
     if not fixes:
         print("no fix")
         return 1
