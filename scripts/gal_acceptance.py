@@ -46,16 +46,24 @@ def simulate(out: Path, duration: float, cn0: float, seed: int) -> Path:
 
 
 def _tx_time(ep, events):
-    """GST (= GPS) transmit time at each epoch start of a channel, from the decoder's page events; NaN before
-    the first page with a known time."""
+    """GST (= GPS) transmit time at each epoch start of a channel, from the decoder's first page event (an
+    (event, symbol index at which it was emitted) pair); NaN before that index."""
     tx = np.full(len(ep.sample), np.nan)
     if not events:
         return tx
-    ev = events[0]
+    ev, known_at = events[0]
     i = np.arange(len(ep.sample))
     tx = ev.tow_s + (i - ev.bit_index) * 4e-3 + ep.code_phase / 1.023e6
-    tx[i < ev.bit_index] = np.nan
+    tx[i < known_at] = np.nan
     return tx
+
+
+def _interp(ep, values, s):
+    """values (per epoch start) at sample s, linearly; None outside the epochs."""
+    j = int(np.searchsorted(ep.sample, s)) - 1
+    if j < 0 or j + 1 >= len(ep.sample) or not (np.isfinite(values[j]) and np.isfinite(values[j + 1])):
+        return None
+    return values[j] + (values[j + 1] - values[j]) * (s - ep.sample[j]) / (ep.sample[j + 1] - ep.sample[j])
 
 
 def wls(sats, x0):
@@ -95,6 +103,10 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--rate", type=float, default=1.0, help="fix interval (s)")
     ap.add_argument("--recording", help="use this recording (made by an earlier run) instead of simulating")
+    ap.add_argument("--reuse-tracking", action="store_true",
+                    help="take the tracking and decoding of an earlier run from OUT/gal_epochs.pkl")
+    ap.add_argument("--smooth-s", type=float, default=0.0,
+                    help="carrier-smoothing (Hatch) time constant of the pseudoranges (s); 0: raw code")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -109,7 +121,7 @@ def main(argv=None) -> int:
     blk = raw[:2 * int(fs * 0.2)].astype(np.float32)
     x0 = (blk[0::2] + 1j * blk[1::2]).astype(np.complex64)
     t1 = time.time()
-    acq = [r for r in search(x0, 0, fs, 0.0, range(1, 37), noncoherent=5, doppler_max_hz=5000.0) if r.detected]
+    acq = [] if a.reuse_tracking and (out / "gal_epochs.pkl").exists() else [r for r in search(x0, 0, fs, 0.0, range(1, 37), noncoherent=5, doppler_max_hz=5000.0) if r.detected]
     print(f"acquired {[r.prn for r in acq]} ({time.time() - t1:.1f} s)")
     chans = {}
     for r in acq:
@@ -117,16 +129,30 @@ def main(argv=None) -> int:
         chans[r.prn] = GalChannel(r.prn, fs, 0.0, 0, r.code_phase_chips, dop, off)
     t1 = time.time()
     n_ep = int(n_samp / fs / 4e-3) + 2
-    eps, decs, evs = {}, {}, {}
+    eps, decs, evs, avail = {}, {}, {}, {}
+    cache = out / "gal_epochs.pkl"
+    if a.reuse_tracking and cache.exists():
+        import pickle
+        eps, decs, evs, avail = pickle.loads(cache.read_bytes())
+        chans = {}
     for prn, ch in chans.items():
         ep = ch.run(raw, n_ep)
+        # the decoder is fed 1 s at a time as a running receiver would: the symbol index at which it first
+        # holds an ephemeris is when that satellite can be used
         dec = InavDecoder(prn)
-        ev = dec.feed(ep.prompt_b.real, 0)
-        eps[prn], decs[prn], evs[prn] = ep, dec, ev
+        ev, eph_at = [], None
+        for k in range(0, len(ep.sample), 250):
+            ev += [(e, k + 250) for e in dec.feed(ep.prompt_b.real[k:k + 250], k)]
+            if eph_at is None and dec.ephemeris is not None:
+                eph_at = k + 250
+        eps[prn], decs[prn], evs[prn], avail[prn] = ep, dec, ev, eph_at
         print(f"  E{prn:02d}: {len(ep.sample)} epochs, C/N0 (pilot) {np.median(ep.cn0_dbhz[250:]):.1f} dB-Hz, "
               f"pages {dec.pages_ok} ok / {dec.crc_failures} CRC failures, ephemeris "
               f"{'decoded' if dec.ephemeris is not None else 'none'}")
     print(f"tracking + decoding {time.time() - t1:.1f} s")
+    if chans:
+        import pickle
+        cache.write_bytes(pickle.dumps((eps, decs, evs, avail)))
     # the decoded ephemerides against the simulated ones
     from receiver.sim.gal_constellation import gal_nominal_content
     sim_content = gal_nominal_content(ROOT / "data" / "gal_nominal_constellation.yaml", 2300,
@@ -145,26 +171,36 @@ def main(argv=None) -> int:
     fixes = []
     T0 = None
     xg = np.array([0.0, 0.0, 0.0]) + 1.0
+    lam = C_LIGHT / 1575.42e6
+    smooth = {}                                 # prn -> (smoothed pseudorange - c T, carrier range, count)
     for s in np.arange(int(fs * 1.0), n_samp - int(fs * 0.1), int(fs * a.rate)):
         sats = []
         for p, ep in eps.items():
-            dec = decs[p]
-            if dec.ephemeris is None:
-                continue
-            j = np.searchsorted(ep.sample, s) - 1
-            if j < 0 or j + 1 >= len(ep.sample) or not np.isfinite(tx[p][j]) or not np.isfinite(tx[p][j + 1]):
-                continue
-            ttx = tx[p][j] + (tx[p][j + 1] - tx[p][j]) * (s - ep.sample[j]) / (ep.sample[j + 1] - ep.sample[j])
-            sats.append((p, ttx))
-        if len(sats) < 4:
+            ttx = _interp(ep, tx[p], s)
+            if ttx is None:
+                continue                        # no page time yet
+            cyc = _interp(ep, ep.carr_cycles, s)
+            sats.append((p, ttx, cyc, avail[p] is not None and ep.sample[min(avail[p], len(ep.sample) - 1)] <= s))
+        if not sats:
             continue
         if T0 is None:
-            T0 = max(t for _, t in sats) + 0.08 - s / fs
+            T0 = max(t for _, t, _, _ in sats) + 0.08 - s / fs
         T = T0 + s / fs
         obs = []
-        for p, ttx in sats:
-            pos, _, clk, _ = sat_state(decs[p].ephemeris, ttx)
-            obs.append((C_LIGHT * (T - ttx), np.asarray(pos), float(clk)))
+        for p, ttx, cyc, has_eph in sats:
+            pr = C_LIGHT * (T - ttx)
+            rng_c = -lam * cyc                  # carrier range change (IF 0; Doppler > 0: range shrinking)
+            if a.smooth_s > 0:                  # Hatch filter: code smoothed by the carrier (no ionosphere)
+                old = smooth.get(p)
+                m = 1 if old is None else min(old[2] + 1, max(1, round(a.smooth_s / a.rate)))
+                ps = pr if old is None else pr / m + (m - 1) / m * (old[0] + rng_c - old[1])
+                smooth[p] = (ps, rng_c, m)
+                pr = ps
+            if has_eph:                         # the satellite's ephemeris decoded by now
+                pos, _, clk, _ = sat_state(decs[p].ephemeris, ttx)
+                obs.append((pr, np.asarray(pos), float(clk)))
+        if len(obs) < 4:
+            continue
         xg, b, r = wls(obs, xg)
         if np.linalg.norm(xg) < 6.0e6:          # first iterations from the Earth's centre: again
             xg, b, r = wls(obs, xg)
@@ -180,6 +216,8 @@ def main(argv=None) -> int:
     nn = -np.sin(la) * np.cos(lo) * err[:, 0] - np.sin(la) * np.sin(lo) * err[:, 1] + np.cos(la) * err[:, 2]
     u = np.cos(la) * np.cos(lo) * err[:, 0] + np.cos(la) * np.sin(lo) * err[:, 1] + np.sin(la) * err[:, 2]
     d3 = np.sqrt(np.mean(np.sum(err ** 2, axis=1)))
+    print(f"ephemeris available (s after the first sample): "
+          f"{ {p: round(eps[p].sample[min(v, len(eps[p].sample) - 1)] / fs, 1) for p, v in avail.items() if v} }")
     print(f"fixes: {len(fixes)}, first at {fixes[0][0]:.1f} s after the first sample, satellites "
           f"{min(f[1] for f in fixes)}-{max(f[1] for f in fixes)}")
     print(f"3D RMS {d3:.3f} m, horizontal RMS {np.sqrt(np.mean(e ** 2 + nn ** 2)):.3f} m, vertical RMS "

@@ -67,7 +67,9 @@ def _correlate(x, start, n, code_phase, code_step, carr_phase, carr_step, rep_c,
 class GalEpochs:
     """Per 4-ms epoch of one channel: first sample, replica code phase there (chips, ~0: epochs start at code
     period boundaries), period count since the channel start (the first epoch is period ``first_period`` of
-    the acquisition block), E1-B and E1-C prompts, carrier NCO frequency (Hz, IF included), C/N0 estimate."""
+    the acquisition block), E1-B and E1-C prompts, carrier NCO frequency (Hz, IF included), C/N0 estimate of
+    the pilot (the prompt's in-phase over quadrature power: biased low by the PLL phase jitter, ~3 dB with a
+    TCXO at 15 Hz), accumulated carrier phase (for carrier smoothing)."""
     sample: np.ndarray
     code_phase: np.ndarray
     period: np.ndarray
@@ -75,6 +77,7 @@ class GalEpochs:
     prompt_c: np.ndarray
     carr_hz: np.ndarray
     cn0_dbhz: np.ndarray
+    carr_cycles: np.ndarray      # accumulated carrier NCO phase at the epoch start (cycles, IF included)
 
 
 class GalChannel:
@@ -103,13 +106,14 @@ class GalChannel:
         self.freq_int = self.if_hz + doppler_hz             # PLL integrator (Hz)
         self.carr_hz = self.freq_int
         self.carr_phase = 0.0
+        self.carr_cycles = 0.0                              # accumulated NCO phase (cycles)
         self.period = 1                                     # periods after the acquisition block's first
         self.cs25_offset = int(cs25_offset)
         self._nb = 0.0
         self._ns = 0.0
 
     def run(self, x, n_epochs: int) -> GalEpochs:
-        out = {k: [] for k in ("sample", "code_phase", "period", "pb", "pc", "f", "cn0")}
+        out = {k: [] for k in ("sample", "code_phase", "period", "pb", "pc", "f", "cn0", "cyc")}
         fs = self.fs
         for _ in range(n_epochs):
             rate = E1_CHIP_RATE * (1.0 + (self.carr_hz - self.if_hz) / E1_HZ) + self.dll_rate
@@ -143,10 +147,13 @@ class GalChannel:
             out["pc"].append(p)
             out["f"].append(self.carr_hz)
             out["cn0"].append(10.0 * math.log10(max(snr, 1e-3) / (2.0 * T)))
+            out["cyc"].append(self.carr_cycles)
+            self.carr_cycles += self.carr_hz * T
             self.code_phase = self.code_phase + n * step - E1_CODE_LEN
             self.next_sample += n
             self.period += 1
             self.carr_hz = new_hz
         return GalEpochs(np.array(out["sample"], np.int64), np.array(out["code_phase"]),
                          np.array(out["period"], np.int64), np.array(out["pb"], np.complex128),
-                         np.array(out["pc"], np.complex128), np.array(out["f"]), np.array(out["cn0"]))
+                         np.array(out["pc"], np.complex128), np.array(out["f"]), np.array(out["cn0"]),
+                         np.array(out["cyc"]))
