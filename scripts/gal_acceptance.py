@@ -103,6 +103,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--rate", type=float, default=1.0, help="fix interval (s)")
     ap.add_argument("--recording", help="use this recording (made by an earlier run) instead of simulating")
+    ap.add_argument("--dll-bw", type=float, default=2.0, help="DLL noise bandwidth (Hz)")
     ap.add_argument("--reuse-tracking", action="store_true",
                     help="take the tracking and decoding of an earlier run from OUT/gal_epochs.pkl")
     ap.add_argument("--smooth-s", type=float, default=0.0,
@@ -126,7 +127,7 @@ def main(argv=None) -> int:
     chans = {}
     for r in acq:
         dop, off = refine_pilot(x0, fs, 0.0, r.prn, r.code_phase_chips, r.doppler_hz)
-        chans[r.prn] = GalChannel(r.prn, fs, 0.0, 0, r.code_phase_chips, dop, off)
+        chans[r.prn] = GalChannel(r.prn, fs, 0.0, 0, r.code_phase_chips, dop, off, dll_bw_hz=a.dll_bw)
     t1 = time.time()
     n_ep = int(n_samp / fs / 4e-3) + 2
     eps, decs, evs, avail = {}, {}, {}, {}
