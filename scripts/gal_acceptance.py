@@ -36,7 +36,6 @@ from receiver.gnss.signals import C_LIGHT  # noqa: E402
 from receiver.tracking.gal import GalChannel  # noqa: E402
 
 
-
 def simulate(out: Path, duration: float, cn0: float, seed: int) -> Path:
     """configs/scenarios/static_galileo.yaml with the duration, C/N0 and seed of the command line."""
     from receiver.sim.simulate import simulate as sim
@@ -105,8 +104,8 @@ def main(argv=None) -> int:
     ap.add_argument("--rate", type=float, default=1.0, help="fix interval (s)")
     ap.add_argument("--recording", help="use this recording (made by an earlier run) instead of simulating")
     ap.add_argument("--dll-bw", type=float, default=8.0,
-                    help="DLL noise bandwidth (Hz); the narrower 2 Hz of GalChannel's default leaves per-satellite "
-                         "code biases of up to ~1.7 m (under investigation, docs/galileo.md)")
+                    help="DLL noise bandwidth (Hz); a narrower one (2 Hz) leaves per-satellite code biases of up to "
+                         "~1.7 m (under investigation, docs/galileo.md)")
     ap.add_argument("--reuse-tracking", action="store_true",
                     help="take the tracking and decoding of an earlier run from OUT/gal_epochs.pkl")
     ap.add_argument("--smooth-s", type=float, default=10.0,

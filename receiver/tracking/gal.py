@@ -24,7 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..gnss.gal_codes import E1_CHIP_RATE, E1_CODE_LEN, E1_HZ, boc11, cs25_signs, e1b_code, e1c_code
+from ..gnss.gal_codes import (
+    E1_CHIP_RATE,
+    E1_CODE_LEN,
+    E1_HZ,
+    boc11,
+    cs25_signs,
+    e1b_code,
+    e1c_code,
+)
 
 
 @njit(cache=True, nogil=True)
@@ -86,7 +94,7 @@ class GalChannel:
     :class:`GalEpochs`."""
 
     def __init__(self, prn: int, fs: float, if_hz: float, sample: int, code_phase_chips: float, doppler_hz: float,
-                 cs25_offset: int, pll_bw_hz: float = 15.0, dll_bw_hz: float = 2.0, dll_spacing: float = 0.2):
+                 cs25_offset: int, pll_bw_hz: float = 15.0, dll_bw_hz: float = 8.0, dll_spacing: float = 0.2):
         self.prn = int(prn)
         self.fs, self.if_hz = float(fs), float(if_hz)
         self.rep_c = boc11(e1c_code(prn)).astype(np.float32)
