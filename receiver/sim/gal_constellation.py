@@ -14,17 +14,8 @@ import os
 from ..config import read_yaml
 from ..errors import UserError
 from ..gnss.gal_codes import GAL_PRNS
-from ..gnss.gal_inav import (
-    GST_WEEK_OFFSET,
-    OMEGA_E_GAL,
-    GalEphemeris,
-    Ggto,
-    GstUtc,
-    InavContent,
-    NequickG,
-    gst_from_gps,
-    quantize_gal,
-)
+from ..gnss.gal_inav import (GST_WEEK_OFFSET, OMEGA_E_GAL, GalEphemeris, Ggto, GstUtc, InavContent, NequickG,
+    gst_from_gps, quantize_gal)
 
 NOMINAL_GAL = "data/gal_nominal_constellation.yaml"
 SISA_INDEX = 107            # broadcast SISA (ICD issue 1.1 does not define the index; carried, not used)

@@ -24,15 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..gnss.gal_codes import (
-    E1_CHIP_RATE,
-    E1_CODE_LEN,
-    E1_HZ,
-    boc11,
-    cs25_signs,
-    e1b_code,
-    e1c_code,
-)
+from ..gnss.gal_codes import (E1_CHIP_RATE, E1_CODE_LEN, E1_HZ, boc11, cs25_signs, e1b_code, e1c_code)
 
 
 @njit(cache=True, nogil=True)
