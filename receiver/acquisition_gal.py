@@ -8,10 +8,11 @@ phase and Doppler, Gamma(2K, 1/2K) once divided by the row's noise floor).  Dopp
 threshold are those of :mod:`receiver.acquisition` (row floor by the median, Pfa over the whole grid).
 
 BOC side peaks: the BOC(1,1) auto-correlation has side peaks of -1/2 at +/-1/2 chip (a quarter of the main
-peak's power).  The grid's largest cell is taken, and then the code phase is re-evaluated at the peak and at
-+/-1/2 chip with the replica placed at the exact fractional phase over all blocks: the largest of the three is
-the main peak (:func:`resolve_side_peak`), so a side peak that won the grid by noise or by the sampling of the
-narrow BOC peak is corrected before tracking starts.
+peak's power).  The grid's largest cell is taken, and then the power is re-evaluated with the replica at exact
+fractional phases from -3/4 to +3/4 chip around it in 1/16-chip steps, over all blocks: the largest is the
+main peak (:func:`resolve_side_peak`), so a side peak that won the grid by noise, or a grid peak that the
+sampling of the narrow BOC peak left between the main and a side peak, is corrected before tracking starts
+(the DLL's pull-in range is about +/-1/3 chip).
 """
 from __future__ import annotations
 
@@ -58,13 +59,16 @@ def block_power(samples, fs, if_hz, prn, code_phase_chips, doppler_hz, k) -> flo
     return total
 
 
-def resolve_side_peak(samples, fs, if_hz, prn, code_phase_chips, doppler_hz, k):
-    """(code phase, moved) : of the peak and the two BOC side-peak positions +/-1/2 chip, the one with the most
-    power (a side peak has a quarter of the main peak's)."""
-    cands = [code_phase_chips, code_phase_chips - 0.5, code_phase_chips + 0.5]
-    p = [block_power(samples, fs, if_hz, prn, c % E1_CODE_LEN, doppler_hz, k) for c in cands]
-    best = int(np.argmax(p))
-    return cands[best] % E1_CODE_LEN, best != 0
+def resolve_side_peak(samples, fs, if_hz, prn, code_phase_chips, doppler_hz, k, step: float = 0.0625):
+    """(code phase, moved): the exact-phase power (:func:`block_power`) over the grid peak +/- 3/4 chip in steps
+    of ``step`` chips; its maximum is the main peak (a side peak at +/-1/2 chip has a quarter of its power, and
+    the grid's sample spacing - 1/4 chip at 4 MS/s - can leave the grid peak between the main and a side peak
+    at low C/N0).  ``moved``: the maximum is more than 1/4 chip from the grid peak (a side peak was taken)."""
+    offsets = np.arange(-0.75, 0.75 + step / 2, step)
+    p = [block_power(samples, fs, if_hz, prn, (code_phase_chips + o) % E1_CODE_LEN, doppler_hz, k)
+         for o in offsets]
+    best = float(offsets[int(np.argmax(p))])
+    return (code_phase_chips + best) % E1_CODE_LEN, abs(best) > 0.25
 
 
 def search(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prns, noncoherent: int = 5,
