@@ -268,7 +268,7 @@ INPUT_FORMAT_ALIASES = ("gr_complex", "cshort", "ishort", "cbyte", "ibyte", "byt
                         "cf32_le", "ci16_le", "ci8", "cu8", "rf32_le", "ri16_le", "ri8")
 REAL_FORMAT_ALIASES = ("byte", "short", "float", "rf32_le", "ri16_le", "ri8")
 #: the signal names of receiver.gnss.registry (a lower layer may not import it; tests/unit/core/test_registries.py)
-SIGNAL_CHOICES = ("gps_l1ca", "bds_b1i")
+SIGNAL_CHOICES = ("gps_l1ca", "bds_b1i", "gal_e1")
 CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
 
 RECEIVER_SCHEMA = {
@@ -335,7 +335,8 @@ RECEIVER_SCHEMA = {
         },
     },
     "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
-                                   "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages)",
+                                   "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages); gal_e1 (Galileo E1 OS) "
+                                   "is defined (codes, I/NAV) but not yet acquired or tracked",
                 choices=SIGNAL_CHOICES),
     "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
                              "every signal is acquired and tracked from the same input (input.if_hz is the IF "
@@ -819,7 +820,10 @@ def load_receiver_config(path=None, overrides=None) -> Section:
 
 
 #: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/unit/core/test_registries.py)
-SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 64))}
+SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 64)),
+               "gal_e1": tuple(range(1, 51))}
+#: signals defined in receiver.gnss (codes, messages) that the receiver stages do not process yet
+UNTRACKED_SIGNALS = ("gal_e1",)
 
 
 #: the signals the vector loops track (receiver/tracking/vector: any mix of them, one clock bias per system)
@@ -827,7 +831,7 @@ VECTOR_SIGNALS = ("gps_l1ca", "bds_b1i")
 
 
 def _prn_text(name: str) -> str:
-    return "1-32 (GPS) and 193-202 (QZSS)" if name == "gps_l1ca" else "1-63"
+    return {"gps_l1ca": "1-32 (GPS) and 193-202 (QZSS)", "gal_e1": "1-50"}.get(name, "1-63")
 
 
 def run_signals(cfg: Section) -> list:
@@ -873,6 +877,11 @@ def validate_receiver(cfg: Section) -> Section:
     if not prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
     sigs = run_signals(cfg)
+    for s in sigs:
+        if s in UNTRACKED_SIGNALS:
+            key = "signals" if cfg.signals else "signal"
+            raise UserError(f"config key '{key}': {s} is not acquired or tracked yet (its codes and navigation "
+                            f"message are defined in receiver/gnss; docs/galileo.md)")
     if cfg.vector.enabled and any(s not in VECTOR_SIGNALS for s in sigs):
         raise UserError(f"config key 'vector.enabled': the vector loops track {' and '.join(VECTOR_SIGNALS)} "
                         f"only, not {', '.join(s for s in sigs if s not in VECTOR_SIGNALS)}")
