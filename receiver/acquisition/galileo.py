@@ -27,6 +27,9 @@ from ..gnss.registry import get_signal
 
 @dataclass
 class GalAcqResult:
+    """One PRN's Galileo E1 search result: detection, Doppler (Hz), code phase (chips of the 4-ms code) and
+    the detection statistic."""
+
     prn: int
     detected: bool
     doppler_hz: float

@@ -271,6 +271,7 @@ def pack_word(wtype: int, values: dict) -> np.ndarray:
 
 
 def word_type(word128) -> int:
+    """The word type of a 128-bit I/NAV word (its first 6 bits)."""
     return bits_to_int(np.asarray(word128)[:6])
 
 
@@ -305,6 +306,7 @@ class GalEphemeris(Ephemeris):
 
     @property
     def gst_week(self) -> int:
+        """The Galileo system time week of the ephemeris (GPS week minus the GST week offset)."""
         return self.week - GST_WEEK_OFFSET
 
     @staticmethod
@@ -318,10 +320,12 @@ class GalEphemeris(Ephemeris):
 
     @property
     def e1b_hs(self) -> int:
+        """E1-B signal health status (2 bits; 0: signal OK)."""
         return self.health >> 1
 
     @property
     def e1b_dvs(self) -> int:
+        """E1-B data validity status (0: navigation data valid, 1: working without guarantee)."""
         return self.health & 1
 
 
@@ -359,6 +363,7 @@ class Ggto:
     valid: bool = True
 
     def offset_s(self, gst_week: int, gst_tow: float) -> float:
+        """The broadcast GST - GPS time offset (s) at GST week / time of week (0 when not valid)."""
         if not self.valid:
             return 0.0
         return self.a0g + self.a1g * (gst_tow - self.t0g + WEEK_S * ((gst_week - self.wn0g) % 64))
@@ -500,7 +505,8 @@ class InavDecoder:
 
     ``feed(symbols, first_symbol_index)``: soft symbols (float, negative = logic 1, e.g. E1-B prompt sums
     of 4 ms) or hard ones (0/1), indices counting 4-ms code periods.  Page-part sync: the sync pattern (either
-    polarity, ``SEARCH_ERRORS`` wrong symbols tolerated) at two positions 250 symbols apart; then every part is de-interleaved and Viterbi-decoded,
+    polarity, ``SEARCH_ERRORS`` wrong symbols tolerated) at two positions 250 symbols apart; then every part is
+    de-interleaved and Viterbi-decoded,
     an even part followed by an odd part is a page, and a page whose CRC-24Q passes is used.  A part whose sync
     pattern has more than ``SYNC_ERRORS`` wrong symbols is decoded all the same; sync is dropped after
     ``MAX_MISSES`` such parts in a row.  A sync pattern of the other polarity (a half-cycle slip of the carrier
@@ -544,13 +550,17 @@ class InavDecoder:
 
     @property
     def week(self) -> int | None:
+        """The GPS week of the decoded GST week, or None before word 5 has been decoded."""
         return None if self.gst_week is None else self.gst_week + GST_WEEK_OFFSET
 
     @property
     def ephemerides_held(self) -> int:
+        """How many suspect ephemeris sets were held back for a second reception (lnav.HeldSet.count)."""
         return self._held.count
 
     def feed(self, symbols, first_symbol_index: int) -> list:
+        """Add symbols starting at 4-ms code period ``first_symbol_index`` (a gap restarts the page
+        synchronisation); returns the events of the pages completed by them."""
         a = np.asarray(symbols).ravel()
         if a.dtype == bool or np.issubdtype(a.dtype, np.unsignedinteger):
             a = 1.0 - 2.0 * (a != 0)

@@ -104,6 +104,7 @@ class SignalDef:
         return ca_code(prn)
 
     def bit_ms(self, prn: int) -> int:
+        """Data-bit length in ms (20 for LNAV)."""
         return round(LNAV_BIT_S * 1e3)
 
     def secondary(self, prn: int):

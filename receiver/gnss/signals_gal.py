@@ -64,6 +64,7 @@ class GalE1Signal(SignalDef):
         return sample_code(self.replica(prn, component), self.replica_rate, fs, n, 2.0 * code_phase_chips)
 
     def bit_ms(self, prn: int) -> int:
+        """E1-B symbol length in ms (one 4-ms code period)."""
         return round(E1_PERIOD_S * 1e3) * E1B_SYMBOL_PERIODS
 
     def secondary(self, prn: int):
@@ -71,6 +72,7 @@ class GalE1Signal(SignalDef):
         return cs25_signs()
 
     def short_symbols(self, prn: int) -> bool:
+        """True: a symbol or secondary chip per code period (no 20-ms bit synchronisation)."""
         return True                       # 4-ms symbols on E1-B, CS25 chips every 4 ms on E1-C
 
 

@@ -64,4 +64,5 @@ def gal_nominal_content(path, gps_week: int, gps_tow: float) -> dict:
 
 
 def source_name(path) -> str:
+    """The truth file's name of the nominal Galileo constellation read from ``path``."""
     return f"gal_nominal:{os.path.basename(path)}"

@@ -268,6 +268,8 @@ def clock_h(sc: Section):
 
 
 def noise_sigma(sc: Section) -> float:
+    """Noise standard deviation per component in the recording's units: frontend.noise_sigma, else the
+    default of the output format."""
     fe = sc.frontend
     return fe.noise_sigma if fe.noise_sigma is not None else DEFAULT_NOISE_SIGMA[fe.format]
 

@@ -233,6 +233,7 @@ class SatelliteTrack:
         self.pos, self.vel, self.clk, self.drift = pos, vel, clk, drift
 
     def covers(self, t_lo, t_hi):
+        """True when the interpolation nodes span the true times [t_lo, t_hi] (s)."""
         return self.t_lo <= t_lo and t_hi <= self.t_hi
 
     def __call__(self, t, rates=True):

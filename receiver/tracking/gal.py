@@ -113,6 +113,8 @@ class GalChannel:
         self._ns = 0.0
 
     def run(self, x, n_epochs: int) -> GalEpochs:
+        """Track ``n_epochs`` 4-ms epochs of the samples ``x`` from the channel's current state; returns the
+        epochs' records (sample index, code phase, code period, E1-B and E1-C prompts, Doppler, C/N0)."""
         out = {k: [] for k in ("sample", "code_phase", "period", "pb", "pc", "f", "cn0", "cyc")}
         fs = self.fs
         for _ in range(n_epochs):
