@@ -509,16 +509,19 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
             # a weak channel's DLL narrows C_WEAK_DLL_HOLD_MS after the pull-in: the code error the pull-in
             # leaves (up to ~0.3 chip at low C/N0, whose 1-ms discriminator gain is low) converges at the
             # normal rate first -- at 0.5 Hz it took 3-5 s, measurements being used after 1 s
-            if st[S_WEAK] > 0 and cfg[C_WEAK_DLL_BW] > 0 and st[S_MODE] != MODE_PULL_IN and \
-                    st[S_MODE_MS] >= cfg[C_WEAK_DLL_HOLD_MS]:
-                bw = cfg[C_WEAK_DLL_BW]
+            if st[S_WEAK] > 0 and cfg[C_WEAK_DLL_BW] > 0 and st[S_MODE] != MODE_PULL_IN:
+                bw = cfg[C_WEAK_DLL_BW] if st[S_MODE_MS] >= cfg[C_WEAK_DLL_HOLD_MS] else cfg[C_DLL_BW_PULL]
             doppler = st[S_CARR_FREQ] - cfg[C_IF]
             aid = cfg[C_CHIP_RATE] * (1.0 + doppler / cfg[C_CARRIER_HZ])
             if cfg[C_DLL_ORDER] == 2:
                 # 2nd order: the integrator absorbs a code/carrier rate mismatch (oscillator error on
                 # the carrier only, ionospheric divergence) that would bias a 1st-order loop
                 w0 = bw / 0.53
-                st[S_DLL_RATE] += T * w0 * w0 * code_err
+                # a weak channel's rate integrator at its own (narrow) bandwidth from the start: at 1-ms
+                # integration and low C/N0 the wide pull-in / hold loop's integrator random-walks to
+                # ~0.2 chip/s, which the narrow loop then takes seconds to remove (code errors of 0.3 chip)
+                w0i = cfg[C_WEAK_DLL_BW] / 0.53 if (st[S_WEAK] > 0 and 0 < cfg[C_WEAK_DLL_BW] < bw) else w0
+                st[S_DLL_RATE] += T * w0i * w0i * code_err
                 st[S_CODE_RATE] = aid + st[S_DLL_RATE] + 1.414 * w0 * code_err
             else:
                 st[S_CODE_RATE] = aid + 4.0 * bw * code_err
