@@ -77,7 +77,7 @@ class Section:
 
     def to_yaml(self) -> str:
         """The section as YAML (libyaml's emitter when PyYAML has it: ~4x faster than the pure-Python one,
-        the same text for every shipped config, tests/test_config_yaml_dump.py)."""
+        the same text for every shipped config, tests/unit/core/test_config_yaml_dump.py)."""
         return yaml.dump(self.to_dict(), Dumper=_SAFE_DUMPER, sort_keys=False)
 
     def __repr__(self):
@@ -244,7 +244,7 @@ def build(schema: dict, raw: dict | None = None, overrides=None) -> Section:
 
 
 def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, str]]:
-    """(key, kind, default, doc) rows, for the README config reference."""
+    """(key, kind, default, doc) rows, for the configuration reference (docs/reference/config.md)."""
     rows = []
     for name, spec in schema.items():
         if isinstance(spec, dict):
@@ -259,13 +259,13 @@ def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, st
 # The receiver's schema
 # --------------------------------------------------------------------------------------------------
 # the formats of receiver/source/io.py (FORMATS), then the GNSS-SDR / SigMF aliases (ALIASES);
-# tests/test_registries.py checks both
+# tests/unit/core/test_registries.py checks both
 INPUT_FORMATS = ("int8_iq", "int16_iq", "uint8_iq", "complex64", "float32_real", "int8_real", "int16_real",
                  "int4_iq", "packed1_real", "packed1_iq", "packed2_real", "packed2_iq", "packed4_real", "packed4_iq")
 INPUT_FORMAT_ALIASES = ("gr_complex", "cshort", "ishort", "cbyte", "ibyte", "byte", "short", "float",
                         "cf32_le", "ci16_le", "ci8", "cu8", "rf32_le", "ri16_le", "ri8")
 REAL_FORMAT_ALIASES = ("byte", "short", "float", "rf32_le", "ri16_le", "ri8")
-#: the signal names of receiver.gnss.registry (a lower layer may not import it; tests/test_registries.py)
+#: the signal names of receiver.gnss.registry (a lower layer may not import it; tests/unit/core/test_registries.py)
 SIGNAL_CHOICES = ("gps_l1ca", "bds_b1i")
 CARRIER_VARIANTS = ("pll", "cpll_atan", "ekf", "pli_ekf", "kf", "adaptive_kf")
 
@@ -273,7 +273,7 @@ RECEIVER_SCHEMA = {
     "input": {
         "path": P(None, "str", "IF sample file (relative paths are taken from the current directory; "
                               "`--input` overrides)", nullable=True),
-        "format": P("int8_iq", "str", "sample format (README \"Input formats\"; GNSS-SDR item_type and SigMF "
+        "format": P("int8_iq", "str", "sample format (docs: Your own recording; GNSS-SDR item_type and SigMF "
                                       "datatype names are accepted as aliases)",
                     choices=INPUT_FORMATS + INPUT_FORMAT_ALIASES),
         "header_bytes": P(0, "int", "bytes skipped at the start of the file before the first sample", lo=0),
@@ -291,11 +291,15 @@ RECEIVER_SCHEMA = {
                                       "and sample rate as input.path, which holds the first signal); a signal "
                                       "not listed is read from input.path"),
         "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
-        "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and decimate by this "
-                                     "integer factor before acquisition and tracking (auto: the largest factor "
-                                     "that keeps >= 3 chip rates and the code-phase grid, 1 below ~6 MS/s, and a "
-                                     "rate that is not a whole number of samples per ms, e.g. 16.3676 MS/s, "
-                                     "resampled to one; 1: off); README \"High sample rates\""),
+        "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and resample to a "
+                                     "complex baseband stream before acquisition and tracking.  auto: when the "
+                                     "input is at least 1.5x the target rate (4 MS/s for gps_l1ca, 8 MS/s for "
+                                     "bds_b1i), resample to it by an exact ratio L/M (L, M <= 4096; else the "
+                                     "largest whole factor, else the lowest whole rate above it that such a "
+                                     "ratio reaches); slower inputs stay as they are, except a rate that is "
+                                     "not a whole number of samples per ms (e.g. 2.0461 MS/s), which is "
+                                     "resampled slightly up to one.  An integer N: decimate by N.  1: off "
+                                     "(docs: Input conditioning)"),
         "skip_s": P(0.0, "float", "seconds skipped at the start of the file", lo=0.0),
         "duration_s": P(None, "float", "seconds processed (empty: to the end of the file)",
                         nullable=True, lo=0.0),
@@ -334,7 +338,7 @@ RECEIVER_SCHEMA = {
     "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
                              "every signal is acquired and tracked from the same input (input.if_hz is the IF "
                              "of the first; the others sit at if_hz + their carrier - the first's), and the "
-                             "fixes use all systems with an inter-system clock bias; README \"Multi-GNSS\""),
+                             "fixes use all systems with an inter-system clock bias (docs: BeiDou and multi-GNSS)"),
     "acquisition": {
         "prns": P(list(range(1, 33)), "list_int", "PRNs searched (gps_l1ca: GPS 1-32 and QZSS 193-202 = "
                                                   "J01-J10; bds_b1i: 1-63)", lo=1, hi=202),
@@ -348,7 +352,7 @@ RECEIVER_SCHEMA = {
                              lo=1.0),
         "pfa": P(1e-3, "float", "false-alarm probability over one PRN's search grid", lo=1e-12, hi=0.5),
         "threshold": P(1.25, "float", "factor on the pfa-derived detection threshold: margin for the "
-                                      "non-Gaussian tail that strong signals' cross-correlation adds (README)",
+                                      "non-Gaussian tail that strong signals' cross-correlation adds (docs: Acquisition)",
                        lo=0.1),
         "start_s": P(0.0, "float", "time into the processed span where acquisition starts", lo=0.0),
         "width_ratio": P(0.3, "float", "a peak is rejected when the mean power 2-4 chips beside it, above "
@@ -398,7 +402,7 @@ RECEIVER_SCHEMA = {
                                             "(0.5 chip becomes 0.79 chip at 2.6 MS/s: 1.8x the 3D RMS on the "
                                             "third-party recording); off: whole samples only while a channel "
                                             "pulls in and on weak channels, the exact spacing otherwise "
-                                            "(README)"),
+                                            "(docs: Tracking)"),
         "cn0_window_ms": P(200, "int", "window for the C/N0 estimator (ms)", lo=20),
         "cn0_estimator": P("snv", "str", "C/N0 estimator: snv (signal-to-noise variance of the locked "
                                          "prompt; M2M4 before lock) or m2m4", choices=("snv", "m2m4")),
@@ -406,7 +410,7 @@ RECEIVER_SCHEMA = {
         "lock_ratio_min": P(1.5, "float", "PLL lock detector: lock while low-passed |I| exceeds this "
                                           "times low-passed |Q|", lo=1.0),
         "lost_ms": P(200, "int", "time below the lock thresholds before a channel declares the signal lost "
-                                "(its satellite is then re-acquired around the prediction, README: outages)",
+                                "(its satellite is then re-acquired around the prediction; docs: Tracking, signal outages)",
                      lo=10),
         "lost_grace_ms": P(1000, "int", "a channel is declared lost only after this long below the lock "
                                         "thresholds while it is younger than this (since its pull-in began): a "
@@ -592,7 +596,7 @@ RECEIVER_SCHEMA = {
         "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                          lo=0.0),
         "aiding": {
-            "enabled": P(True, "bool", "clock/height-aided fixes (README \"Aided fixes\"): an epoch with at most "
+            "enabled": P(True, "bool", "clock/height-aided fixes (docs: Navigation, aided fixes): an epoch with at most "
                                        "max_sats satellites, or whose unaided fix is refused (max_pdop), is "
                                        "solved with the receiver clock bias and height predicted from the "
                                        "unaided fixes of the last second as extra measurements; 3 satellites "
@@ -740,8 +744,8 @@ RECEIVER_SCHEMA = {
                                          "none; both with the shuffle filter", choices=("none", "lzf", "gzip")),
         "round_columns": P(True, "bool", "store the channel columns doppler_hz, code_rate_hz and "
                                          "code_phase_chips rounded to 1e-3 Hz, 1e-5 chip/s and 1e-7 chip "
-                                         "(HDF5 scale-offset filter; far below their noise, README \"HDF5 run "
-                                         "file\"); false: exact float64"),
+                                         "(HDF5 scale-offset filter; far below their noise, docs: Run-file "
+                                         "format); false: exact float64"),
         "channel_rate_hz": P(None, "float", "store the /channels records at most at this rate (the first epoch "
                                             "of every 1/rate interval; empty: every epoch).  Per-channel "
                                             "statistics (lock losses, locked epochs, mean C/N0) are computed "
@@ -799,6 +803,11 @@ def resolve_path(value: str, config_path=None) -> str:
 
 
 def load_receiver_config(path=None, overrides=None) -> Section:
+    """Load and validate a receiver configuration: the YAML file ``path`` (None: the defaults) merged over
+    the schema's defaults, then ``overrides`` applied (a list of ``(dotted_key, value)`` pairs, as
+    ``--set``).  ``path`` and the relative file names inside it are looked up as ``gnssrx run`` does
+    (current directory, then the checkout and the shipped files); a bad key or value raises
+    :class:`receiver.errors.UserError` naming it."""
     if path is not None:
         path = find_file(path)
     raw = read_yaml(path) if path is not None else {}
@@ -815,7 +824,7 @@ def load_receiver_config(path=None, overrides=None) -> Section:
     return cfg
 
 
-#: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/test_registries.py)
+#: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns; tests/unit/core/test_registries.py)
 SIGNAL_PRNS = {"gps_l1ca": tuple(range(1, 33)) + tuple(range(193, 203)), "bds_b1i": tuple(range(1, 64))}
 
 

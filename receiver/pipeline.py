@@ -12,32 +12,29 @@ from __future__ import annotations
 import functools
 import logging
 import os
-import queue
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .acquisition import _has_energy, reject_cross_correlations, search, verify
+from .acquisition.stage import acquire
 from . import interrupt, threads
 from .stagetimes import stage
 from .errors import UserError, warn
 from .source.io import SampleReader
+from .source.prefetch import PrefetchingReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
 from .config import RECEIVER_SCHEMA, run_signals, signal_prns
 from .runfile.provenance import provenance_async
+from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
 from .gnss.satid import MIXED, sat_key, sat_label
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
-from . import _numba_start
-
-_numba_start.prepare()          # numba's first cache load without importing scipy.linalg (receiver/_numba_start.py)
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
@@ -45,6 +42,10 @@ OVERLAP_S = 0.03
 
 @dataclass
 class RunSummary:
+    """What :func:`run` returns (and ``gnssrx run`` prints): the output path, the signal duration and wall
+    time, the satellites tracked with their mean C/N0, the number of fixes and the first fix time, the
+    mean position and its east/north/up scatter, and counters (parity failures, re-acquisitions, false
+    locks restarted, non-finite samples, fixes per ionospheric parameter set)."""
     output: str
     duration_s: float
     wall_s: float
@@ -161,102 +162,6 @@ def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None
     return reader
 
 
-def fit_dwell(coherent_ms: int, noncoherent: int, available_ms: float, verify: bool = True):
-    """(coherent_ms, noncoherent, verified) of a search that fits ``available_ms`` of input: the search
-    and, when ``verify``, its independent verification dwell of the same length.  Fewer non-coherent sums
-    first, then a shorter coherent block (whole ms); without room for the dwell (under 2 ms) the search
-    alone.  (0, 0, False): not even 1 ms."""
-    for room, ver in ((available_ms / 2.0, True), (available_ms, False)) if verify else \
-            ((available_ms, False),):
-        if room >= coherent_ms:
-            return coherent_ms, int(min(noncoherent, room // coherent_ms)), ver
-        if room >= 1.0:
-            return int(room), 1, ver
-    return 0, 0, False
-
-
-def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
-            sensitive: bool = False, known_hz=(), doppler_window=None, signal=None) -> list:
-    """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
-    (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
-    found, search the others again over +/- acquisition.lo_search_hz; when fewer than
-    acquisition.high_sensitivity.min_found, search them with the high-sensitivity pass
-    (receiver/acquisition_hs.py).  ``sensitive``: run that pass on the PRNs not found whatever the count
-    (cold searches while few channels track; ``known_hz``: their Dopplers narrow its range).  Lines for
-    the user are appended to ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched
-    instead of the configured +/- acquisition.doppler_max_hz (the channel manager's cold searches once a
-    fix gives the clock drift).  ``signal``: the SignalDef searched (default: the run's first signal)."""
-    a = cfg.acquisition
-    fs, if_hz = reader.fs, reader.if_hz
-    sig = signal if signal is not None else get_signal(run_signals(cfg)[0])
-    notes = [] if notes is None else notes
-    # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
-    # uses up to 200 ms (20 blocks of 10 ms) where the file has them
-    m, k, pfa = a.coherent_ms, a.noncoherent, a.pfa
-    dwell = int(round(m * k * 1e-3 * fs))
-    block = reader.read(start, max(2 * dwell, int(0.2 * fs)))
-    if len(block) < 2 * dwell:
-        # a short file (or its end): the search and its verification dwell fitted into what there is
-        m, k, verified = fit_dwell(m, k, len(block) / fs * 1e3, a.verify)
-        if m == 0:
-            raise UserError("input too short for acquisition "
-                            f"({len(block) / fs * 1e3:.1f} ms available, at least 1 needed)")
-        if not verified:
-            pfa = a.pfa / max(len(prns), 1)     # no second look: the Pfa holds for all PRNs together
-        if (m, k) != (a.coherent_ms, a.noncoherent) and widen:
-            notes.append(f"acquisition     {len(block) / fs * 1e3:.0f} ms of input: searched {m} ms x {k}"
-                         + (" with a verification dwell of as many" if verified else
-                            f" without verification dwell (Pfa {pfa:.1e} per PRN)"))
-        dwell = int(round(m * k * 1e-3 * fs))
-
-    centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
-
-    def _search(prns_, dmax):
-        c_ = centre if dmax == a.doppler_max_hz else 0.0
-        if doppler_window is not None and dmax == a.doppler_max_hz:
-            c_, dmax = doppler_window
-        res_ = search(block, start, fs, if_hz, prns_, m, k, dmax,
-                      a.doppler_step_hz, pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
-                      doppler_center_hz=c_)
-        todo = [r for r in res_ if r.detected and a.verify and len(block) >= 2 * dwell]
-        # the dwells are independent: on the thread pool (the same result per detection)
-        oks = threads.map_ordered(lambda r: verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r,
-                                                   m, k, a.doppler_step_hz, pfa,
-                                                   a.threshold, signal=sig), todo)
-        for r, ok in zip(todo, oks):
-            r.verified = int(ok)
-            if not ok:
-                r.detected, r.reason = False, "verify"
-        return res_
-
-    res = _search(prns, a.doppler_max_hz)
-    reject_cross_correlations(res, m, fs=fs, signal=sig)
-    found = sum(r.detected for r in res)
-    if widen and found < 4 and a.lo_search_hz > a.doppler_max_hz:
-        missing = [r.prn for r in res if not r.detected]
-        wide = {r.prn: r for r in _search(missing, a.lo_search_hz)}
-        res = [wide.get(r.prn, r) for r in res]
-        reject_cross_correlations(res, m, fs=fs, signal=sig)
-        notes.append(f"acquisition     {found} satellite(s) within +/-{a.doppler_max_hz / 1e3:g} kHz: searched "
-                     f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
-                     f"{sum(r.detected for r in res)} found")
-    hs = a.high_sensitivity
-    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and _has_energy(block) and \
-            (sensitive or (widen and sum(r.detected for r in res) < hs.min_found)):       # GPS L1 C/A
-        from .acquisition_hs import second_pass
-        res, line = second_pass(a, reader, start, if_hz, res, sig, known_hz, centre)
-        if line and widen:
-            notes.append(line)
-    dop = [r.doppler_hz for r in res if r.detected]
-    if len(dop) >= 3 and abs(np.median(dop) - centre) > a.lo_warn_hz:
-        med = float(np.median(dop))
-        notes.append(f"warning         the {len(dop)} satellites found share a common Doppler offset of "
-                     f"{med / 1e3:+.2f} kHz (median): front-end LO / oscillator error of about "
-                     f"{-med / sig.carrier_hz * 1e6:+.1f} ppm; later searches are centred there")
-        reader.doppler_centre_hz = round(med / 100.0) * 100.0     # re-acquisitions search around it
-    return res
-
-
 def _vector_handover(cfg, parts, nav, fs, quiet=False):
     """Vector-loop handover state (owned by the run): ``.step(start)`` returns a vector tracker once
     vector.start_s is reached (or 5 s after the first fix), else None.  The tracker's
@@ -336,208 +241,6 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
             writer.close(ok)
 
 
-class BackgroundWriter:
-    """A :class:`RunWriter` whose appends (channel records, fixes, observables, vector log) run in order on
-    one background thread, so that the HDF5 writing and compression overlap the tracking of the next chunk
-    (the tracking kernels release the GIL; h5py holds it).  Fixes, observables and vector-log rows are
-    gathered into blocks of at least ``TABLE_ROWS`` rows before they are appended (fewer, larger HDF5
-    writes; the datasets hold the same rows).  Every other attribute or method first waits for the pending
-    appends, then is the wrapped writer's, so reads of the file and one-off writes keep their order.  A
-    write error on the thread (disk full: a UserError) is raised in the caller at the next call.  The
-    queue is bounded: memory does not grow when the writing lags."""
-
-    TABLE_ROWS = 2000
-    _ASYNC = ("append_channel", "append_fixes", "append_observables", "append_vector_log")
-    _TABLES = ("append_fixes", "append_observables", "append_vector_log")
-
-    def __init__(self, writer, max_pending: int = 64):
-        self._w = writer
-        self._q: queue.Queue = queue.Queue(maxsize=max_pending)
-        self._err: BaseException | None = None
-        self._tables: dict[str, list] = {}
-        self._thread = threading.Thread(target=self._work, name="gnssrx-write", daemon=True)
-        self._thread.start()
-
-    def _work(self):
-        while True:
-            item = self._q.get()
-            try:
-                if item is None:
-                    return
-                if self._err is None:
-                    name, args = item
-                    getattr(self._w, name)(*args)
-            except BaseException as exc:     # noqa: BLE001 - handed to the caller
-                self._err = exc
-            finally:
-                self._q.task_done()
-
-    def _raise(self):
-        if self._err is not None:
-            err, self._err = self._err, None
-            raise err
-
-    def _put(self, name, args):
-        self._raise()
-        if name in self._TABLES:
-            rows = args[0]
-            if rows is None or len(rows) == 0:
-                return
-            buf = self._tables.setdefault(name, [])
-            buf.append(rows)
-            if sum(len(r) for r in buf) < self.TABLE_ROWS:
-                return
-            args = (np.concatenate(self._tables.pop(name)),)
-        self._q.put((name, args))
-
-    def write_acquisition(self, results, attrs=None):
-        """Queued like the appends (a search no longer waits for the pending writes), from copies of the
-        results taken now."""
-        import copy
-        self._put("write_acquisition", ([copy.copy(r) for r in results], dict(attrs or {})))
-
-    def flush(self):
-        """Wait until every append has been written (raises a write error)."""
-        for name in list(self._tables):
-            self._q.put((name, (np.concatenate(self._tables.pop(name)),)))
-        self._q.join()
-        self._raise()
-
-    def __getattr__(self, name):
-        if name in self._ASYNC:
-            return lambda *args: self._put(name, args)
-        self.flush()
-        return getattr(self._w, name)
-
-    def close(self, ok: bool = True):
-        try:
-            if ok:
-                self.flush()
-        except BaseException:
-            ok = False
-            raise
-        finally:
-            if not ok:
-                self._tables.clear()
-                self._err = None
-                while True:                          # drop what is pending: the file is discarded
-                    try:
-                        self._q.get_nowait()
-                        self._q.task_done()
-                    except queue.Empty:
-                        break
-            self._q.put(None)
-            self._thread.join()
-            self._w.close(ok)
-
-
-class PrefetchingReader:
-    """The pipeline's view of the input: every read goes through it (counted), and :meth:`chunk` reads the
-    chunk at ``start`` while the next chunk is read ahead on a background thread, from a copy of the
-    input stage's state (the conditioning filter is causal and continues from the last read).  The
-    read-ahead is used only if no other read happened in between (the channel manager's searches read
-    elsewhere and move the filter stream), so the samples are exactly those of a plain read; otherwise it is
-    discarded and the chunk read again.  The read-ahead runs the resampling / filtering kernels (which
-    release the GIL) while the main thread does navigation and bookkeeping.  Only integer sample formats
-    (a float input counts its non-finite samples as it reads) and the known input stages are read ahead."""
-
-    def __init__(self, reader):
-        object.__setattr__(self, "_r", reader)
-        object.__setattr__(self, "reads", 0)
-        object.__setattr__(self, "_spec", None)
-        object.__setattr__(self, "_pool", None)
-        object.__setattr__(self, "_ok", _can_read_ahead(reader))
-        object.__setattr__(self, "ahead_used", 0)
-
-    def __getattr__(self, name):
-        return getattr(self._r, name)
-
-    def __setattr__(self, name, value):
-        setattr(self._r, name, value)
-
-    def read(self, start: int, n: int) -> np.ndarray:
-        object.__setattr__(self, "reads", self.reads + 1)
-        return self._r.read(start, n)
-
-    def chunk(self, start: int, n: int, next_start: int) -> np.ndarray:
-        """read(start, n), then read ahead (next_start, n)."""
-        spec, block = self._spec, None
-        object.__setattr__(self, "_spec", None)
-        if spec is not None:
-            s0, n0, reads0, fut, fork, snap = spec
-            try:
-                got = fut.result()                   # (also when unused: no two reads of the stage at once)
-            except Exception:                        # noqa: BLE001 - the plain read below reports it
-                got, reads0 = None, -1
-            if (s0, n0, reads0) == (start, n, self.reads):
-                for k, v in fork.__dict__.items():   # the stage's state after that read
-                    if snap.get(k, snap) is not v:
-                        self._r.__dict__[k] = v
-                object.__setattr__(self, "reads", self.reads + 1)
-                object.__setattr__(self, "ahead_used", self.ahead_used + 1)
-                block = got
-        if block is None:
-            block = self.read(start, n)
-        if self._ok and next_start < self._r.end:
-            if self._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
-                # the read-ahead's resampling runs on this thread beside the tracking pool (not queued
-                # behind the chunk's tracking jobs, which the main thread submits right after this)
-                object.__setattr__(self, "_pool", ThreadPoolExecutor(1, thread_name_prefix="gnssrx-read",
-                                                                     initializer=threads.serial_here))
-            fork = _fork_stage(self._r)
-            snap = dict(self._r.__dict__)
-            object.__setattr__(self, "_spec", (next_start, n, self.reads,
-                                               self._pool.submit(fork.read, next_start, n), fork, snap))
-        return block
-
-    def close(self):
-        if self._spec is not None:
-            try:
-                self._spec[3].result()
-            except Exception:                        # noqa: BLE001 - an unused read-ahead
-                pass
-            object.__setattr__(self, "_spec", None)
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            object.__setattr__(self, "_pool", None)
-
-
-def _stages(reader):
-    """The input stages from the outermost to the file reader."""
-    out = [reader]
-    while hasattr(out[-1], "__dict__") and "_reader" in out[-1].__dict__:
-        out.append(out[-1].__dict__["_reader"])
-    return out
-
-
-def _can_read_ahead(reader) -> bool:
-    from .source.conditioning import ConditionedReader
-    st = _stages(reader)
-    if not isinstance(st[-1], SampleReader) or getattr(st[-1], "_raw", None) is None or \
-            st[-1]._raw.dtype.kind == "f":
-        return False
-    # stateless stages (file reader, resampler) and the conditioning stage (state copied: _fork_stage),
-    # the latter only outermost (its state is what the read-ahead copies)
-    return all(isinstance(s, (SampleReader, DecimatingReader)) for s in st[1:]) and \
-        isinstance(st[0], (SampleReader, DecimatingReader, ConditionedReader))
-
-
-def _fork_stage(reader):
-    """A reader that reads like ``reader`` from its current state without changing it: the stateless
-    stages are shared; the conditioning stage is copied with its filter state."""
-    from .source.conditioning import ConditionedReader
-    if isinstance(reader, ConditionedReader):
-        fork = object.__new__(ConditionedReader)          # (its __getattr__ forwards: no copy.copy)
-        fork.__dict__.update(reader.__dict__)
-        c = reader.canceller
-        cc = object.__new__(type(c))
-        cc.__dict__.update({k: v.copy() if isinstance(v, np.ndarray) else v for k, v in c.__dict__.items()})
-        fork.__dict__["canceller"] = cc
-        return fork
-    return reader
-
-
 def _writer(cfg, reader, out_path, fs, if_hz, reads, prov):
     return RunWriter(out_path, cfg.to_yaml(), {
         "input_path": os.path.abspath(reader.path), "sample_rate_hz": fs, "if_hz": if_hz,
@@ -596,7 +299,7 @@ def _nonfinite(reader, writer, summary):
 
 def _run(cfg, readers, writer, ephemerides, iono, quiet, log) -> RunSummary:
     reader = readers[0]
-    fs, if_hz = reader.fs, reader.if_hz
+    fs = reader.fs
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
     readers = [PrefetchingReader(r) for r in readers]
@@ -669,109 +372,142 @@ class _Part:
 
 
 def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono) -> RunSummary:
-    from .navigation.engine import NavigationEngine
-    reader = readers[0]
-    fs, if_hz = reader.fs, reader.if_hz
-    notes = []
-    week_hint = cfg.input.start_gps_week
-    sigs = [get_signal(n) for n in run_signals(cfg)]
-    multi = len(sigs) > 1
-    nav = None
-    if cfg.navigation.enabled:                  # L1 C/A: LNAV; B1I: D1/D2 (gnss/bds_nav.py)
-        nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
-                               cfg.input.start_gps_tow_s, signal=sigs[0],
-                               signals={g.system: (g, r.if_hz) for g, r in zip(sigs, readers)} if multi else None)
-        pres = cfg.tracking.presence
-        if pres.window_ms > 0:
-            from .navigation.engine import PRESENCE_MARGIN_DB
-            nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
-    parts = []
-    for sig, rd in zip(sigs, readers):
-        part = _Part(sig, rd, multi)
-        p_nav = _Keyed(nav, sig.system) if multi and nav is not None else nav
-        p_writer = _Keyed(writer, sig.system) if multi else writer
-        part.manager = ChannelManager(cfg, rd, p_nav, fs, rd.if_hz, sig,
-                                      functools.partial(acquire, signal=sig), p_writer,
-                                      prns=signal_prns(cfg, sig.name))
-        parts.append(part)
-    with stage("acquisition"):
-        for part in parts:
-            p_notes = [] if multi else notes
-            part.manager.start(acq_start, p_notes)
-            notes += [f"{ln} [{part.signal.name}]" for ln in p_notes] if multi else []
-    manager = parts[0].manager
-    channels = manager.channels             # prn -> Channel (shared with the vector tracker)
-    cn0_sum: dict[int, list] = {}
-    n_fixes, first_fix, fix_ecef = 0, None, []
-    iono_counts, iono_from = {}, None
-    chunk = int(CHUNK_S * fs)
-    overlap = int(OVERLAP_S * fs)
-    vector = None
-    handover = _vector_handover(cfg, parts, nav, fs, quiet) if cfg.vector.enabled else None
-    bar = _progress(reader.duration_s, quiet)
+    run = _ChunkLoop(cfg, readers, writer, quiet, acq_start, ephemerides, iono)
+    run.loop()
+    return run.summary(t_wall)
 
-    def finish_chunk(end):
+
+class _ChunkLoop:
+    """One run's chunk loop: set-up (navigation engine, one channel manager per signal, the first
+    acquisition), the loop over chunks (read, track -- scalar channels on the pool or the vector tracker --,
+    write, navigation, channel lifecycle) and the run's summary."""
+
+    def __init__(self, cfg, readers, writer, quiet, acq_start, ephemerides, iono):
+        from .navigation.engine import NavigationEngine
+        self.cfg, self.readers, self.writer, self.iono = cfg, readers, writer, iono
+        self.acq_start = acq_start
+        reader = self.reader = readers[0]
+        fs = self.fs = reader.fs
+        if_hz = reader.if_hz
+        self.notes = []
+        week_hint = cfg.input.start_gps_week
+        sigs = [get_signal(n) for n in run_signals(cfg)]
+        multi = self.multi = len(sigs) > 1
+        nav = self.nav = None
+        if cfg.navigation.enabled:                  # L1 C/A: LNAV; B1I: D1/D2 (gnss/bds_nav.py)
+            nav = self.nav = NavigationEngine(
+                cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint, cfg.input.start_gps_tow_s,
+                signal=sigs[0], signals={g.system: (g, r.if_hz) for g, r in zip(sigs, readers)} if multi else None)
+            pres = cfg.tracking.presence
+            if pres.window_ms > 0:
+                from .navigation.channel import PRESENCE_MARGIN_DB
+                nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
+        self.parts = []
+        for sig, rd in zip(sigs, readers):
+            part = _Part(sig, rd, multi)
+            p_nav = _Keyed(nav, sig.system) if multi and nav is not None else nav
+            p_writer = _Keyed(writer, sig.system) if multi else writer
+            part.manager = ChannelManager(cfg, rd, p_nav, fs, rd.if_hz, sig,
+                                          functools.partial(acquire, signal=sig), p_writer,
+                                          prns=signal_prns(cfg, sig.name))
+            self.parts.append(part)
+        with stage("acquisition"):
+            for part in self.parts:
+                p_notes = [] if multi else self.notes
+                part.manager.start(acq_start, p_notes)
+                self.notes += [f"{ln} [{part.signal.name}]" for ln in p_notes] if multi else []
+        self.cn0_sum: dict[int, list] = {}
+        self.n_fixes, self.first_fix, self.fix_ecef = 0, None, []
+        self.iono_counts, self.iono_from = {}, None
+        self.chunk = int(CHUNK_S * fs)
+        self.overlap = int(OVERLAP_S * fs)
+        self.vector = None
+        self.vfixes = None
+        self.handover = _vector_handover(cfg, self.parts, nav, fs, quiet) if cfg.vector.enabled else None
+        self.bar = _progress(reader.duration_s, quiet)
+
+    def finish_chunk(self, end):
         """The chunk's navigation epochs up to sample ``end`` (fixes, observables) and their bookkeeping."""
-        nonlocal n_fixes, first_fix, iono_from
+        writer, reader, fs = self.writer, self.reader, self.fs
         with stage("navigation"):
-            fixes, obs = nav.update(end)
+            fixes, obs = self.nav.update(end)
         with stage("write"):
-            if vector is None:
+            if self.vector is None:
                 writer.append_fixes(fixes)
             else:
-                fixes = vfixes          # the summary counts the fixes that were written
+                fixes = self.vfixes     # the summary counts the fixes that were written
             writer.append_observables(obs)
         if len(fixes):
-            n_fixes += len(fixes)
-            if first_fix is None:
-                first_fix = float(fixes["time_s"][0]) - reader.first / fs
+            self.n_fixes += len(fixes)
+            if self.first_fix is None:
+                self.first_fix = float(fixes["time_s"][0]) - reader.first / fs
             codes, counts = np.unique(fixes["iono_params"], return_counts=True)
             for c, k in zip(codes.tolist(), counts.tolist()):
-                iono_counts[c] = iono_counts.get(c, 0) + k
+                self.iono_counts[c] = self.iono_counts.get(c, 0) + k
             bc = np.flatnonzero(fixes["iono_params"] == IONO_BROADCAST)
-            if iono_from is None and len(bc):
-                iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
-            fix_ecef.append(fixes["ecef"])
+            if self.iono_from is None and len(bc):
+                self.iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
+            self.fix_ecef.append(fixes["ecef"])
 
-    # Scalar tracking on several threads: a chunk's navigation epochs (nav.update, the fixes) are computed
-    # on this thread while the pool tracks the next chunk.  The navigation engine's calls keep their order
-    # (records of chunk k, channel manager, epochs of chunk k, records of chunk k+1, ...) and so do the
-    # writer's: the same run file as one thread computing them in turn.  Not with the vector tracker (its
-    # handover reads the last fix before the chunk).
-    defer = nav is not None and handover is None and threads.threads() > 1
-    pending = None                          # end sample of the chunk whose navigation epochs are due
-    vfixes = None
-    start = acq_start
-    while start < reader.end:
-        interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
+    def loop(self):
+        """Every chunk from the acquisition start to the end of the input."""
+        # Scalar tracking on several threads: a chunk's navigation epochs (nav.update, the fixes) are computed
+        # on this thread while the pool tracks the next chunk.  The navigation engine's calls keep their order
+        # (records of chunk k, channel manager, epochs of chunk k, records of chunk k+1, ...) and so do the
+        # writer's: the same run file as one thread computing them in turn.  Not with the vector tracker (its
+        # handover reads the last fix before the chunk).
+        nav, reader, chunk = self.nav, self.reader, self.chunk
+        defer = nav is not None and self.handover is None and threads.threads() > 1
+        pending = None                          # end sample of the chunk whose navigation epochs are due
+        start = self.acq_start
+        while start < reader.end:
+            interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
+            pending = self._track_chunk(start, pending)
+            if nav is not None:
+                if defer:
+                    pending = start + chunk
+                else:
+                    self.finish_chunk(start + chunk)
+            start += chunk
+            if self.bar is not None:
+                self.bar.update(round(min(chunk, reader.end - start + chunk) / self.fs, 3))
+        if pending is not None:
+            self.finish_chunk(pending)
+        if self.bar is not None:
+            self.bar.close()
+
+    def _track_chunk(self, start, pending):
+        """Read, track and write the chunk at ``start``, feed the navigation engine, run the channel
+        lifecycle; the previous chunk's deferred navigation epochs (``pending``) are computed while the pool
+        tracks.  Returns what is still pending."""
+        readers, writer, nav, chunk, overlap = self.readers, self.writer, self.nav, self.chunk, self.overlap
         with stage("read input"):               # (one input stage per signal: the same span of samples)
             if threads.threads() > 1:           # the next chunk is read ahead on a background thread
                 blocks = [r.chunk(start, chunk + overlap, start + chunk) for r in readers]
             else:
                 blocks = [r.read(start, chunk + overlap) for r in readers]
-        block = blocks[0]
-        if vector is None and handover is not None:
-            vector = handover.step(start)
-        if vector is not None:
+        if self.vector is None and self.handover is not None:
+            self.vector = self.handover.step(start)
+        if self.vector is not None:
             with stage("vector tracking"):
-                block_recs, vfixes = vector.process(blocks, start)
+                block_recs, self.vfixes = self.vector.process(blocks, start)
             with stage("write"):
-                writer.append_fixes(vfixes)
-                writer.append_vector_log(vector.last_diag)
+                writer.append_fixes(self.vfixes)
+                writer.append_vector_log(self.vector.last_diag)
         else:
             # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
             with stage("tracking"):
                 # (a channel behind the chunk start was offered the end of the input already: the last
                 # chunk of a file that ends just past a chunk boundary)
-                items = [(part.key(prn), ch, blk) for part, blk in zip(parts, blocks)
+                items = [(part.key(prn), ch, blk) for part, blk in zip(self.parts, blocks)
                          for prn, ch in part.manager.channels.items() if ch.next_sample >= start]
                 job = threads.submit_ordered(lambda it, s0=start: it[1].process(it[2], s0), items)
             if pending is not None:             # the previous chunk's epochs, while the pool tracks
-                finish_chunk(pending)
+                self.finish_chunk(pending)
                 pending = None
             with stage("tracking"):
                 block_recs = {key: r for (key, _, _), r in zip(items, job())}
-        for part in parts:
+        for part in self.parts:
             for prn, ch in list(part.manager.channels.items()):
                 key = part.key(prn)
                 recs = block_recs.get(key, np.zeros(0, EPOCH_DTYPE))
@@ -780,72 +516,66 @@ def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, io
                 if len(recs):
                     c = recs["cn0_dbhz"][recs["pll_lock"] > 0]
                     if len(c):
-                        acc = cn0_sum.setdefault(key, [0.0, 0])
+                        acc = self.cn0_sum.setdefault(key, [0.0, 0])
                         acc[0] += float(c.sum())
                         acc[1] += len(c)
                 part.manager.note(prn, recs)
                 if nav is not None:
                     with stage("navigation"):
                         nav.add_records(key, recs, ch.bit_offset)
-        if vector is not None and vector.reinit_needed:
-            vector = handover.fall_back(vector, start + chunk)      # scalar channels, hand over again
+        if self.vector is not None and self.vector.reinit_needed:
+            self.vector = self.handover.fall_back(self.vector, start + chunk)   # scalar channels, hand over again
         # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest.
         # Before the chunk's navigation epochs: a satellite found again inside the chunk just tracked (its
         # channel catches up to the chunk end) enters the epochs after its pull-in, not only the next chunk's
-        if start + chunk + overlap < reader.end:
+        if start + chunk + overlap < self.reader.end:
             with stage("re-acquisition"):
-                for part in parts:
+                for part in self.parts:
                     part.manager.after_chunk(start, start + chunk)
+        return pending
+
+    def summary(self, t_wall) -> RunSummary:
+        """The run's summary; the run file's closing attributes, ephemerides and ionosphere written."""
+        cfg, reader, writer, nav, iono, parts = self.cfg, self.reader, self.writer, self.nav, self.iono, self.parts
+        wall = time.perf_counter() - t_wall
+        s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall, system=_run_system(cfg))
+        s.mean_cn0 = {p: v[0] / v[1] for p, v in sorted(self.cn0_sum.items()) if v[1]}
+        s.tracked = sorted(s.mean_cn0)
+        s.n_fixes = self.n_fixes
+        s.first_fix_s = self.first_fix
+        s.iono_counts, s.iono_broadcast_from_s = self.iono_counts, self.iono_from
+        s.reacquisitions = sum(v["reacquisitions"] for part in parts for v in part.manager.summary().values())
+        s.false_locks = {part.key(p): v["false_locks"] for part in parts
+                         for p, v in part.manager.summary().items() if v["false_locks"]}
+        for part in parts:
+            if hasattr(part.reader, "resample"):      # the decimating input stage
+                s.notes.append(part.reader.describe() + (f" [{part.signal.name}]" if self.multi else ""))
+        if hasattr(reader, "summary_lines"):         # the input conditioning stage
+            s.notes += reader.summary_lines()
+            reader.write(writer)
+        s.notes += self.notes
         if nav is not None:
-            if defer:
-                pending = start + chunk
-            else:
-                finish_chunk(start + chunk)
-        start += chunk
-        if bar is not None:
-            bar.update(round(min(chunk, reader.end - start + chunk) / fs, 3))
-    if pending is not None:
-        finish_chunk(pending)
-    if bar is not None:
-        bar.close()
-    wall = time.perf_counter() - t_wall
-    s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall, system=_run_system(cfg))
-    s.mean_cn0 = {p: v[0] / v[1] for p, v in sorted(cn0_sum.items()) if v[1]}
-    s.tracked = sorted(s.mean_cn0)
-    s.n_fixes = n_fixes
-    s.first_fix_s = first_fix
-    s.iono_counts, s.iono_broadcast_from_s = iono_counts, iono_from
-    s.reacquisitions = sum(v["reacquisitions"] for part in parts for v in part.manager.summary().values())
-    s.false_locks = {part.key(p): v["false_locks"] for part in parts for p, v in part.manager.summary().items()
-                     if v["false_locks"]}
-    for part in parts:
-        if hasattr(part.reader, "resample"):      # the decimating input stage
-            s.notes.append(part.reader.describe() + (f" [{part.signal.name}]" if multi else ""))
-    if hasattr(reader, "summary_lines"):         # the input conditioning stage
-        s.notes += reader.summary_lines()
-        reader.write(writer)
-    s.notes += notes
-    if nav is not None:
-        s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
-        # every satellite decoded during the run (navigation memory, not only the channels still tracking)
-        writer.write_ephemerides(nav.decoded_ephemerides())
-        # the RINEX header's set (its GPS-UTC terms even without ION ALPHA / BETA), else the decoded one
-        bc = nav.broadcast_iono()
-        from_bds = any(ch.decoder.iono_utc is bc and ch.signal.system == "C" for ch in nav.channels.values())
-        writer.write_iono_utc(iono if iono is not None else bc,
-                              "rinex" if iono is not None else ("d1/d2" if from_bds else "lnav"))
-        if nav.iono_fallback is not None:               # /navigation/iono_params 2: this set
-            from .gnss.atmosphere import FALLBACK_KLOBUCHAR_SOURCE
-            writer.set_attrs("navigation", {"iono_fallback_alpha": np.asarray(nav.iono_fallback.alpha, float),
-                                            "iono_fallback_beta": np.asarray(nav.iono_fallback.beta, float),
-                                            "iono_fallback_source": FALLBACK_KLOBUCHAR_SOURCE})
-    if fix_ecef:
-        from .gnss.geodesy import ecef2enu, ecef2lla
-        e = np.concatenate(fix_ecef)
-        mean = e.mean(axis=0)
-        lat, lon, h = ecef2lla(mean)
-        s.mean_llh = (float(lat), float(lon), float(h))
-        s.scatter_m = tuple(float(v) for v in ecef2enu(e, mean).std(axis=0))
-    writer.set_attrs("/", {"wall_time_s": wall, "realtime_factor": s.realtime_factor,
-                           "n_fixes": n_fixes})
-    return s
+            s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
+            # every satellite decoded during the run (navigation memory, not only the channels still tracking)
+            writer.write_ephemerides(nav.decoded_ephemerides())
+            # the RINEX header's set (its GPS-UTC terms even without ION ALPHA / BETA), else the decoded one
+            bc = nav.broadcast_iono()
+            from_bds = any(ch.decoder.iono_utc is bc and ch.signal.system == "C" for ch in nav.channels.values())
+            writer.write_iono_utc(iono if iono is not None else bc,
+                                  "rinex" if iono is not None else ("d1/d2" if from_bds else "lnav"))
+            if nav.iono_fallback is not None:               # /navigation/iono_params 2: this set
+                from .gnss.atmosphere import FALLBACK_KLOBUCHAR_SOURCE
+                writer.set_attrs("navigation", {
+                    "iono_fallback_alpha": np.asarray(nav.iono_fallback.alpha, float),
+                    "iono_fallback_beta": np.asarray(nav.iono_fallback.beta, float),
+                    "iono_fallback_source": FALLBACK_KLOBUCHAR_SOURCE})
+        if self.fix_ecef:
+            from .gnss.geodesy import ecef2enu, ecef2lla
+            e = np.concatenate(self.fix_ecef)
+            mean = e.mean(axis=0)
+            lat, lon, h = ecef2lla(mean)
+            s.mean_llh = (float(lat), float(lon), float(h))
+            s.scatter_m = tuple(float(v) for v in ecef2enu(e, mean).std(axis=0))
+        writer.set_attrs("/", {"wall_time_s": wall, "realtime_factor": s.realtime_factor,
+                               "n_fixes": self.n_fixes})
+        return s

@@ -29,7 +29,7 @@ from pathlib import Path
 
 from ..config import RECEIVER_SCHEMA, apply_overrides, build, read_yaml, search_bases
 from ..errors import UserError
-from .config import REPO_ROOT, Batch
+from .config import Batch
 
 SIG_FULL_BYTES = 16 << 20
 SIG_PART_BYTES = 4 << 20

@@ -81,8 +81,8 @@ def rmc(t, lat, lon, speed_mps, course_deg, talker="GP") -> str:
     lo, ew = _latlon(lon, False)
     spd = _num(speed_mps * KNOTS_PER_MPS if speed_mps is not None else None, ".3f")
     crs = _num(course_deg, ".2f")
-    return sentence(f"{talker}RMC,{_hms(t)},A,{la},{ns},{lo},{ew},{spd},{crs},{t.day:02d}{t.month:02d}{t.year % 100:02d},"
-                    f",,A")
+    date = f"{t.day:02d}{t.month:02d}{t.year % 100:02d}"
+    return sentence(f"{talker}RMC,{_hms(t)},A,{la},{ns},{lo},{ew},{spd},{crs},{date},,,A")
 
 
 def gsa(prns_used, pdop, hdop, vdop, talker="GP") -> str:

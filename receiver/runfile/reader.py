@@ -16,6 +16,9 @@ prompt correlator outputs of ``/channels``.
 GPS week/seconds become UTC with the leap seconds broadcast in the message (or the table in
 :mod:`receiver.gnss.time` when they were not decoded).  The simulator's truth file has its own reader,
 :mod:`receiver.runfile.truth`.
+
+The module is the one place that opens run files for reading (every consumer goes through :class:`RunFile`),
+so its size follows the file's layout.
 """
 from __future__ import annotations
 

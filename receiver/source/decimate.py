@@ -29,7 +29,7 @@ compiled call (a 256-entry byte table, no complex64 intermediate); ``iq_swap`` (
 receiver's thread pool (:mod:`receiver.threads`): each output is computed by the same operations whatever
 the split, so the samples are identical for any thread count.
 
-The stage keeps no state between reads (the pipeline's read-ahead, ``receiver.pipeline.PrefetchingReader``,
+The stage keeps no state between reads (the pipeline's read-ahead, ``receiver.source.prefetch.PrefetchingReader``,
 relies on that to resample the next chunk on a background thread).
 
 Every output sample depends only on the J input samples around its position, so a read at any position
@@ -437,6 +437,7 @@ class DecimatingReader:
             e = max(a, min(hi, r.end))
             k = r._table.shape[1]                         # fields per byte
             b0 = a // k
+            r.release_before(a)                           # (resident memory flat along the file)
             raw = np.asarray(r._raw[b0:-(-e // k)]) if e > a else np.zeros(1, np.uint8)
             _resample_packed_real(raw, r._table, a - b0 * k, a, e, lo, hi, self._real_step, _LUT, _LUT_FINE,
                                   self._hr, self._hi, self._inv, c, l, m, k0, out)

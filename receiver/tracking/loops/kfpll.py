@@ -174,7 +174,8 @@ class KFPLL(PythonLoop):
         e = math.atan(qp / ip) / (2.0 * math.pi) if ip != 0.0 else 0.0
         self.last_err = e
         z = e + self.nco_phase + self.nco_freq * T / 2.0
-        d = z - float(H @ self.s)
+        s = self.s
+        d = z - (H[0] * s[0] + H[1] * s[1] + H[2] * s[2])     # (BLAS's ddot may sum in another order)
         if self.adaptive:
             self.cn0 = self.nwpr.update(p1, p2, T)
             R = atan_variance_cycles2(self.cn0, T)
