@@ -70,10 +70,8 @@ def test_moving_fixes_are_time_tagged_to_the_truth(sim, tmp_path):
     assert check(m, EXPECT) == [], m
 
 
-@pytest.mark.xfail(strict=True, reason="issue 31: weak static 2.048 MS/s 38 dB-Hz with a +2 ppm oscillator "
-                   "gets no fix (fixw)")
 def test_weak_static_2048_38_osc_2ppm(sim, tmp_path):
-    """Matrix row weak_static_2048_38_osc, one seed, assisted."""
+    """Matrix row weak_static_2048_38_osc, one seed, assisted (issue 31: was reported without a fix)."""
     m = _run(tmp_path, {"dynamics": "static", "place": "tokyo", "start": "02:00:00", "duration_s": 20},
              {"sample_rate_hz": 2.048e6, "cn0_dbhz": 38, "osc_ppm": 2.0, "seed": 4})
     assert check(m, EXPECT) == [], m
