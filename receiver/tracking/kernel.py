@@ -296,8 +296,9 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
             # C/N0 reads low by up to ~3 dB (code straddle at 2 samples per chip, Doppler bin), so channels
             # are opened weak that need not be.  The next epoch starts at a bit edge (20-ms epochs are
             # bit-aligned), where the integration drops to the normal one.
+            # (scalar channels only: a channel the vector loop steers keeps the integration it was given)
             if st[S_WEAK] > 0 and cfg[C_WEAK_EXIT_CN0] > 0 and st[S_MODE] != MODE_PULL_IN and \
-                    st[S_LOCK] > 0:
+                    st[S_LOCK] > 0 and cfg[C_CODE_EXTERNAL] == 0:
                 if st[S_CN0] >= cfg[C_WEAK_EXIT_CN0]:
                     st[S_STRONG_WIN] += 1.0
                 else:
