@@ -38,6 +38,7 @@ from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
 
 # equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
 _ENBW_BH = 2.0044
+QUIET_CHECKS = 3        # monitor checks a notch's tone must stay below the detection level before it is removed
 
 
 @dataclass
@@ -215,9 +216,23 @@ class Canceller:
         self.rot = np.ones(len(fl), np.complex128)
         self.amp = np.zeros(len(fl), np.complex128)
 
+        self.has_dc = dc_bw_hz is not None
+        self.quiet = np.zeros(len(fl), np.int64)      # consecutive monitor checks a notch's tone was absent
+
     @property
     def active(self) -> bool:
         return self.freqs.size > 0 or self.blank_level > 0
+
+    def set_tones(self, freqs, rot, amp, mu, quiet):
+        """Replace the tone set (new arrays: a forked copy of this canceller keeps its own)."""
+        self.freqs = np.asarray(freqs, np.float64)
+        self.steps = np.exp(2j * np.pi * self.freqs / self.fs).astype(np.complex128)
+        if self.has_dc and self.freqs.size:
+            self.steps[0] = 1.0
+        self.rot = np.asarray(rot, np.complex128)
+        self.amp = np.asarray(amp, np.complex128)
+        self.mu = np.asarray(mu, np.float64)
+        self.quiet = np.asarray(quiet, np.int64)
 
     def reset(self, x: np.ndarray):
         """Fresh state, amplitudes initialised from the first millisecond of ``x`` (no convergence
@@ -292,16 +307,25 @@ class ConditionedReader:
         self.processed = 0
         self._tail = np.zeros(0, np.complex64)
         self._tail_start = None
+        # interference monitor (module doc): checks at every monitor_ms of the stream from the detection span on
+        self._mon_step = int(round(cfg.monitor_ms * 1e-3 * fs)) \
+            if cfg.tone_detection and cfg.tone_excision and cfg.monitor_ms > 0 else 0
+        self._mon_len = int(cfg.fft_size) * int(cfg.monitor_segments)
+        self._mon_next = start + n
+        self._mon_buf = np.zeros(0, np.complex64)
+        self.tone_events = ()            # (sample, "added" | "removed" | "retuned", freq Hz, power dB re noise)
+        self.checks = 0
 
     def __getattr__(self, name):
         return getattr(self._reader, name)
 
     @property
     def active(self) -> bool:
+        """A notch (or DC removal, blanking) runs on the samples."""
         return self.canceller.active
 
     def read(self, start: int, n: int) -> np.ndarray:
-        if not self.canceller.active:
+        if not self.canceller.active and not self._mon_step:
             return self._reader.read(start, n)
         start = max(start, self._reader.first)
         ts, tail = self._tail_start, self._tail
@@ -314,20 +338,110 @@ class ConditionedReader:
             raw = self._reader.read(pos, need)
             out = np.empty(len(have) + len(raw), np.complex64)
             out[:len(have)] = have
-            self._filter(raw, out[len(have):])         # (filtered in place: no concatenation copy)
+            self._filter(raw, out[len(have):], pos)    # (filtered in place: no concatenation copy)
         else:
             raw = self._reader.read(start, n)
             self.canceller.reset(raw)
-            out = self._filter(raw)
+            # a restarted stream: the monitor's span starts again (at the read when it is ahead)
+            self._mon_buf = np.zeros(0, np.complex64)
+            self._mon_next = max(self._mon_next, start)
+            out = self._filter(raw, None, start)
         self._tail, self._tail_start = out, start
         return out
 
-    def _filter(self, raw, out=None):
+    def _filter(self, raw, out=None, start=None):
+        """Condition raw (stream position start) into out, running the monitor checks that fall due: a check
+        fires when the stream reaches the end of its span, on the last monitor span of conditioned samples
+        (kept across reads), so where a read ends does not change the output."""
+        if out is None:
+            out = np.empty(len(raw), np.complex64)
+        pos, n, L = 0, len(raw), self._mon_len
+        if self._mon_step and start is not None:
+            while True:
+                k = self._mon_next + L - start          # the check's end, in this read
+                if k > n:
+                    break
+                if k < pos:                             # (cannot happen: the restart rule in read)
+                    self._mon_next = start + pos
+                    continue
+                self._process(raw[pos:k], out[pos:k])
+                self._push(out[pos:k])
+                pos = k
+                if len(self._mon_buf) == L:
+                    self._check(self._mon_buf, start + k - L)
+                self._mon_next += self._mon_step
+        if pos < n:
+            self._process(raw[pos:], out[pos:])
+            if self._mon_step and start is not None:
+                self._push(out[pos:])
+        return out
+
+    def _push(self, y):
+        """Keep the last monitor span of the conditioned stream (new arrays: a forked reader keeps its own)."""
+        L = self._mon_len
+        self._mon_buf = y[-L:].copy() if len(y) >= L else np.concatenate([self._mon_buf, y])[-L:]
+
+    def _process(self, raw, out):
         y = self.canceller.process(raw, out)
         if self.blank_level > 0:
             self.blanked += int(np.count_nonzero(y == 0))
         self.processed += len(y)
         return y
+
+    def _check(self, y, s):
+        """One monitor check on the conditioned span y (first sample s): a tone left in it gets a notch from
+        the span's end on (amplitude and phase estimated from the span: no convergence transient), a notch
+        within two bins of it is retuned; a notch whose tracked amplitude stayed below the detection level
+        for QUIET_CHECKS checks is removed (its subtraction is then below the noise: no transient)."""
+        cfg, c, fs = self.cfg, self.canceller, self._reader.fs
+        self.checks += 1
+        det = detect_tones(y, fs, cfg.fft_size, cfg.pfa, cfg.min_db, 16)
+        if det.noise_power <= 0:
+            return
+        L = len(y)
+        freqs, rot, amp = list(c.freqs), list(c.rot), list(c.amp)
+        mu, quiet = list(c.mu), list(c.quiet)
+        k0 = 1 if c.has_dc else 0
+        # the weakest tone the detector sees in a bin: thr x floor, floor = noise x ENBW / nfft
+        p_min = 10 ** (det.threshold_db / 10) * det.noise_power * _ENBW_BH / det.fft_size
+        changed = False
+        t_mu = min(math.pi * cfg.notch_bw_hz / fs, 0.5)
+        n = np.arange(L)
+        for t in det.tones:
+            if c.has_dc and abs(t.freq_hz) <= det.bin_hz:
+                continue                        # the DC canceller's
+            ph = np.exp(-2j * np.pi * t.freq_hz / fs * n)
+            a = complex(np.mean(y * ph)) * np.exp(2j * np.pi * t.freq_hz / fs * L)   # at the span's end
+            near = [k for k in range(k0, len(freqs)) if abs(freqs[k] - t.freq_hz) <= 2 * det.bin_hz]
+            if near:
+                k = near[0]
+                # the notch's own part at its old frequency, moved to the new one
+                a = a + amp[k] * rot[k] / 1.0
+                freqs[k], rot[k], amp[k], quiet[k] = t.freq_hz, 1.0 + 0j, a, 0
+                what = "retuned"
+            elif len(freqs) - k0 < cfg.max_tones:
+                freqs.append(t.freq_hz), rot.append(1.0 + 0j), amp.append(a), mu.append(t_mu), quiet.append(0)
+                what = "added"
+            else:
+                continue
+            changed = True
+            self.tone_events = self.tone_events + ((int(s + L), what, float(t.freq_hz), float(t.jnr_db)),)
+        keep = []
+        for k in range(len(freqs)):
+            if k >= k0 and abs(amp[k]) ** 2 < 0.25 * p_min:
+                quiet[k] += 1
+            elif k >= k0:
+                quiet[k] = 0
+            if k >= k0 and quiet[k] >= QUIET_CHECKS:
+                self.tone_events = self.tone_events + (
+                    (int(s + L), "removed", float(freqs[k]),
+                     float(10 * np.log10(max(abs(amp[k]) ** 2, 1e-30) / det.noise_power))),)
+                changed = True
+                continue
+            keep.append(k)
+        if changed or any(q != q0 for q, q0 in zip(quiet, c.quiet)):
+            c.set_tones([freqs[k] for k in keep], [rot[k] for k in keep], [amp[k] for k in keep],
+                        [mu[k] for k in keep], [quiet[k] for k in keep])
 
     # ------------------------------------------------------------------ reporting
     def summary_lines(self) -> list:
@@ -349,6 +463,12 @@ class ConditionedReader:
                     for t in d.tones))
             else:
                 parts.append("no tones")
+        if self.tone_events:
+            fs = self._reader.fs
+            ev = self.tone_events
+            shown = ", ".join(f"{w} {f / 1e3:+.3f} kHz at {smp / fs:.2f} s" for smp, w, f, _ in ev[:6])
+            parts.append(f"interference monitor: {len(ev)} notch change(s): {shown}"
+                         + (", ..." if len(ev) > 6 else ""))
         if self.blank_level > 0:
             frac = self.blanked / self.processed if self.processed else 0.0
             parts.append(f"pulse blanking {100 * frac:.3f} % of samples")
@@ -366,6 +486,11 @@ class ConditionedReader:
         g.create_dataset("jnr_db", data=np.array([t.jnr_db for t in d.tones], float))
         g.create_dataset("snr_bin_db", data=np.array([t.snr_bin_db for t in d.tones], float))
         g.create_dataset("cancelled", data=np.array([t.cancelled for t in d.tones], bool))
+        ev = self.tone_events
+        g.create_dataset("event_time_s", data=np.array([e[0] / self._reader.fs for e in ev], float))
+        g.create_dataset("event_kind", data=np.array([e[1] for e in ev], "S8"))
+        g.create_dataset("event_freq_hz", data=np.array([e[2] for e in ev], float))
+        g.create_dataset("event_power_db", data=np.array([e[3] for e in ev], float))
         attrs = {"dc_removal": self.dc_removal, "dc_hz": self.dc_hz,
                  "tone_detection": bool(self.cfg.tone_detection),
                  "tone_excision": bool(self.cfg.tone_excision), "fft_size": d.fft_size,
@@ -373,6 +498,7 @@ class ConditionedReader:
                  "pfa": self.cfg.pfa, "noise_power": d.noise_power, "dc_i": d.dc.real, "dc_q": d.dc.imag,
                  "notch_bw_hz": self.cfg.notch_bw_hz, "pulse_blanking": bool(self.cfg.pulse_blanking),
                  "blank_level": self.blank_level, "blanked_samples": self.blanked,
-                 "processed_samples": self.processed}
+                 "processed_samples": self.processed, "monitor_ms": float(self.cfg.monitor_ms),
+                 "monitor_checks": self.checks}
         for k, v in attrs.items():
             g.attrs[k] = v
