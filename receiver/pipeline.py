@@ -718,6 +718,13 @@ def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, io
     vfixes = None
     start = acq_start
     while start < reader.end:
+        if start > acq_start and start + overlap >= reader.end:
+            # the previous block held every sample to the end of the file (its overlap reached it): the
+            # channels have tracked all they can (one whose next epoch would end past the file stopped
+            # before this chunk's start); only the navigation epochs up to the end remain
+            if nav is not None and vector is None:
+                pending = reader.end
+            break
         interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
         with stage("read input"):               # (one input stage per signal: the same span of samples)
             if threads.threads() > 1:           # the next chunk is read ahead on a background thread
