@@ -330,6 +330,9 @@ RECEIVER_SCHEMA = {
                                             "conditioned samples are checked for new tones (a notch is added "
                                             "at once) and every notch for a tone that has gone (removed); "
                                             "0: the tones of the first detect_ms only", lo=0.0),
+            "notch_track_hz": P(3000.0, "float", "natural frequency of each tone notch's frequency-tracking "
+                                                 "loop (a drifting or swept tone stays in its notch); 0: fixed "
+                                                 "notch frequencies", lo=0.0),
             "monitor_segments": P(8, "int", "periodogram segments (of fft_size samples) per monitor check",
                                   lo=2, hi=256),
         },
