@@ -521,6 +521,7 @@ class ChannelManager:
         # every other search: the window that holds for any acceleration (the velocity can change by at
         # most twice the speed bound): it finds a satellite whose prediction the turn has carried beyond
         # the acceleration-bounded window
+        dr_narrow = dr
         if sat.searches % 2 == 1 and (dv < 2.0 * speed or dr < 2.0 * speed * age):
             dv, dr = 2.0 * speed, 2.0 * speed * age
         dop_half = rc.doppler_hz + dv / self.lambda_m
@@ -542,7 +543,8 @@ class ChannelManager:
         # code phase: the prediction while its uncertainty is below the search's resolution
         cp = res.code_phase_chips
         predicted = False
-        if dr / self.chip_m < 0.05 and code_half < code_len / 4:
+        # (judged by the acceleration-bounded uncertainty also when the speed-bounded window found it)
+        if dr_narrow / self.chip_m < 0.05 and code_half < code_len / 4:
             diff = (cp - cp_pred + code_len / 2) % code_len - code_len / 2
             if abs(diff) < 0.5:
                 cp = cp_pred
