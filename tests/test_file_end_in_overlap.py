@@ -6,7 +6,7 @@ navigation epochs up to the end of the file are formed."""
 from pathlib import Path
 
 import h5py
-import numpy as np
+import pytest
 import yaml
 
 from receiver.config import load_receiver_config
@@ -18,6 +18,7 @@ SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"
 FS = 2.0e6
 
 
+@pytest.mark.slow
 def test_run_completes_when_the_file_ends_inside_the_overlap(tmp_path):
     dur = 6 * CHUNK_S + 1e-4                       # ends 0.1 ms after a chunk start (the acquisition at 0)
     paths = simulate(str(SCENARIO), str(tmp_path / "r.bin"),
