@@ -33,7 +33,7 @@ def _late_tone(n, f, jnr_db, on_s, off_s=None):
         .astype(np.complex64)
 
 
-def _residual_db(y, x_tone, f, sl):
+def _residual_db(y, f, sl):
     """Power of the tone's frequency left in y over the slice, dB re the noise power (1)."""
     k = np.arange(len(y))[sl]
     return 10 * np.log10(np.abs(np.mean(y[sl] * np.exp(-2j * np.pi * f / FS * k))) ** 2 + 1e-30)
@@ -59,10 +59,10 @@ def test_tone_switching_on_mid_stream_gets_a_notch_and_off_removes_it():
     assert abs(added[0][3] - 35.0) < 2.0
     assert len(removed) == 1 and 0.9 < removed[0][0] / FS < 0.9 + 4 * (0.05 + span_s)
     on = slice(int(0.45 * FS), int(0.85 * FS))
-    assert _residual_db(y, None, f, on) < 35.0 - 30.0
-    # the noise is untouched before and after (the output is the input where no notch runs)
+    assert _residual_db(y, f, on) < 35.0 - 30.0
+    # before the tone the output is the input (only the DC canceller runs: a ~0.01 offset estimate)
     pre = slice(int(0.12 * FS), int(0.28 * FS))
-    assert np.allclose(y[pre], x[pre] - np.mean(x[:0]) if False else y[pre])
+    assert np.max(np.abs(y[pre] - x[pre])) < 0.05
     post = slice(int(1.2 * FS), None)
     assert 10 * np.log10(np.mean(np.abs(y[post]) ** 2)) < 0.1
 
