@@ -332,6 +332,15 @@ RECEIVER_SCHEMA = {
             "pulse_blanking": P(False, "bool", "zero samples whose magnitude exceeds blank_sigma x the RMS "
                                                "of the conditioned detection span (pulsed interference)"),
             "blank_sigma": P(5.0, "float", "pulse blanking threshold in RMS units", lo=1.0),
+            "monitor_ms": P(100.0, "float", "interference monitor: every monitor_ms of the stream the "
+                                            "conditioned samples are checked for new tones (a notch is added "
+                                            "at once) and every notch for a tone that has gone (removed); "
+                                            "0: the tones of the first detect_ms only", lo=0.0),
+            "notch_track_hz": P(3000.0, "float", "natural frequency of each tone notch's frequency-tracking "
+                                                 "loop (a drifting or swept tone stays in its notch); 0: fixed "
+                                                 "notch frequencies", lo=0.0),
+            "monitor_segments": P(8, "int", "periodogram segments (of fft_size samples) per monitor check",
+                                  lo=2, hi=256),
         },
     },
     "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "

@@ -38,6 +38,7 @@ from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
 
 # equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
 _ENBW_BH = 2.0044
+QUIET_CHECKS = 3        # monitor checks a notch's tone must stay below the detection level before it is removed
 
 
 @dataclass
@@ -149,12 +150,20 @@ def refine_tone_frequency(x: np.ndarray, fs: float, f0: float, block: int) -> fl
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def cancel(x, out, steps, rot, amp, mu, blank_level):
+def cancel(x, out, steps, rot, amp, mu, blank_level, dw, dr, res, g1, g2, g3, pfloor):
     """Subtract the tracked tones from ``x`` into ``out`` (complex64); the state arrays are updated.
 
     steps[k] = exp(j 2 pi f_k / fs) (complex128; 1 for DC: no rotation); rot[k] the tone phasor at the
     first sample, amp[k] the tracked complex amplitude (both left at the state after the last sample);
     mu[k] the LMS gain.  blank_level > 0: samples with |y| above it are zeroed after cancellation.
+    Frequency tracking (g1[k] > 0): a 3rd-order phase-locked loop on the tone
+    -- phase error Im(z conj(a)) / |a|^2 of the mixed-down input z against the tracked amplitude a, run
+    while |a|^2 > pfloor[k] -- turns the extra frequency dw[k] (rad / sample, its rate dr[k]) and the phase
+    of rot[k], so the notch follows a drifting or linearly swept tone without a steady phase lag.  res[k]
+    is the input power |z|^2 smoothed over ~0.1 / mu samples (~|a|^2 + noise while the tone is there): a
+    tone that has gone (or a pulse that ended) leaves it at the noise, and the loop holds its frequency while
+    res is below |a|^2 / 2 (it would otherwise follow the noise while the amplitude decays); pfloor is
+    twice the noise power per sample.
     Real arithmetic on local scalars (the LMS recursion is the dependency chain).
     """
     nt = steps.size
@@ -185,6 +194,16 @@ def cancel(x, out, steps, rot, amp, mu, blank_level):
             vi -= ar * ri + ai * rr
             amp[k] = complex(ar + mu[k] * (zr - ar), ai + mu[k] * (zi - ai))
             sr, si = steps[k].real, steps[k].imag
+            if g1[k] > 0.0:
+                p = ar * ar + ai * ai
+                res[k] += 10.0 * mu[k] * (zr * zr + zi * zi - res[k])
+                if p > pfloor[k] and res[k] > 0.5 * p:
+                    e = (zi * ar - zr * ai) / p             # Im(z conj(a)) / |a|^2: phase error (rad)
+                    dr[k] += g3[k] * e
+                    dw[k] += g2[k] * e + dr[k]
+                    th = g1[k] * e + dw[k]                  # this sample's extra rotation
+                    cr = 1.0 - 0.5 * th * th
+                    sr, si = sr * cr - si * th, sr * th + si * cr
             nr = rr * sr - ri * si
             ni = rr * si + ri * sr
             g = 1.5 - 0.5 * (nr * nr + ni * ni)         # keeps |rot| = 1 (same at every sample, so the
@@ -199,7 +218,8 @@ def cancel(x, out, steps, rot, amp, mu, blank_level):
 class Canceller:
     """State of the tone cancellers (DC first if enabled)."""
 
-    def __init__(self, freqs_hz, fs: float, notch_bw_hz: float, dc_bw_hz: float | None, blank_level=0.0):
+    def __init__(self, freqs_hz, fs: float, notch_bw_hz: float, dc_bw_hz: float | None, blank_level=0.0,
+                 track_hz: float = 0.0, noise_power: float = 0.0):
         fl, mus = [], []
         if dc_bw_hz is not None:
             fl.append(0.0)
@@ -215,9 +235,51 @@ class Canceller:
         self.rot = np.ones(len(fl), np.complex128)
         self.amp = np.zeros(len(fl), np.complex128)
 
+        self.has_dc = dc_bw_hz is not None
+        self.quiet = np.zeros(len(fl), np.int64)      # consecutive monitor checks a notch's tone was absent
+        # frequency tracking of the tone notches (not DC): loop natural frequency track_hz, damping 0.707;
+        # the loop runs while the tone's power is above the noise power per sample
+        # (3rd order, the usual coefficients 2.4, 1.1, 1 of w0 T, (w0 T)^2, (w0 T)^3)
+        wn = 2.0 * math.pi * float(track_hz) / fs
+        self.track = (2.4 * wn, 1.1 * wn * wn, wn ** 3)
+        self.noise_power = float(noise_power)
+        self.dw = np.zeros(len(fl), np.float64)
+        self.dr = np.zeros(len(fl), np.float64)
+        self.res = np.zeros(len(fl), np.float64)
+        self._loop_arrays()
+
+    def _loop_arrays(self):
+        n = self.freqs.size
+        on = np.ones(n, bool)
+        if self.has_dc and n:
+            on[0] = False
+        self.g1 = np.where(on, self.track[0], 0.0)
+        self.g2 = np.where(on, self.track[1], 0.0)
+        self.g3 = np.where(on, self.track[2], 0.0)
+        self.pfloor = np.full(n, max(2.0 * self.noise_power, 1e-30))
+
+    def current_freqs(self) -> np.ndarray:
+        """The notches' frequencies now (Hz): the nominal plus what the tracking loop has added."""
+        return self.freqs + self.dw * self.fs / (2.0 * math.pi)
+
     @property
     def active(self) -> bool:
         return self.freqs.size > 0 or self.blank_level > 0
+
+    def set_tones(self, freqs, rot, amp, mu, quiet, dw=None, dr=None, res=None):
+        """Replace the tone set (new arrays: a forked copy of this canceller keeps its own)."""
+        self.freqs = np.asarray(freqs, np.float64)
+        self.dw = np.zeros(self.freqs.size) if dw is None else np.asarray(dw, np.float64)
+        self.dr = np.zeros(self.freqs.size) if dr is None else np.asarray(dr, np.float64)
+        self.res = np.zeros(self.freqs.size) if res is None else np.asarray(res, np.float64)
+        self.steps = np.exp(2j * np.pi * self.freqs / self.fs).astype(np.complex128)
+        if self.has_dc and self.freqs.size:
+            self.steps[0] = 1.0
+        self.rot = np.asarray(rot, np.complex128)
+        self.amp = np.asarray(amp, np.complex128)
+        self.mu = np.asarray(mu, np.float64)
+        self.quiet = np.asarray(quiet, np.int64)
+        self._loop_arrays()
 
     def reset(self, x: np.ndarray):
         """Fresh state, amplitudes initialised from the first millisecond of ``x`` (no convergence
@@ -226,8 +288,9 @@ class Canceller:
         n = np.arange(m)
         self.rot = np.ones(self.freqs.size, np.complex128)
         self.amp = np.zeros(self.freqs.size, np.complex128)
+        self.res = np.zeros(self.freqs.size, np.float64)
         resid = x[:m].astype(np.complex128)
-        for k, f in enumerate(self.freqs):
+        for k, f in enumerate(self.current_freqs()):
             ph = np.exp(-2j * np.pi * f / self.fs * n)
             a = complex(np.mean(resid * ph))
             self.amp[k] = a
@@ -241,7 +304,7 @@ class Canceller:
             out[:] = x
             return out
         return cancel(np.ascontiguousarray(x, np.complex64), out, self.steps, self.rot, self.amp, self.mu,
-                      self.blank_level)
+                      self.blank_level, self.dw, self.dr, self.res, self.g1, self.g2, self.g3, self.pfloor)
 
 
 class ConditionedReader:
@@ -276,7 +339,8 @@ class ConditionedReader:
             else:
                 t.cancelled = False
         self._make = lambda level: Canceller(cancel_f, fs, cfg.notch_bw_hz,
-                                             cfg.dc_bw_hz if self.dc_removal else None, level)
+                                             cfg.dc_bw_hz if self.dc_removal else None, level,
+                                             cfg.notch_track_hz, self.detection.noise_power)
         self.canceller = self._make(0.0)
         self.blank_level = 0.0
         if len(span) and self.canceller.active:       # one pass over the span: DC estimate, blanking RMS
@@ -292,16 +356,25 @@ class ConditionedReader:
         self.processed = 0
         self._tail = np.zeros(0, np.complex64)
         self._tail_start = None
+        # interference monitor (module doc): checks at every monitor_ms of the stream from the detection span on
+        self._mon_step = int(round(cfg.monitor_ms * 1e-3 * fs)) \
+            if cfg.tone_detection and cfg.tone_excision and cfg.monitor_ms > 0 else 0
+        self._mon_len = int(cfg.fft_size) * int(cfg.monitor_segments)
+        self._mon_next = start + n
+        self._mon_buf = np.zeros(0, np.complex64)
+        self.tone_events = ()            # (sample, "added" | "removed" | "retuned", freq Hz, power dB re noise)
+        self.checks = 0
 
     def __getattr__(self, name):
         return getattr(self._reader, name)
 
     @property
     def active(self) -> bool:
+        """A notch (or DC removal, blanking) runs on the samples."""
         return self.canceller.active
 
     def read(self, start: int, n: int) -> np.ndarray:
-        if not self.canceller.active:
+        if not self.canceller.active and not self._mon_step:
             return self._reader.read(start, n)
         start = max(start, self._reader.first)
         ts, tail = self._tail_start, self._tail
@@ -314,20 +387,119 @@ class ConditionedReader:
             raw = self._reader.read(pos, need)
             out = np.empty(len(have) + len(raw), np.complex64)
             out[:len(have)] = have
-            self._filter(raw, out[len(have):])         # (filtered in place: no concatenation copy)
+            self._filter(raw, out[len(have):], pos)    # (filtered in place: no concatenation copy)
         else:
             raw = self._reader.read(start, n)
             self.canceller.reset(raw)
-            out = self._filter(raw)
+            # a restarted stream: the monitor's span starts again (at the read when it is ahead)
+            self._mon_buf = np.zeros(0, np.complex64)
+            self._mon_next = max(self._mon_next, start)
+            out = self._filter(raw, None, start)
         self._tail, self._tail_start = out, start
         return out
 
-    def _filter(self, raw, out=None):
+    def _filter(self, raw, out=None, start=None):
+        """Condition raw (stream position start) into out, running the monitor checks that fall due: a check
+        fires when the stream reaches the end of its span, on the last monitor span of conditioned samples
+        (kept across reads), so where a read ends does not change the output."""
+        if out is None:
+            out = np.empty(len(raw), np.complex64)
+        pos, n, L = 0, len(raw), self._mon_len
+        if self._mon_step and start is not None:
+            while True:
+                k = self._mon_next + L - start          # the check's end, in this read
+                if k > n:
+                    break
+                if k < pos:                             # (cannot happen: the restart rule in read)
+                    self._mon_next = start + pos
+                    continue
+                self._process(raw[pos:k], out[pos:k])
+                self._push(out[pos:k])
+                pos = k
+                if len(self._mon_buf) == L:
+                    self._check(self._mon_buf, start + k - L)
+                self._mon_next += self._mon_step
+        if pos < n:
+            self._process(raw[pos:], out[pos:])
+            if self._mon_step and start is not None:
+                self._push(out[pos:])
+        return out
+
+    def _push(self, y):
+        """Keep the last monitor span of the conditioned stream (new arrays: a forked reader keeps its own)."""
+        L = self._mon_len
+        self._mon_buf = y[-L:].copy() if len(y) >= L else np.concatenate([self._mon_buf, y])[-L:]
+
+    def _process(self, raw, out):
         y = self.canceller.process(raw, out)
         if self.blank_level > 0:
             self.blanked += int(np.count_nonzero(y == 0))
         self.processed += len(y)
         return y
+
+    def _check(self, y, s):
+        """One monitor check on the conditioned span y (first sample s): a tone left in it gets a notch from
+        the span's end on (amplitude and phase estimated from the span: no convergence transient), a notch
+        within two bins of it is retuned; a notch whose tracked amplitude stayed below the detection level
+        for QUIET_CHECKS checks is removed (its subtraction is then below the noise: no transient)."""
+        cfg, c, fs = self.cfg, self.canceller, self._reader.fs
+        self.checks += 1
+        det = detect_tones(y, fs, cfg.fft_size, cfg.pfa, cfg.min_db, 16)
+        if det.noise_power <= 0:
+            return
+        L = len(y)
+        freqs, rot, amp = list(c.freqs), list(c.rot), list(c.amp)
+        mu, quiet, dw, dr, res = list(c.mu), list(c.quiet), list(c.dw), list(c.dr), list(c.res)
+        cur = list(c.current_freqs())
+        c.noise_power = det.noise_power            # the tracking loops' floor follows the noise
+        k0 = 1 if c.has_dc else 0
+        # the weakest tone the detector sees in a bin: thr x floor, floor = noise x ENBW / nfft
+        p_min = 10 ** (det.threshold_db / 10) * det.noise_power * _ENBW_BH / det.fft_size
+        changed = False
+        t_mu = min(math.pi * cfg.notch_bw_hz / fs, 0.5)
+        n = np.arange(L)
+        for t in det.tones:
+            if c.has_dc and abs(t.freq_hz) <= det.bin_hz:
+                continue                        # the DC canceller's
+            ph = np.exp(-2j * np.pi * t.freq_hz / fs * n)
+            a = complex(np.mean(y * ph)) * np.exp(2j * np.pi * t.freq_hz / fs * L)   # at the span's end
+            near = [k for k in range(k0, len(freqs)) if abs(cur[k] - t.freq_hz) <= 2 * det.bin_hz]
+            if near and c.g1[near[0]] > 0 and abs(a) ** 2 < 0.1 * abs(amp[near[0]]) ** 2:
+                continue                        # a tracked notch's lag residual: its loop follows the tone
+            if near:
+                k = near[0]
+                # the notch's own part at its old frequency, moved to the new one
+                a = a + amp[k] * rot[k] / 1.0
+                freqs[k], rot[k], amp[k], quiet[k], dw[k], dr[k], res[k] = t.freq_hz, 1.0 + 0j, a, 0, 0.0, 0.0, 0.0
+                cur[k] = t.freq_hz
+                what = "retuned"
+            elif len(freqs) - k0 < cfg.max_tones:
+                freqs.append(t.freq_hz), rot.append(1.0 + 0j), amp.append(a), mu.append(t_mu), quiet.append(0)
+                dw.append(0.0), dr.append(0.0), res.append(0.0), cur.append(t.freq_hz)
+                what = "added"
+            else:
+                continue
+            changed = True
+            self.tone_events = self.tone_events + ((int(s + L), what, float(t.freq_hz), float(t.jnr_db)),)
+        keep = []
+        for k in range(len(freqs)):
+            if k >= k0 and abs(amp[k]) ** 2 < 0.25 * p_min:
+                quiet[k] += 1
+            elif k >= k0:
+                quiet[k] = 0
+            if k >= k0 and quiet[k] >= QUIET_CHECKS:
+                self.tone_events = self.tone_events + (
+                    (int(s + L), "removed", float(cur[k]),
+                     float(10 * np.log10(max(abs(amp[k]) ** 2, 1e-30) / det.noise_power))),)
+                changed = True
+                continue
+            keep.append(k)
+        if changed or any(q != q0 for q, q0 in zip(quiet, c.quiet)):
+            c.set_tones([freqs[k] for k in keep], [rot[k] for k in keep], [amp[k] for k in keep],
+                        [mu[k] for k in keep], [quiet[k] for k in keep], [dw[k] for k in keep],
+                        [dr[k] for k in keep], [res[k] for k in keep])
+        else:
+            c._loop_arrays()
 
     # ------------------------------------------------------------------ reporting
     def summary_lines(self) -> list:
@@ -349,6 +521,12 @@ class ConditionedReader:
                     for t in d.tones))
             else:
                 parts.append("no tones")
+        if self.tone_events:
+            fs = self._reader.fs
+            ev = self.tone_events
+            shown = ", ".join(f"{w} {f / 1e3:+.3f} kHz at {smp / fs:.2f} s" for smp, w, f, _ in ev[:6])
+            parts.append(f"interference monitor: {len(ev)} notch change(s): {shown}"
+                         + (", ..." if len(ev) > 6 else ""))
         if self.blank_level > 0:
             frac = self.blanked / self.processed if self.processed else 0.0
             parts.append(f"pulse blanking {100 * frac:.3f} % of samples")
@@ -366,6 +544,11 @@ class ConditionedReader:
         g.create_dataset("jnr_db", data=np.array([t.jnr_db for t in d.tones], float))
         g.create_dataset("snr_bin_db", data=np.array([t.snr_bin_db for t in d.tones], float))
         g.create_dataset("cancelled", data=np.array([t.cancelled for t in d.tones], bool))
+        ev = self.tone_events
+        g.create_dataset("event_time_s", data=np.array([e[0] / self._reader.fs for e in ev], float))
+        g.create_dataset("event_kind", data=np.array([e[1] for e in ev], "S8"))
+        g.create_dataset("event_freq_hz", data=np.array([e[2] for e in ev], float))
+        g.create_dataset("event_power_db", data=np.array([e[3] for e in ev], float))
         attrs = {"dc_removal": self.dc_removal, "dc_hz": self.dc_hz,
                  "tone_detection": bool(self.cfg.tone_detection),
                  "tone_excision": bool(self.cfg.tone_excision), "fft_size": d.fft_size,
@@ -373,6 +556,7 @@ class ConditionedReader:
                  "pfa": self.cfg.pfa, "noise_power": d.noise_power, "dc_i": d.dc.real, "dc_q": d.dc.imag,
                  "notch_bw_hz": self.cfg.notch_bw_hz, "pulse_blanking": bool(self.cfg.pulse_blanking),
                  "blank_level": self.blank_level, "blanked_samples": self.blanked,
-                 "processed_samples": self.processed}
+                 "processed_samples": self.processed, "monitor_ms": float(self.cfg.monitor_ms),
+                 "monitor_checks": self.checks}
         for k, v in attrs.items():
             g.attrs[k] = v

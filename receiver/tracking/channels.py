@@ -72,6 +72,10 @@ CHUNK_YOUNG_S = 1.0             # a channel opened this recently is judged by it
 CC_FALSE_LOCK_MPS = 15.0        # code-minus-carrier rate of a carrier false lock (true locks: < ~8 m/s per s)
 CC_WINDOW_S = 2.0               # ... sustained over this much of consecutive in-lock chunks
 CC_MIN_EPOCHS = 50              # a chunk counts when it has this many in-lock epochs
+DYN_HISTORY_S = 3.0             # fixes kept for the receiver's measured speed and acceleration
+DYN_MARGIN = 1.5                # the measured acceleration / speed bound the windows with this margin
+COLD_FALLBACK_S = 3.0           # a satellite re-acquired in vain this long is also in the cold round-robin
+STARVED_COLD_S = 1.0            # cold-search interval while fewer than 4 satellites are tracked
 
 
 @dataclass
@@ -115,6 +119,7 @@ class ChannelManager:
         self.max_ch = cfg.tracking.max_channels
         self.lambda_m = C_LIGHT / signal.carrier_hz
         self.chip_m = C_LIGHT / signal.chip_rate
+        self._fixes: deque = deque()    # (sample, velocity ECEF) of the recent fixes: measured dynamics
 
     # ------------------------------------------------------------------ helpers
     def _sat(self, prn) -> SatTrack:
@@ -158,9 +163,16 @@ class ChannelManager:
     def _cold(self, start, next_start):
         if start < self._next_cold or len(self.channels) >= self.max_ch:
             return
-        self._next_cold = start + int(self.cfg.tracking.reacquire_s * self.fs)
+        # fewer than 4 satellites tracked (no fix): no satellite above the mask waits reacquire_s for a search
+        interval = self.cfg.tracking.reacquire_s
+        if sum(1 for ch in self.channels.values() if not ch.lost) < 4:
+            interval = min(interval, STARVED_COLD_S)
+        self._next_cold = start + int(interval * self.fs)
+        # a satellite whose narrow searches have failed for COLD_FALLBACK_S is searched cold as well (the
+        # prediction may be wrong: dynamics beyond the bounds); its narrow searches go on meanwhile
         missing = [p for p in self.prns if p not in self.channels
-                   and self._sat(p).state != "reacquiring"]
+                   and (self._sat(p).state != "reacquiring" or self._sat(p).lost_at is None
+                        or next_start - self._sat(p).lost_at > COLD_FALLBACK_S * self.fs)]
         missing = [p for p in missing if not self._below_mask(p, next_start)]
         if not missing:
             return
@@ -328,6 +340,7 @@ class ChannelManager:
         """Lost channels -> re-acquiring; carrier false locks restarted; narrow searches at next_start; the
         periodic cold search."""
         self._restart_false_locks()
+        self._note_fix()
         for prn, ch in list(self.channels.items()):
             if ch.lost:
                 del self.channels[prn]
@@ -360,6 +373,37 @@ class ChannelManager:
                             self._catch_up(prn, p, next_start)
                         break
         self._cold(start, next_start)
+
+    def _note_fix(self):
+        """Keep the recent fixes' velocities (the receiver's measured dynamics, see :meth:`_dynamics`)."""
+        lf = self.nav.last_fix if self.nav is not None else None
+        if lf is None:
+            return
+        s, fix = lf
+        v = np.asarray(fix.velocity_ecef, float)
+        if not np.all(np.isfinite(v)) or (self._fixes and self._fixes[-1][0] >= s):
+            return
+        self._fixes.append((float(s), v))
+        while self._fixes and self._fixes[-1][0] - self._fixes[0][0] > DYN_HISTORY_S * self.fs:
+            self._fixes.popleft()
+
+    def _dynamics(self, before: float):
+        """(acceleration bound m/s^2, speed bound m/s) of the windows: the configured bounds, raised to
+        DYN_MARGIN x the receiver's largest acceleration / speed measured over the fixes of the last
+        DYN_HISTORY_S before sample ``before`` (a turn at 50 m/s can hold 10-25 m/s^2 for seconds)."""
+        rc = self.rc
+        f = [x for x in self._fixes if x[0] <= before + 0.5 * self.fs]
+        accel, speed = rc.accel_mps2, rc.speed_mps
+        if f:
+            speed = max(speed, DYN_MARGIN * max(float(np.linalg.norm(v)) for _, v in f))
+        # accelerations over >= 0.5 s baselines (the fixes' velocity noise is ~0.1 m/s)
+        base = 0.5 * self.fs
+        acc = [float(np.linalg.norm(f[j][1] - f[i][1])) / ((f[j][0] - f[i][0]) / self.fs)
+               for i in range(len(f)) for j in range(i + 1, len(f)) if f[j][0] - f[i][0] >= base
+               and (j == i + 1 or f[j - 1][0] - f[i][0] < base)]
+        if acc:
+            accel = max(accel, DYN_MARGIN * max(acc))
+        return accel, speed
 
     def _catch_up(self, prn, s, next_start):
         """Run a channel opened at sample s (inside the chunk just tracked) up to the pipeline's position."""
@@ -474,8 +518,15 @@ class ChannelManager:
         if self._below_mask(prn, s):
             return
         dop, tx = self.predict(sat, s)
-        dv = min(rc.accel_mps2 * age, 2.0 * rc.speed_mps)
-        dr = min(0.5 * rc.accel_mps2 * age * age, 2.0 * rc.speed_mps * age)
+        accel, speed = self._dynamics(sat.lost_at)
+        dv = min(accel * age, 2.0 * speed)
+        dr = min(0.5 * accel * age * age, 2.0 * speed * age)
+        # every other search: the window that holds for any acceleration (the velocity can change by at
+        # most twice the speed bound): it finds a satellite whose prediction the turn has carried beyond
+        # the acceleration-bounded window
+        dr_narrow = dr
+        if sat.searches % 2 == 1 and (dv < 2.0 * speed or dr < 2.0 * speed * age):
+            dv, dr = 2.0 * speed, 2.0 * speed * age
         dop_half = rc.doppler_hz + dv / self.lambda_m
         code_half = rc.code_chips + dr / self.chip_m
         if dop_half > self.cfg.acquisition.doppler_max_hz:
@@ -495,7 +546,8 @@ class ChannelManager:
         # code phase: the prediction while its uncertainty is below the search's resolution
         cp = res.code_phase_chips
         predicted = False
-        if dr / self.chip_m < 0.05 and code_half < code_len / 4:
+        # (judged by the acceleration-bounded uncertainty also when the speed-bounded window found it)
+        if dr_narrow / self.chip_m < 0.05 and code_half < code_len / 4:
             diff = (cp - cp_pred + code_len / 2) % code_len - code_len / 2
             if abs(diff) < 0.5:
                 cp = cp_pred
