@@ -244,6 +244,7 @@ LAZY_COMMANDS = {
     "leo": ("receiver.leo.cli", "leo"), "export": ("receiver.export.cli", "export"),
     "report": ("receiver.export.cli", "report"), "info": ("receiver.export.cli", "info"),
     "batch": ("receiver.batch.cli", "batch"), "compare": ("receiver.batch.cli", "compare"),
+    "snapshot": ("receiver.snapshot.cli", "snapshot"),
 }
 
 

@@ -29,7 +29,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.tracking",),
     ("receiver.navigation",),
     ("receiver.pipeline",),
-    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate"),
+    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.snapshot"),
     ("receiver.cli",),
 ]
 
