@@ -138,9 +138,13 @@ def sat_geometry(ephs: Ephemerides, prns, week: int, t_rx: float, x, t_travel=No
 
 def _dops(h_geo, x, ncols_clock=1):
     """DOPs from the rows [-u, 1, (rate)] (no weights): GDOP, PDOP, HDOP, VDOP, TDOP in the local frame."""
-    try:
-        q = np.linalg.inv(h_geo.T @ h_geo)
-    except np.linalg.LinAlgError:
+    q = None
+    if h_geo.shape[0] >= h_geo.shape[1]:
+        try:
+            q = np.linalg.inv(h_geo.T @ h_geo)
+        except np.linalg.LinAlgError:
+            q = None
+    if q is None or not np.all(np.isfinite(q)) or np.any(np.diag(q) < 0):
         return {k: float("inf") for k in ("gdop", "pdop", "hdop", "vdop", "tdop")}
     lat, lon, _ = ecef2lla(x)
     r = enu_matrix(lat, lon)
@@ -303,6 +307,7 @@ def _solve_fixed(obs, rho_frac, m_int, ephs, week, tow0, x0, dt0, settings, sig,
         row = np.zeros(h.shape[1])
         row[:3] = enu_matrix(lat, lon)[2]
         hw = np.vstack([hw, row / settings.height_sigma_m])
+        h = np.vstack([h, row])                 # the DOPs with the height constraint as one more row
     try:
         cov = np.linalg.inv(hw.T @ hw)
     except np.linalg.LinAlgError:

@@ -40,7 +40,7 @@ class SnapAcq:
     bit_edge_ms: int = -1          # data-bit edge position (ms into the snapshot, modulo 20), -1 unknown
 
 
-def dwell_plan(length_ms: int, max_dwell_ms: int = 40) -> tuple[int, int]:
+def dwell_plan(length_ms: int, max_dwell_ms: int = 20) -> tuple[int, int]:
     """(coherent_ms, noncoherent) for the detection of a snapshot of ``length_ms`` whole milliseconds:
     coherent half the length, at most 10 ms, two or more non-coherent sums, at most ``max_dwell_ms``
     in all (the fine stage uses the whole snapshot)."""
@@ -90,9 +90,12 @@ def _lag_power(spec_code, lag0, offs, dlag):
 
 
 def fine_code_phase(x, fs, if_hz, prn, code_phase_chips, doppler_hz, d_chips: float = 0.2, signal=None,
-                    n_ms: int | None = None):
+                    n_ms: int | None = None, method: str = "fit"):
     """Code phase (chips, at the first sample) refined to a fraction of a sample around the coarse
-    ``code_phase_chips``; also returns the prompt 1-ms correlations (complex, one per block)."""
+    ``code_phase_chips``; also returns the prompt 1-ms correlations (complex, one per block) and the C/N0
+    (dB-Hz: their power over the power far from the peak).  ``method``: "fit" (the correlation power at
+    whole-sample lags fitted with the squared triangle, :func:`_triangle_fit`) or "symmetry" (the centre of
+    symmetry of the band-limited interpolated peak, :func:`_symmetry_centre`)."""
     sig = signal if signal is not None else GPS_L1CA
     n1 = int(round(fs * 1e-3))
     nb = max(1, min(len(x) // n1, n_ms or 10 ** 9))
@@ -104,11 +107,54 @@ def fine_code_phase(x, fs, if_hz, prn, code_phase_chips, doppler_hz, d_chips: fl
     lag0 = (-code_phase_chips * spc) % n1
     # the code phase grows by code_len (1 + fd / f_carrier) per block: the lag falls by the excess
     dlag = -sig.code_len * doppler_hz / sig.carrier_hz * spc
+    # noise floor: the correlation far from the peak (32 lags spread over the rest of the code period)
+    pn, _ = _lag_power(sc, lag0, n1 * np.linspace(0.05, 0.95, 32), dlag)
+    floor = float(np.mean(pn))
+    if method == "fit":
+        centre = _triangle_fit(sc, lag0, dlag, spc, floor)
+    else:
+        centre = _symmetry_centre(sc, lag0, dlag, spc, d_chips)
+    lag = lag0 + centre
+    _, r = _lag_power(sc, lag, np.zeros(1), dlag)
+    phase = (-lag / spc) % sig.code_len
+    noise = floor / nb
+    sp = float(np.mean(np.abs(r[:, 0]) ** 2)) - noise
+    cn0 = float(10 * np.log10(max(sp / max(noise, 1e-30), 1e-6) / 1e-3))
+    return float(phase), r[:, 0], cn0
+
+
+def _triangle_fit(sc, lag0, dlag, spc, floor):
+    """Offset (samples) from lag0 of the peak: the non-coherent power at whole-sample lags (minus the noise
+    floor) within 1.2 chips of its maximum, least-squares fitted with A tri((lag - centre) / spc)^2 (the
+    correlation of a sampled code with its replica at a rate incommensurate with the chip rate), centre on a
+    0.01-sample grid refined by a parabola through the fit residuals."""
+    k = int(np.ceil(1.5 * spc))
+    base = float(np.round(lag0))
+    io = np.arange(-k, k + 1, dtype=float)
+    p, _ = _lag_power(sc, base, io, dlag)
+    q = p - floor
+    km = int(np.argmax(q))
+    sel = np.abs(io - io[km]) <= np.ceil(1.2 * spc)
+    ks, qs = io[sel], q[sel]
+    cand = io[km] + np.arange(-1.0, 1.0 + 1e-9, 0.01)
+    m = np.maximum(0.0, 1.0 - np.abs(ks[None, :] - cand[:, None]) / spc) ** 2
+    a = (m @ qs) / np.maximum((m * m).sum(axis=1), 1e-30)
+    res = ((qs[None, :] - a[:, None] * m) ** 2).sum(axis=1)
+    j = int(np.argmin(res))
+    d = 0.0
+    if 0 < j < len(res) - 1:
+        den = res[j - 1] - 2 * res[j] + res[j + 1]
+        d = 0.5 * (res[j - 1] - res[j + 1]) / den if den > 0 else 0.0
+    return base - lag0 + float(cand[j]) + 0.01 * d
+
+
+def _symmetry_centre(sc, lag0, dlag, spc, d_chips):
+    """Offset (samples) from lag0 where the band-limited interpolated power d_chips earlier equals the power
+    d_chips later (0.02-chip grid, interpolated)."""
     step = 0.02 * spc
     offs = np.arange(-60, 61) * step                                # +/- 1.2 chips
     p, _ = _lag_power(sc, lag0, offs, dlag)
     k = int(np.argmax(p))
-    # S(lag) = P(lag - d) - P(lag + d) around the maximum: zero at the centre of symmetry
     dk = int(round(d_chips * spc / step))
     lo, hi = max(dk, k - dk), min(len(offs) - dk - 1, k + dk)
     js = np.arange(lo, hi + 1)
@@ -120,10 +166,7 @@ def fine_code_phase(x, fs, if_hz, prn, code_phase_chips, doppler_hz, d_chips: fl
         c = cross[np.argmin(np.abs(js[cross] - k))]
         frac = s[c] / (s[c] - s[c + 1])
         centre = float(offs[js[c]] + frac * step)
-    lag = lag0 + centre
-    _, r = _lag_power(sc, lag, np.zeros(1), dlag)
-    phase = (-lag / spc) % sig.code_len
-    return float(phase), r[:, 0]
+    return centre
 
 
 def fine_doppler(z, coarse_hz: float, half_range_hz: float, bit_ms: int = 20):
@@ -156,9 +199,12 @@ def fine_doppler(z, coarse_hz: float, half_range_hz: float, bit_ms: int = 20):
 
 def snapshot_acquire(x: np.ndarray, fs: float, if_hz: float, prns, doppler_max_hz: float = 10000.0,
                      doppler_center_hz: float = 0.0, pfa: float = 1e-3, threshold: float = 1.25,
-                     width_ratio: float = 0.3, max_dwell_ms: int = 40, signal=None) -> list[SnapAcq]:
+                     width_ratio: float = 0.3, max_dwell_ms: int = 20, signal=None, coarse=None,
+                     search_out: list | None = None) -> list[SnapAcq]:
     """Detect ``prns`` in the snapshot ``x`` (complex64 from its first sample) and refine the code phase and
-    Doppler of every detection over the whole snapshot."""
+    Doppler of every detection over the whole snapshot.  ``coarse``: the search's results (AcqResult) of
+    the same first samples (from a shorter snapshot of the same dwell), reused instead of searching;
+    ``search_out``: a list that receives the search's results."""
     sig = signal if signal is not None else GPS_L1CA
     n1 = fs * 1e-3
     if abs(n1 - round(n1)) > 1e-6:
@@ -166,29 +212,21 @@ def snapshot_acquire(x: np.ndarray, fs: float, if_hz: float, prns, doppler_max_h
     n1 = int(round(n1))
     length_ms = len(x) // n1
     t_coh, k = dwell_plan(length_ms, max_dwell_ms)
-    res = search(x, 0, fs, if_hz, list(prns), coherent_ms=t_coh, noncoherent=k, doppler_max_hz=doppler_max_hz,
-                 pfa=pfa, threshold=threshold, fine=False, signal=sig, doppler_center_hz=doppler_center_hz,
-                 width_ratio=width_ratio)
+    if coarse is not None:
+        res = coarse
+    else:
+        res = search(x, 0, fs, if_hz, list(prns), coherent_ms=t_coh, noncoherent=k, doppler_max_hz=doppler_max_hz,
+                     pfa=pfa, threshold=threshold, fine=False, signal=sig, doppler_center_hz=doppler_center_hz,
+                     width_ratio=width_ratio)
     out = []
+    if search_out is not None:
+        search_out.extend(res)
     bin_hz = 1.0 / (2.0 * t_coh * 1e-3)
     for r in res:
         if not r.detected:
             out.append(SnapAcq(r.prn, False, r.code_phase_chips, r.doppler_hz, r.cn0_dbhz_est, r.metric))
             continue
-        phase, z = fine_code_phase(x, fs, if_hz, r.prn, r.code_phase_chips, r.doppler_hz, signal=sig)
+        phase, z, cn0 = fine_code_phase(x, fs, if_hz, r.prn, r.code_phase_chips, r.doppler_hz, signal=sig)
         dop, edge = fine_doppler(z, r.doppler_hz, bin_hz)
-        out.append(SnapAcq(r.prn, True, phase, dop, _cn0(z), r.metric, r.doppler_hz, edge))
+        out.append(SnapAcq(r.prn, True, phase, dop, cn0, r.metric, r.doppler_hz, edge))
     return out
-
-
-def _cn0(z) -> float:
-    """C/N0 (dB-Hz) from the prompt 1-ms correlations: narrow-band / wide-band power ratio over pairs."""
-    z = np.asarray(z)
-    if len(z) < 4:
-        return float("nan")
-    p = np.abs(z) ** 2
-    m2 = np.mean(p)
-    m4 = np.mean(p ** 2)
-    s = np.sqrt(max(2 * m2 * m2 - m4, 0.0))       # signal power estimate (moments method)
-    nvar = max(m2 - s, 1e-30)
-    return float(10 * np.log10(max(s / nvar, 1e-6) / 1e-3))

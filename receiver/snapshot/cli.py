@@ -50,10 +50,10 @@ def _clean(v):
 def snapshot(config, input_path, ephemeris, time_text, time_unc, position, pos_unc, height, length_ms, every_s,
              output, as_json, sets):
     """Snapshot position of a short recording (coarse-time navigation from a broadcast ephemeris)."""
-    from ..cli import _load
+    from ..config import load_receiver_config
     from ..errors import UserError
     from .run import snapshot_file
-    cfg = _load(config, input_path, sets)
+    cfg = load_receiver_config(config, list(sets) + ([("input.path", input_path)] if input_path else []))
     log = None if (as_json or not every_s) else click.echo
     results = snapshot_file(cfg, ephemeris, time_text, time_unc, position, pos_unc, length_ms, every_s, height,
                             log=log)
