@@ -44,6 +44,7 @@ class SnapObs:
     code_phase_chips: float           # code phase of the received signal at the first sample
     doppler_hz: float                 # carrier Doppler (> 0 approaching), including the oscillator's error
     cn0_dbhz: float = 45.0
+    length_ms: float = 10.0           # snapshot length (the noise model of the weights)
 
 
 @dataclass
@@ -72,6 +73,7 @@ class SnapshotFix:
     prior_ecef: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     height_aided: bool = False
     iterations: int = 0
+    time_source: str = "code phases"  # or "bit transitions of N satellites" (receiver.navigation.snapshot.refine_time)
 
     @property
     def n_sats(self) -> int:
@@ -87,6 +89,7 @@ class SnapshotSettings:
     max_pdop: float = 20.0
     height_m: float | None = None     # altitude aiding: height constraint (m above the ellipsoid)
     height_sigma_m: float = 10.0
+    time_sigma_s: float | None = None     # time aiding: the coarse time's 1-sigma as a constraint on dt
     max_iter: int = 12
 
 
@@ -154,9 +157,10 @@ def _dops(h_geo, x, ncols_clock=1):
             "tdop": float(np.sqrt(q[3, 3]) / C_LIGHT * 1e9) if ncols_clock else float("nan")}
 
 
-def _sigma_m(cn0_dbhz):
-    """Pseudorange noise model (m) from C/N0 for the weights: ~6 m at 45 dB-Hz over 10 ms."""
-    return 6.0 * 10 ** ((45.0 - np.asarray(cn0_dbhz, float)) / 20.0)
+def _sigma_m(cn0_dbhz, length_ms=10.0):
+    """Pseudorange noise model (m) for the weights: ~6 m at 45 dB-Hz over 10 ms (measured on simulated
+    snapshots at 4 MS/s), 1 / sqrt(C/N0 x length)."""
+    return 6.0 * 10 ** ((45.0 - np.asarray(cn0_dbhz, float)) / 20.0) * np.sqrt(10.0 / np.asarray(length_ms, float))
 
 
 def doppler_solution(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: float,
@@ -279,6 +283,11 @@ def _solve_fixed(obs, rho_frac, m_int, ephs, week, tow0, x0, dt0, settings, sig,
             row[:3] = up
             hw = np.vstack([hw, row / settings.height_sigma_m])
             zw = np.append(zw, (settings.height_m - float(hh)) / settings.height_sigma_m)
+        if use_time and settings.time_sigma_s:
+            row = np.zeros(hw.shape[1])
+            row[4] = 1.0 / settings.time_sigma_s
+            hw = np.vstack([hw, row])
+            zw = np.append(zw, -dt / settings.time_sigma_s)
         try:
             step, *_ = np.linalg.lstsq(hw, zw, rcond=None)
         except np.linalg.LinAlgError:
@@ -308,6 +317,10 @@ def _solve_fixed(obs, rho_frac, m_int, ephs, week, tow0, x0, dt0, settings, sig,
         row[:3] = enu_matrix(lat, lon)[2]
         hw = np.vstack([hw, row / settings.height_sigma_m])
         h = np.vstack([h, row])                 # the DOPs with the height constraint as one more row
+    if use_time and settings.time_sigma_s:
+        row = np.zeros(hw.shape[1])
+        row[4] = 1.0 / settings.time_sigma_s
+        hw = np.vstack([hw, row])
     try:
         cov = np.linalg.inv(hw.T @ hw)
     except np.linalg.LinAlgError:
@@ -392,7 +405,7 @@ def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s):
     min_sats = 4 if s.height_m is not None else 5
     visible = el > np.radians(-5.0)
     order = [i for i in np.argsort(-el) if visible[i]][:3]
-    sig_all = _sigma_m([o.cn0_dbhz for o in obs])
+    sig_all = _sigma_m([o.cn0_dbhz for o in obs], [o.length_ms for o in obs])
     for ref in order:
         m_int = _whole_ms(rho_frac, pred, ref)
         active = [i for i in range(len(obs)) if visible[i]]
@@ -428,3 +441,52 @@ def in_sky(ephs: Ephemerides, week: int, tow: float, x, mask_deg: float = 5.0) -
     pos, *_ = sat_geometry(ephs, prns, week, tow, np.asarray(x, float))
     _, el = azel(np.asarray(x, float), pos)
     return [p for p, e in zip(prns, el) if np.degrees(e) >= mask_deg]
+
+
+def refine_time(fix: SnapshotFix, edges: dict, ephs: Ephemerides, settings: SnapshotSettings | None = None,
+                max_shift_s: float = 8e-3, tol_s: float = 2e-4):
+    """The time of the first sample from data-bit transitions: ``edges`` {prn: time of a transition after the
+    first sample (s)}.  A transition leaves the satellite at a multiple of 20 ms of its clock, so from the fix
+    (position, its time within a few ms) each gives the first sample's time modulo 20 ms to the accuracy of the
+    range (ns).  Returns (tow, n_agreeing) when at least two satellites agree within ``tol_s`` on a time within
+    ``max_shift_s`` of the fix's, else None."""
+    s = settings or SnapshotSettings()
+    prns = [p for p in edges if p in fix.prns]
+    if len(prns) < 2 or not fix.ok:
+        return None
+    week, tow = fix.gps_week, fix.gps_tow_s
+    cands = []
+    for p in prns:
+        t_rx = tow + edges[p]                                   # the transition's arrival (true time)
+        pos, _, clk, _, _ = sat_geometry(ephs, [p], week, t_rx, fix.ecef)
+        corr, _ = _corrections(fix.ecef, pos, t_rx, ephs.iono, s)
+        travel = (np.linalg.norm(pos[0] - fix.ecef) + corr[0]) / C_LIGHT
+        t_sv = t_rx - travel + clk[0] / C_LIGHT                 # satellite clock at transmission
+        k = np.round(t_sv / 0.02)
+        cands.append(tow + (k * 0.02 - t_sv))                   # shift the first sample's time onto the grid
+    cands = np.array(cands)
+    med = float(np.median(cands))
+    agree = np.abs(cands - med) <= tol_s
+    if agree.sum() < 2 or abs(med - tow) > max_shift_s:
+        return None
+    return float(np.mean(cands[agree])), int(agree.sum())
+
+
+def with_bit_edges(fix: SnapshotFix, obs: list[SnapObs], edges: dict, ephs: Ephemerides,
+                   settings: SnapshotSettings | None = None) -> SnapshotFix:
+    """The fix again with the time from data-bit transitions (:func:`refine_time`) as a tight constraint, when
+    they give one and the new fix passes the same tests; else ``fix`` unchanged.  The result's
+    ``time_source`` says which."""
+    from dataclasses import replace as _replace
+    s = settings or SnapshotSettings()
+    r = refine_time(fix, edges, ephs, s)
+    if r is None:
+        return fix
+    tow, n = r
+    new = coarse_time_fix(obs, ephs, fix.gps_week, tow, fix.ecef, _replace(s, time_sigma_s=1e-6))
+    if not new.ok:
+        return fix
+    new.prior, new.prior_ecef = fix.prior, fix.prior_ecef
+    new.time_source = f"bit transitions of {n} satellites"
+    new.time_sigma_s = 1e-6
+    return new

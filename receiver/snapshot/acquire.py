@@ -38,6 +38,7 @@ class SnapAcq:
     metric: float
     coarse_doppler_hz: float = float("nan")
     bit_edge_ms: int = -1          # data-bit edge position (ms into the snapshot, modulo 20), -1 unknown
+    edge_s: float = float("nan")   # a data-bit transition: its time after the first sample (s), NaN if none seen
 
 
 def dwell_plan(length_ms: int, max_dwell_ms: int = 20) -> tuple[int, int]:
@@ -197,6 +198,48 @@ def fine_doppler(z, coarse_hz: float, half_range_hz: float, bit_ms: int = 20):
     return float(coarse_hz + f[j] + d * step), (best_e if nb > bit_ms else -1)
 
 
+def bit_transition(x, fs, if_hz, prn, code_phase_chips, doppler_hz, signal=None, min_snr: float = 30.0):
+    """Time (s after the first sample) of a data-bit transition seen in the snapshot, or NaN.
+
+    The prompt correlations over code periods (blocks starting at the code epochs, carrier wiped at
+    ``doppler_hz``); a transition at epoch m when the coherent sums A of up to 10 periods before it and B
+    after it have opposite signs (Re A B* < 0, |A B*| over their noise level, each of A and B at least
+    ``min_snr`` in power SNR) -- of the epochs on the 20-ms grid the one with the strongest evidence.
+    A transition's transmit time is a multiple of 20 ms: it fixes the time of the first sample modulo 20 ms
+    (receiver.navigation.snapshot.refine_time)."""
+    sig = signal if signal is not None else GPS_L1CA
+    rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz)
+    n1 = int(round(fs * 1e-3))
+    t_c = ((sig.code_len - code_phase_chips) % sig.code_len) / rate         # first code epoch
+    s0 = int(np.ceil(t_c * fs))
+    nb = (len(x) - s0) // n1
+    if nb < 4:
+        return float("nan")
+    n = nb * n1
+    t = (s0 + np.arange(n)) / fs
+    ph0 = (code_phase_chips + s0 * rate / fs) % sig.code_len                # just past chip 0
+    rep = sample_code(sig.code(prn), rate, fs, n, ph0) * np.exp(-2j * np.pi * (if_hz + doppler_hz) * t)
+    z = (x[s0:s0 + n] * rep).reshape(nb, n1).sum(axis=1)                   # one per code period
+    dz = np.diff(z)
+    noise = float(np.median(np.abs(dz) ** 2)) / (2.0 * np.log(2.0))      # |n1 - n2|^2: exponential, mean 2 var
+    noise = max(noise, 1e-30)
+    best, best_m = 0.0, -1
+    for e in range(min(20, nb)):
+        for m in range(e, nb, 20):
+            if m < 2 or nb - m < 2:
+                continue
+            w = min(10, m, nb - m)
+            a, b = z[m - w:m].sum(), z[m:m + w].sum()
+            snr_a, snr_b = abs(a) ** 2 / (w * noise), abs(b) ** 2 / (w * noise)
+            stat = -float(np.real(a * np.conj(b))) / (w * noise)
+            if snr_a >= min_snr and snr_b >= min_snr and stat > best and \
+                    -np.real(a * np.conj(b)) > 0.8 * abs(a) * abs(b):
+                best, best_m = stat, m
+    if best_m < 0:
+        return float("nan")
+    return float(t_c + best_m * sig.code_len / rate)                      # that epoch's time
+
+
 def snapshot_acquire(x: np.ndarray, fs: float, if_hz: float, prns, doppler_max_hz: float = 10000.0,
                      doppler_center_hz: float = 0.0, pfa: float = 1e-3, threshold: float = 1.25,
                      width_ratio: float = 0.3, max_dwell_ms: int = 20, signal=None, coarse=None,
@@ -228,5 +271,6 @@ def snapshot_acquire(x: np.ndarray, fs: float, if_hz: float, prns, doppler_max_h
             continue
         phase, z, cn0 = fine_code_phase(x, fs, if_hz, r.prn, r.code_phase_chips, r.doppler_hz, signal=sig)
         dop, edge = fine_doppler(z, r.doppler_hz, bin_hz)
-        out.append(SnapAcq(r.prn, True, phase, dop, cn0, r.metric, r.doppler_hz, edge))
+        edge_s = bit_transition(x, fs, if_hz, r.prn, phase, dop, signal=sig)
+        out.append(SnapAcq(r.prn, True, phase, dop, cn0, r.metric, r.doppler_hz, edge, edge_s))
     return out

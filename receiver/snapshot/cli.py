@@ -42,13 +42,16 @@ def _clean(v):
               help="snapshot length (ms); default: the file up to 20 ms")
 @click.option("--every", "every_s", type=click.FloatRange(min=0.001), default=None,
               help="one snapshot every S seconds along the file (table: HDF5 /snapshot + CSV)")
+@click.option("--independent", is_flag=True,
+              help="--every: solve every snapshot from the given priors alone (default: each starts from the "
+                   "previous fix, its time carried over by the sample counter and used as a constraint)")
 @click.option("--output", "-o", "output", type=str, default=None,
               help="HDF5 table of --every (default <input stem>.snapshot.h5 in the current directory; CSV "
                    "beside it)")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a config key")
 def snapshot(config, input_path, ephemeris, time_text, time_unc, position, pos_unc, height, length_ms, every_s,
-             output, as_json, sets):
+             independent, output, as_json, sets):
     """Snapshot position of a short recording (coarse-time navigation from a broadcast ephemeris)."""
     from ..config import load_receiver_config
     from ..errors import UserError
@@ -56,7 +59,7 @@ def snapshot(config, input_path, ephemeris, time_text, time_unc, position, pos_u
     cfg = load_receiver_config(config, list(sets) + ([("input.path", input_path)] if input_path else []))
     log = None if (as_json or not every_s) else click.echo
     results = snapshot_file(cfg, ephemeris, time_text, time_unc, position, pos_unc, length_ms, every_s, height,
-                            log=log)
+                            log=log, independent=independent)
     if not every_s:
         r = results[0]
         if not r.fix.ok:
@@ -72,7 +75,8 @@ def snapshot(config, input_path, ephemeris, time_text, time_unc, position, pos_u
         stem = os.path.splitext(os.path.basename(cfg.input.path))[0]
         output = f"{stem}.snapshot.h5"
     attrs = {"input": str(cfg.input.path), "ephemeris": str(ephemeris), "every_s": float(every_s),
-             "time": time_text or "", "position": position or "", "length_ms": int(results[0].length_ms)
+             "time": time_text or "", "position": position or "", "independent": int(independent),
+             "length_ms": int(results[0].length_ms)
              if results else 0}
     h5, csv_path = write_snapshot_table(output, results, attrs, reads=[cfg.input.path, ephemeris, config])
     ok = [r for r in results if r.fix.ok]
@@ -91,7 +95,7 @@ def _text(r) -> str:
              f"ECEF      {f.ecef[0]:.2f} {f.ecef[1]:.2f} {f.ecef[2]:.2f} m",
              f"sigma ENU {f.sigma_enu_m[0]:.1f} {f.sigma_enu_m[1]:.1f} {f.sigma_enu_m[2]:.1f} m",
              f"time      GPS week {f.gps_week} TOW {f.gps_tow_s:.6f} s ({_utc(f)}), 1-sigma "
-             f"{f.time_sigma_s * 1e3:.1f} ms, {f.time_correction_s:+.3f} s from the coarse time",
+             f"{f.time_sigma_s * 1e3:.3f} ms ({f.time_source}), {f.time_correction_s:+.3f} s from the coarse time",
              f"velocity  {f.velocity_ecef[0]:.2f} {f.velocity_ecef[1]:.2f} {f.velocity_ecef[2]:.2f} m/s (ECEF), "
              f"clock drift {f.clock_drift_mps:.1f} m/s",
              "DOP       " + " ".join(f"{k.upper()} {v:.2f}" for k, v in f.dops.items()),

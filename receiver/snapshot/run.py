@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -18,7 +18,8 @@ from ..errors import UserError
 from ..gnss.geodesy import ecef2lla, lla2ecef
 from ..gnss.rinex import read_rinex_nav
 from ..gnss.time import GPS_EPOCH, WEEK_S, leap_seconds_at, normalize_week_tow, gps_datetime
-from ..navigation.snapshot import Ephemerides, SnapObs, SnapshotSettings, coarse_time_fix, in_sky
+from ..navigation.snapshot import (Ephemerides, SnapObs, SnapshotSettings, coarse_time_fix, in_sky,
+                                   with_bit_edges)
 from .acquire import snapshot_acquire
 
 #: the longest snapshot used by default (ms) and the shortest accepted
@@ -48,6 +49,7 @@ class SnapshotResult:
                       "height_m": f.height_m, "gps_week": f.gps_week, "gps_tow_s": f.gps_tow_s,
                       "utc": utc_text(f.gps_week, f.gps_tow_s),
                       "time_sigma_s": f.time_sigma_s, "time_correction_s": f.time_correction_s,
+                      "time_source": f.time_source,
                       "sigma_enu_m": [float(v) for v in f.sigma_enu_m],
                       "velocity_ecef_mps": [float(v) for v in f.velocity_ecef],
                       "clock_drift_mps": f.clock_drift_mps, "n_sats": f.n_sats, "prns": f.prns,
@@ -128,8 +130,12 @@ def _check_ephemeris(ephs: Ephemerides, path, week: int, tow: float):
 def snapshot_file(cfg, ephemeris_path: str, time: str | None = None, time_uncertainty_s: float = 60.0,
                   position: str | None = None, position_uncertainty_m: float = 100e3,
                   length_ms: int | None = None, every_s: float | None = None, height_m: float | None = None,
-                  log=None) -> list[SnapshotResult]:
-    """Position snapshots of the configured input (one, or one every ``every_s`` seconds)."""
+                  log=None, time_aiding: bool = True, independent: bool = False) -> list[SnapshotResult]:
+    """Position snapshots of the configured input (one, or one every ``every_s`` seconds).  Along a file
+    (``every_s``) each snapshot after a fix starts from that fix (position, unless one is given, and time
+    carried over by the sample counter); ``time_aiding``: that time's 1-sigma also constrains the time
+    estimate (a scalar Kalman filter on the time of the file's first sample); ``independent``: every
+    snapshot from the given priors alone."""
     from ..gnss.registry import get_signal
     from ..pipeline import open_input, run_signals
     sigs = run_signals(cfg)
@@ -179,7 +185,7 @@ def snapshot_file(cfg, ephemeris_path: str, time: str | None = None, time_uncert
     else:
         starts = np.array([0.0])
     results = []
-    last = None                                   # previous good fix: the prior of the next snapshot
+    last, last_offset = None, 0.0                 # previous good fix: the prior of the next snapshot
     for k, off in enumerate(starts):
         s0 = first + int(round(off * fs))
         x = reader.read(s0, length * n1)
@@ -188,10 +194,17 @@ def snapshot_file(cfg, ephemeris_path: str, time: str | None = None, time_uncert
         wk, tw = normalize_week_tow(week, tow + off)
         searched = [p for p in a.prns if 1 <= p <= 32 and ephs.get(p, wk, tw) is not None]
         x_prior, t_coarse, unc = prior, (wk, tw), time_uncertainty_s
-        if x_prior is None and last is not None:
-            x_prior = last.ecef
-            t_coarse = normalize_week_tow(last.gps_week, last.gps_tow_s + (off - results[-1].offset_s))
+        snap_settings = settings
+        if last is not None:
+            # the previous fix: its position (unless the user gave one) and its time carried over by the
+            # sample counter, with its 1-sigma (and 2 ppm of the elapsed time) as a time constraint
+            elapsed = off - last_offset
+            x_prior = last.ecef if x_prior is None else x_prior
+            t_coarse = normalize_week_tow(last.gps_week, last.gps_tow_s + elapsed)
             unc = 1.0
+            sig_t = float(np.hypot(last.time_sigma_s, 2e-6 * elapsed))
+            if time_aiding and np.isfinite(sig_t) and sig_t > 0:
+                snap_settings = replace(settings, time_sigma_s=sig_t)
         if x_prior is not None and unc <= 600:
             # only satellites that can be above the horizon from within the prior's uncertainty
             near = set(in_sky(ephs, t_coarse[0], t_coarse[1], x_prior, mask_deg=-5.0
@@ -203,15 +216,19 @@ def snapshot_file(cfg, ephemeris_path: str, time: str | None = None, time_uncert
                                pfa=float(a.pfa), threshold=float(a.threshold), width_ratio=float(a.width_ratio),
                                signal=sig)
         det = [r for r in acq if r.detected]
-        obs = [SnapObs(r.prn, r.code_phase_chips, r.doppler_hz, r.cn0_dbhz if np.isfinite(r.cn0_dbhz) else 40.0)
-               for r in det]
-        fix = _solve(obs, ephs, t_coarse, unc, x_prior, settings)
+        obs = [SnapObs(r.prn, r.code_phase_chips, r.doppler_hz, r.cn0_dbhz if np.isfinite(r.cn0_dbhz) else 40.0,
+                       float(length)) for r in det]
+        fix = _solve(obs, ephs, t_coarse, unc, x_prior, snap_settings)
+        if fix.ok:
+            edges = {r.prn: r.edge_s for r in det if np.isfinite(r.edge_s)}
+            fix = with_bit_edges(fix, obs, edges, ephs, snap_settings)
         missed = []
         if fix.ok:
             seen = {r.prn for r in det}
             missed = [p for p in in_sky(ephs, fix.gps_week, fix.gps_tow_s, fix.ecef, settings.elevation_mask_deg)
                       if p not in seen]
-            last = fix
+            if not independent:
+                last, last_offset = fix, float(off)
         results.append(SnapshotResult(k, float(off), length, int(t_coarse[0]), float(t_coarse[1]), fix, det,
                                       searched, missed))
         if log is not None:

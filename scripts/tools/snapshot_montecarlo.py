@@ -31,7 +31,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 sys.path.insert(0, ROOT)
 
 from receiver.gnss.geodesy import enu_matrix, lla2ecef  # noqa: E402
-from receiver.navigation.snapshot import SnapObs, SnapshotSettings, coarse_time_fix, in_sky  # noqa: E402
+from receiver.navigation.snapshot import (SnapObs, SnapshotSettings, coarse_time_fix, in_sky,  # noqa: E402
+                                          with_bit_edges)
 from receiver.runfile.truth import TruthFile  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402
 from receiver.snapshot.acquire import snapshot_acquire  # noqa: E402
@@ -99,15 +100,17 @@ def run_trial(p, cn0, fs, tmp, ephs, max_len, lengths=LENGTHS):
             cache["20"] = out
         t_acq = time.time() - t0
         det = [a for a in acq if a.detected]
-        obs = [SnapObs(a.prn, a.code_phase_chips, a.doppler_hz, a.cn0_dbhz if np.isfinite(a.cn0_dbhz) else 40.0)
-               for a in det]
+        obs = [SnapObs(a.prn, a.code_phase_chips, a.doppler_hz, a.cn0_dbhz if np.isfinite(a.cn0_dbhz) else 40.0,
+                       float(length)) for a in det]
+        edges = {a.prn: a.edge_s for a in det if np.isfinite(a.edge_s)}
         false = [a.prn for a in det if a.prn not in sky]
         for mode, dt, xp in (("a", p["dt_a"], prior), ("b", p["dt_b"], None)):
             t0 = time.time()
             fix = coarse_time_fix(obs, ephs, WEEK, tow_true + dt, xp, SnapshotSettings())
+            fix = with_bit_edges(fix, obs, edges, ephs, SnapshotSettings())
             row = {"cn0": cn0, "length_ms": length, "mode": mode, "ok": bool(fix.ok), "n_det": len(det),
                    "n_sky": len(sky), "false": false, "t_acq_s": t_acq, "t_solve_s": time.time() - t0,
-                   "speed": p["speed"], "msg": fix.message}
+                   "speed": p["speed"], "msg": fix.message, "time_source": fix.time_source}
             if fix.ok:
                 row.update({"err3d_m": float(np.linalg.norm(fix.ecef - x_true)),
                             "err_h_m": float(np.linalg.norm((enu @ (fix.ecef - x_true))[:2])),
@@ -153,7 +156,20 @@ def main(argv=None):
     ap.add_argument("--cn0", type=float, nargs="*", default=list(CN0S))
     ap.add_argument("--lengths", type=int, nargs="*", default=list(LENGTHS), help="snapshot lengths (ms)")
     ap.add_argument("--out", type=str, default=None, help="JSON file of all rows")
+    ap.add_argument("--table", type=str, nargs="*", default=None,
+                    help="only print the table of JSON files of rows (several: their rows together)")
     args = ap.parse_args(argv)
+    if args.table:
+        rows, moving = [], False
+        for path in args.table:
+            with open(path) as fh:
+                d = json.load(fh)
+            n = len({r["trial"] for r in d["rows"]})
+            print(f"{path}: {n} trials, seed {d['args']['seed']}, moving {d['args']['moving']}")
+            rows += d["rows"]
+            moving = moving or d["args"]["moving"]
+        print(table(rows, moving))
+        return
     if not os.path.exists(RINEX):
         sys.exit(f"needs {RINEX}")
     ephs = load_ephemerides(RINEX)
