@@ -90,6 +90,7 @@ class SnapshotSettings:
     height_m: float | None = None     # altitude aiding: height constraint (m above the ellipsoid)
     height_sigma_m: float = 10.0
     time_sigma_s: float | None = None     # time aiding: the coarse time's 1-sigma as a constraint on dt
+    max_move_m: float = 250e3             # a fix farther than this from its prior is rejected
     max_iter: int = 12
 
 
@@ -420,7 +421,9 @@ def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s):
             res = sol["res"]
             rms = float(np.sqrt(np.mean(res ** 2)))
             h_ell = float(ecef2lla(sol["x"])[2])
-            plausible = -2000.0 < h_ell < 20000.0
+            # the whole milliseconds assumed the prior within ~100 km: a solution much farther from it
+            # resolved them under a false assumption (a consistent-looking wrong fix)
+            plausible = -2000.0 < h_ell < 20000.0 and np.linalg.norm(sol["x"] - x0) <= s.max_move_m
             if plausible and rms <= s.residual_threshold_m and el_ok.all() and \
                     _dops(sol["h"], sol["x"])["pdop"] <= s.max_pdop:
                 return sol, active, rejected
