@@ -287,3 +287,31 @@ def test_bad_inputs_one_line(rec, tmp_path):
     # a bad position
     rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["nav"], "--position", "95,0"])
     assert rc == 2 and "--position" in one_error_line(err)
+
+
+def test_time_from_bit_transitions(nav):
+    """Data-bit transitions (each at a multiple of 20 ms of its satellite's clock) fix the first sample's time
+    to microseconds from a fix whose time is a few ms off; a transition on the wrong epoch is outvoted."""
+    from receiver.navigation.snapshot import refine_time, with_bit_edges
+    x_true = lla2ecef(45.0, 7.0, 300.0)
+    tow = nav["tow"] + 2222.2222
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, noise_m=2.0, seed=5)
+    s = SnapshotSettings(**NO_ATMO)
+    fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow + 0.8, x_true + 30e3, s)
+    assert fix.ok
+    prns = fix.prns
+    edges = {}
+    for p in prns[:4]:
+        pos, _, clk, _, _ = sat_geometry(nav["ephs"], [p], nav["week"], tow, x_true)
+        t_sv0 = tow - np.linalg.norm(pos[0] - x_true) / C_LIGHT + clk[0] / C_LIGHT
+        edges[p] = np.ceil(t_sv0 / 0.02) * 0.02 - t_sv0      # arrival of the next transmit multiple of 20 ms
+    edges[prns[4]] = edges[prns[0]] + 3e-3 if edges[prns[0]] < 0.015 else edges[prns[0]] - 3e-3   # a wrong one
+    from dataclasses import replace
+    fake = replace(fix, gps_tow_s=tow + 4.1e-3)                             # the fix's time 4.1 ms off
+    t, n = refine_time(fake, edges, nav["ephs"], s)
+    assert n == 4 and abs(t - tow) < 2e-6
+    better = with_bit_edges(fix, obs, edges, nav["ephs"], s)
+    assert "bit transitions" in better.time_source and abs(better.gps_tow_s - tow) < 2e-6
+    assert np.linalg.norm(better.ecef - x_true) < 15.0
+    # no agreement, no refinement
+    assert refine_time(fake, {prns[0]: edges[prns[0]]}, nav["ephs"], s) is None
