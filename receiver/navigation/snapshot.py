@@ -340,19 +340,25 @@ def coarse_time_fix(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: floa
     if len(obs) < min_sats:
         return SnapshotFix(False, f"{len(obs)} satellites with an ephemeris found, {min_sats} needed"
                            + ("" if s.height_m is not None else " (4 with a height constraint)"))
-    prior, dt_prior = "position", 0.0
+    prior, dt_prior, dop_rms = "position", 0.0, None
     if prior_ecef is None:
         sol = doppler_solution(obs, ephs, week, tow0)
         if sol is None:
             return SnapshotFix(False, "no Doppler solution for the a-priori position (too few satellites "
                                       "or inconsistent Dopplers); give --position")
-        prior_ecef, dt_prior = sol[0], sol[2]
+        prior_ecef, dt_prior, dop_rms = sol[0], sol[2], sol[3]
         prior = "doppler"
         lat, lon, _ = ecef2lla(prior_ecef)        # the Doppler fix's height is poor: put it on the surface
         prior_ecef = lla2ecef(lat, lon, 0.0 if s.height_m is None else s.height_m)
     prior_ecef = np.asarray(prior_ecef, float)
     rho_frac = -(C_LIGHT / chip_rate) * np.array([o.code_phase_chips for o in obs])
-    best = _search(obs, rho_frac, ephs, week, tow0, prior_ecef, dt_prior, s)
+    check = None
+    if dop_rms is not None:
+        # a static receiver's Dopplers must fit the fix about as well as the Doppler-only solution: a fix
+        # hundreds of km off (wrong whole milliseconds from a poor Doppler prior) does not
+        def check(sol):
+            return _static_doppler_rms(obs, ephs, week, tow0 + sol["dt"], sol["x"]) <= 2.0 * dop_rms + 3.0
+    best = _search(obs, rho_frac, ephs, week, tow0, prior_ecef, dt_prior, s, check)
     if best is None and prior == "doppler":
         # the Doppler fix may be off by more than the ambiguity resolution tolerates: a ring of start
         # points around it
@@ -363,7 +369,7 @@ def coarse_time_fix(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: floa
                 x0 = prior_ecef + r * (np.sin(az) * enu[0] + np.cos(az) * enu[1])
                 lat2, lon2, _ = ecef2lla(x0)
                 x0 = lla2ecef(lat2, lon2, 0.0 if s.height_m is None else s.height_m)
-                best = _search(obs, rho_frac, ephs, week, tow0, x0, dt_prior, s)
+                best = _search(obs, rho_frac, ephs, week, tow0, x0, dt_prior, s, check)
                 if best is not None:
                     break
             if best is not None:
@@ -395,7 +401,15 @@ def coarse_time_fix(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: floa
     return fix
 
 
-def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s):
+def _static_doppler_rms(obs, ephs, week, tow, x) -> float:
+    """RMS (m/s) of the Doppler residuals at position x for a static receiver (the clock drift fitted)."""
+    prns = [o.prn for o in obs]
+    pred, _ = _doppler_model(ephs, prns, week, tow, np.asarray(x, float), 0.0, False)
+    r = -LAMBDA * np.array([o.doppler_hz for o in obs]) - pred
+    return float(np.std(r))
+
+
+def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
     """Whole milliseconds from the prior (x0, dt0), solve, residual test with exclusion of the worst
     satellite; the reference satellite tried in order of elevation.  (sol, used indices, rejected) or
     None."""
@@ -426,7 +440,9 @@ def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s):
             plausible = -2000.0 < h_ell < 20000.0 and np.linalg.norm(sol["x"] - x0) <= s.max_move_m
             if plausible and rms <= s.residual_threshold_m and el_ok.all() and \
                     _dops(sol["h"], sol["x"])["pdop"] <= s.max_pdop:
-                return sol, active, rejected
+                if check is None or check(sol):
+                    return sol, active, rejected
+                break                       # consistent pseudoranges, inconsistent Dopplers: next reference
             if len(active) == min_sats:
                 break
             # drop the worst: below the mask first, else the largest residual
