@@ -357,7 +357,10 @@ def coarse_time_fix(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: floa
         # a static receiver's Dopplers must fit the fix about as well as the Doppler-only solution: a fix
         # hundreds of km off (wrong whole milliseconds from a poor Doppler prior) does not
         def check(sol):
-            return _static_doppler_rms(obs, ephs, week, tow0 + sol["dt"], sol["x"]) <= 2.0 * dop_rms + 3.0
+            # (the Doppler-only fit has few degrees of freedom: its RMS can be far below the noise; 20 m/s is
+            # ~100 Hz, the misfit of a position ~150-300 km off)
+            return _static_doppler_rms(obs, ephs, week, tow0 + sol["dt"], sol["x"]) <= max(2.0 * dop_rms + 3.0,
+                                                                                        20.0)
     best = _search(obs, rho_frac, ephs, week, tow0, prior_ecef, dt_prior, s, check)
     if best is None and prior == "doppler":
         # the Doppler fix may be off by more than the ambiguity resolution tolerates: a ring of start

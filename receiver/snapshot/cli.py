@@ -39,7 +39,7 @@ def _clean(v):
 @click.option("--height", "height", type=float, default=None,
               help="altitude aiding: constrain the height (m above the ellipsoid); allows 4-satellite fixes")
 @click.option("--length", "length_ms", type=click.IntRange(min=1), default=None,
-              help="snapshot length (ms); default: the file up to 20 ms")
+              help="snapshot length (ms); default: the file up to 40 ms")
 @click.option("--every", "every_s", type=click.FloatRange(min=0.001), default=None,
               help="one snapshot every S seconds along the file (table: HDF5 /snapshot + CSV)")
 @click.option("--independent", is_flag=True,

@@ -23,7 +23,7 @@ from ..navigation.snapshot import (Ephemerides, SnapObs, SnapshotSettings, coars
 from .acquire import snapshot_acquire
 
 #: the longest snapshot used by default (ms) and the shortest accepted
-DEFAULT_LENGTH_MS = 20
+DEFAULT_LENGTH_MS = 40
 MIN_LENGTH_MS = 1
 
 
