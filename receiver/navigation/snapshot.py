@@ -91,6 +91,7 @@ class SnapshotSettings:
     height_sigma_m: float = 10.0
     time_sigma_s: float | None = None     # time aiding: the coarse time's 1-sigma as a constraint on dt
     max_move_m: float = 250e3             # a fix farther than this from its prior is rejected
+    max_doppler_rms_mps: float = 15.0     # the Doppler-only prior needs its residual RMS below this (static)
     max_iter: int = 12
 
 
@@ -347,6 +348,9 @@ def coarse_time_fix(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: floa
             return SnapshotFix(False, "no Doppler solution for the a-priori position (too few satellites "
                                       "or inconsistent Dopplers); give --position")
         prior_ecef, dt_prior, dop_rms = sol[0], sol[2], sol[3]
+        if dop_rms > s.max_doppler_rms_mps:
+            return SnapshotFix(False, f"the Doppler-only solution does not fit a static receiver (RMS {dop_rms:.0f} "
+                                      "m/s): a moving receiver? give --position")
         prior = "doppler"
         lat, lon, _ = ecef2lla(prior_ecef)        # the Doppler fix's height is poor: put it on the surface
         prior_ecef = lla2ecef(lat, lon, 0.0 if s.height_m is None else s.height_m)
