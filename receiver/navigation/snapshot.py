@@ -92,6 +92,7 @@ class SnapshotSettings:
     time_sigma_s: float | None = None     # time aiding: the coarse time's 1-sigma as a constraint on dt
     max_move_m: float = 250e3             # a fix farther than this from its prior is rejected
     max_doppler_rms_mps: float = 15.0     # the Doppler-only prior needs its residual RMS below this (static)
+    max_time_shift_s: float = 120.0       # a fix whose time moved farther from the coarse time is rejected
     max_iter: int = 12
 
 
@@ -444,7 +445,8 @@ def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
             h_ell = float(ecef2lla(sol["x"])[2])
             # the whole milliseconds assumed the prior within ~100 km: a solution much farther from it
             # resolved them under a false assumption (a consistent-looking wrong fix)
-            plausible = -2000.0 < h_ell < 20000.0 and np.linalg.norm(sol["x"] - x0) <= s.max_move_m
+            plausible = -2000.0 < h_ell < 20000.0 and np.linalg.norm(sol["x"] - x0) <= s.max_move_m and \
+                abs(sol["dt"]) <= s.max_time_shift_s
             if plausible and rms <= s.residual_threshold_m and el_ok.all() and \
                     _dops(sol["h"], sol["x"])["pdop"] <= s.max_pdop:
                 if check is None or check(sol):

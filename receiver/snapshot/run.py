@@ -179,7 +179,8 @@ def snapshot_file(cfg, ephemeris_path: str, time: str | None = None, time_uncert
     settings = SnapshotSettings(troposphere=nav.troposphere != "none", ionosphere=nav.ionosphere != "none",
                                 elevation_mask_deg=float(nav.elevation_mask_deg),
                                 residual_threshold_m=float(nav.residual_threshold_m),
-                                max_pdop=float(nav.max_pdop), height_m=height_m)
+                                max_pdop=float(nav.max_pdop), height_m=height_m,
+                                max_time_shift_s=max(120.0, 2.0 * min(time_uncertainty_s, 300.0)))
     if every_s:
         starts = np.arange(0.0, (avail_ms - length) * 1e-3 + 1e-9, float(every_s))
     else:
