@@ -274,6 +274,7 @@ LAZY_COMMANDS = {
     "batch": ("receiver.batch.cli", "batch"), "compare": ("receiver.batch.cli", "compare"),
     "probe": ("receiver.probe.cli", "probe"),
     "validate": ("receiver.validate.cli", "validate"),
+    "snapshot": ("receiver.snapshot.cli", "snapshot"),
 }
 
 

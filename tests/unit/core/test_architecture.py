@@ -31,7 +31,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.navigation",),
     ("receiver.pipeline",),
     ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.probe",
-     "receiver.validate"),
+     "receiver.validate", "receiver.snapshot"),
     ("receiver.cli",),
 ]
 

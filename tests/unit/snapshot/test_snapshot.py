@@ -1,0 +1,316 @@
+"""Snapshot positioning (coarse-time navigation): the solver against synthetic geometry with known truth, the
+snapshot acquisition's fine code phase / Doppler against a synthetic signal, end to end on a short simulated
+recording, the real 10-ms PySDR recording (skips without ../shared) and the bad-input one-line errors."""
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from receiver.cli import main
+from receiver.gnss.geodesy import ecef2lla, enu_matrix, lla2ecef
+from receiver.gnss.signals import CA_CHIP_RATE, C_LIGHT, L1_HZ
+from receiver.navigation.snapshot import (Ephemerides, SnapObs, SnapshotSettings, coarse_time_fix,
+                                          sat_geometry)
+from receiver.snapshot.acquire import dwell_plan, fine_code_phase, fine_doppler, snapshot_acquire
+
+from synth import make_signal
+
+from repo_paths import ROOT, SHARED_DATA as SHARED  # noqa: E402
+
+SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"
+PYSDR = SHARED / "real" / "pysdr_GPS_L1_recording_10ms_4MHz_cf32.iq"
+PYSDR_NAV = SHARED / "real" / "hour0860.22n"
+LAMBDA = C_LIGHT / L1_HZ
+
+
+def cli(args, cwd=None):
+    old = os.getcwd()
+    try:
+        if cwd:
+            os.chdir(cwd)
+        res = CliRunner().invoke(main, [str(a) for a in args])
+    finally:
+        os.chdir(old)
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    return res.exit_code, res.stdout, res.stderr
+
+
+def one_error_line(stderr: str) -> str:
+    assert "Traceback" not in stderr, stderr
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("gnssrx: error: "), lines[0]
+    return lines[0]
+
+
+# ------------------------------------------------------------------------------ the nominal constellation
+@pytest.fixture(scope="module")
+def nav(tmp_path_factory):
+    """The embedded constellation of the simulator's default scenario as a RINEX file, and its time."""
+    from receiver.batch.tasks import write_nav_for_scenario
+    from receiver.gnss.rinex import read_rinex_nav
+    from receiver.sim.scenario import load_scenario
+    d = tmp_path_factory.mktemp("nav")
+    sc = load_scenario(SCENARIO)
+    write_nav_for_scenario(sc.to_dict(), str(d / "nom.nav"))
+    by_prn, iono = read_rinex_nav(d / "nom.nav")
+    return {"path": d / "nom.nav", "ephs": Ephemerides(by_prn, iono), "week": sc.time.gps_week,
+            "tow": sc.time.tow_s}
+
+
+def synthetic_obs(ephs, week, tow_true, x_true, v_true=np.zeros(3), bias_s=3.7e-4, drift_mps=120.0,
+                  noise_m=0.0, noise_hz=0.0, seed=0, mask_deg=10.0):
+    """Code phases (at the first sample) and Dopplers of every satellite above mask_deg, from the ephemerides'
+    geometry at the true time (no atmosphere), with a receiver clock bias and drift and Gaussian noise."""
+    from receiver.gnss.geodesy import azel
+    rng = np.random.default_rng(seed)
+    prns = ephs.covered(week, tow_true)
+    pos, vel, clk, cdrift, _ = sat_geometry(ephs, prns, week, tow_true, x_true)
+    _, el = azel(x_true, pos)
+    obs = []
+    for i, p in enumerate(prns):
+        if np.degrees(el[i]) < mask_deg:
+            continue
+        rng_m = np.linalg.norm(pos[i] - x_true)
+        u = (pos[i] - x_true) / rng_m
+        rho = rng_m - clk[i] + C_LIGHT * bias_s + rng.normal(scale=noise_m)
+        t_rx = tow_true + bias_s
+        t_tx = t_rx - rho / C_LIGHT
+        phase = ((t_tx % 1e-3) * CA_CHIP_RATE) % 1023.0
+        rate = u @ (vel[i] - v_true) + drift_mps - cdrift[i]
+        obs.append(SnapObs(p, float(phase), float(-rate / LAMBDA + rng.normal(scale=noise_hz)), 45.0))
+    return obs
+
+
+NO_ATMO = dict(troposphere=False, ionosphere=False)
+
+
+def test_solver_exact_measurements_recover_position_and_time(nav):
+    x_true = lla2ecef(-33.9, 151.2, 60.0)
+    tow = nav["tow"] + 1234.5
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true)
+    assert len(obs) >= 6
+    enu = enu_matrix(-33.9, 151.2)
+    prior = x_true + 90e3 * enu[0] - 20e3 * enu[1]
+    # (a) a prior within 100 km and the time 1.7 s off; (b) no position, the time 55 s off
+    for dt, xp in ((1.7, prior), (-55.0, None), (58.0, None)):
+        fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow + dt, xp, SnapshotSettings(**NO_ATMO))
+        assert fix.ok, fix.message
+        assert np.linalg.norm(fix.ecef - x_true) < 0.05
+        assert abs(fix.gps_tow_s - tow) < 1e-4       # the time is weakly observable: 0.1 ms = 8 cm at 800 m/s
+        assert abs(fix.time_correction_s + dt) < 1e-4
+        assert fix.residual_rms_m < 0.01
+        assert fix.prior == ("position" if xp is not None else "doppler")
+        assert np.linalg.norm(fix.velocity_ecef) < 1e-3
+        assert fix.n_sats == len(obs) and fix.dops["pdop"] > 0
+
+
+def test_solver_with_noise_and_a_faulty_satellite(nav):
+    x_true = lla2ecef(52.5, 13.4, 40.0)
+    tow = nav["tow"] + 4000.0
+    v_true = np.array([60.0, -50.0, 20.0])
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, v_true=v_true, noise_m=3.0, noise_hz=0.5, seed=3)
+    obs[1].code_phase_chips = (obs[1].code_phase_chips + 0.5) % 1023     # 147 m off: must be excluded
+    enu = enu_matrix(52.5, 13.4)
+    fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow - 1.2, x_true + 50e3 * enu[1],
+                          SnapshotSettings(**NO_ATMO))
+    assert fix.ok, fix.message
+    assert fix.rejected == [obs[1].prn]
+    err = np.linalg.norm(fix.ecef - x_true)
+    sigma = np.linalg.norm(fix.sigma_enu_m)
+    assert err < 4 * sigma and err < 25.0
+    assert abs(fix.gps_tow_s - tow) < 4 * fix.time_sigma_s
+    assert max(abs(r) for r in fix.residuals_m) < 15.0
+    # velocity from the Dopplers (0.5 Hz = 0.1 m/s noise)
+    assert np.linalg.norm(fix.velocity_ecef - v_true) < 1.0
+
+
+def test_solver_needs_five_satellites_or_four_with_height(nav):
+    x_true = lla2ecef(10.0, -70.0, 250.0)
+    tow = nav["tow"] + 700.0
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true)[:4]
+    prior = x_true + np.array([20e3, -10e3, 5e3])
+    fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow + 0.5, prior, SnapshotSettings(**NO_ATMO))
+    assert not fix.ok and "5 needed" in fix.message
+    lat, lon, h = ecef2lla(x_true)
+    fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow + 0.5, prior,
+                          SnapshotSettings(height_m=float(h), **NO_ATMO))
+    assert fix.ok, fix.message
+    assert fix.height_aided and fix.n_sats == 4
+    assert np.linalg.norm(fix.ecef - x_true) < 1.0
+
+
+# ------------------------------------------------------------------------------ snapshot acquisition
+def test_dwell_plan_splits_by_length():
+    assert dwell_plan(1) == (1, 1)
+    assert dwell_plan(2) == (1, 2)
+    assert dwell_plan(10) == (5, 2)
+    assert dwell_plan(100) == (10, 2)
+    for n in (2, 3, 5, 7, 10, 20, 55, 100):
+        t, k = dwell_plan(n)
+        assert t <= 10 and t * k <= n and (k >= 2 or n == 1)
+
+
+def test_fine_code_phase_and_doppler_on_a_synthetic_signal():
+    fs = 4e6
+    sats = [{"prn": 5, "doppler_hz": 2345.6, "code_phase_chips": 321.37, "cn0_dbhz": 48.0,
+             "bits": np.array([1, -1, 1, 1, -1]), "bit_start_ms": -7},
+            {"prn": 17, "doppler_hz": -3120.2, "code_phase_chips": 12.81, "cn0_dbhz": 45.0,
+             "bits": np.array([1, 1, -1, -1, 1]), "bit_start_ms": -13}]
+    x = make_signal(sats, fs=fs, duration_s=0.06, seed=4)
+    acq = snapshot_acquire(x, fs, 0.0, [5, 17, 9], doppler_max_hz=5000.0)
+    by = {a.prn: a for a in acq}
+    assert not by[9].detected
+    for s in sats:
+        a = by[s["prn"]]
+        assert a.detected
+        err = (a.code_phase_chips - s["code_phase_chips"] + 511.5) % 1023 - 511.5
+        assert abs(err) < 0.03              # 9 m, against 0.26 chip per sample
+        assert abs(a.doppler_hz - s["doppler_hz"]) < 3.0
+        assert abs(a.cn0_dbhz - s["cn0_dbhz"]) < 3.0
+    # the bit edge of PRN 5: its bits start 7 ms before the first sample -> edges at 13, 33, 53 ms
+    assert by[5].bit_edge_ms == 13
+
+
+def test_fine_doppler_handles_a_bit_transition():
+    t = np.arange(40) * 1e-3
+    bits = np.where(t < 0.011, 1.0, -1.0)
+    z = bits * np.exp(2j * np.pi * 37.0 * t)
+    f, edge = fine_doppler(z, 1000.0, 100.0)
+    assert abs(f - 1037.0) < 0.5 and edge == 11
+    # sub-sample resolution at 2.44 samples per chip (a rate commensurate with the chip rate, 2.046 MS/s, samples
+    # every code phase within half a sample to the same values: no estimator can resolve it there)
+    for phase in (100.37, 100.81):
+        p, _, _ = fine_code_phase(make_signal([{"prn": 3, "doppler_hz": 0.0, "code_phase_chips": phase,
+                                                "cn0_dbhz": 60.0}], fs=2.5e6, duration_s=0.005, seed=1),
+                                  2.5e6, 0.0, 3, phase - 0.4, 0.0)
+        assert abs(p - phase) < 0.02
+
+
+# ------------------------------------------------------------------------------ end to end
+@pytest.fixture(scope="module")
+def rec(tmp_path_factory, nav):
+    """25 ms of the simulator's default scenario (embedded constellation) at 4 MS/s and a config."""
+    from receiver.sim.simulate import simulate
+    d = tmp_path_factory.mktemp("snaprec")
+    ov = [("time.duration_s", 0.025), ("frontend.sample_rate_hz", 4e6), ("clock.bias_s", 0.0123),
+          ("clock.freq_error_ppm", 0.7)]
+    paths = simulate(SCENARIO, d / "rec.bin", ov, progress=False)
+    cfg = yaml.safe_load(Path(paths["yaml"]).read_text())
+    cfg["input"]["path"] = str(d / "rec.bin")
+    (d / "rec.yaml").write_text(yaml.safe_dump(cfg))
+    from receiver.runfile.truth import TruthFile
+    with TruthFile(paths["truth"]) as tf:
+        rx = tf.table("receiver")
+        truth = {"ecef": rx["ecef"][0], "tow": float(rx["gps_tow"][0]), "week": int(tf.attrs["gps_week"])}
+    return {"dir": d, "bin": d / "rec.bin", "yaml": d / "rec.yaml", "nav": nav["path"], "truth": truth}
+
+
+@pytest.mark.slow
+def test_end_to_end_on_a_simulated_recording(rec, tmp_path):
+    tr = rec["truth"]
+    # the time from the recording's metadata (the receiver clock, 12.3 ms off), no position
+    rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["nav"], "--json"])
+    assert rc == 0, err
+    d = json.loads(out)
+    for k in ("ecef_m", "lat_deg", "lon_deg", "height_m", "gps_week", "gps_tow_s", "n_sats", "residual_rms_m"):
+        assert k in d
+    assert np.linalg.norm(np.array(d["ecef_m"]) - tr["ecef"]) < 30.0
+    assert d["gps_week"] == tr["week"] and abs(d["gps_tow_s"] - tr["tow"]) < 0.02
+    assert d["n_sats"] >= 5 and d["residual_rms_m"] < 15.0 and d["prior"] == "doppler"
+    assert d["missed"] == []
+    # a given time 40 s off, a position 60 km away, altitude aiding; the text output
+    lat, lon, h = ecef2lla(tr["ecef"])
+    wk, tow = tr["week"], tr["tow"] + 40.0
+    rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["nav"], "--time", f"{wk}:{tow}",
+                        "--position", f"{lat + 0.5},{lon},{h}", "--height", f"{h}"])
+    assert rc == 0, err
+    assert "in the sky but not found: none" in out and "height constraint" in out
+    # --every along the file: the table
+    rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["nav"], "--every", "0.01", "--length", "5",
+                        "-o", tmp_path / "t.h5"])
+    assert rc == 0, err
+    import h5py
+    with h5py.File(tmp_path / "t.h5") as f:
+        t = f["snapshot"][:]
+    assert len(t) == 3 and t["ok"].all()
+    e = np.linalg.norm(np.stack([t["x_m"], t["y_m"], t["z_m"]], 1) - tr["ecef"], axis=1)
+    assert e.max() < 60.0
+    assert (tmp_path / "t.csv").read_text().count("\n") == 4
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (PYSDR.exists() and PYSDR_NAV.exists()), reason="../shared/data/real absent")
+def test_real_pysdr_10ms_recording(tmp_path):
+    cfg = tmp_path / "pysdr.yaml"
+    cfg.write_text(yaml.safe_dump({"input": {"format": "complex64", "sample_rate_hz": 4e6, "if_hz": 0.0}}))
+    rc, out, err = cli(["snapshot", cfg, "--input", PYSDR, "--ephemeris", PYSDR_NAV, "--time",
+                        "2022-03-27T11:32:04Z", "--json"])
+    assert rc == 0, err
+    d = json.loads(out)
+    # Spain (the README: recorded in Spain), on the ground, with what another analysis found in the sky
+    assert 36.0 < d["lat_deg"] < 43.8 and -9.5 < d["lon_deg"] < 3.4 and -100 < d["height_m"] < 3000
+    assert d["n_sats"] >= 5 and d["residual_rms_m"] < 10.0
+    assert set(d["prns"]) <= {2, 11, 12, 22, 25, 31, 32}
+    assert abs(d["time_correction_s"]) < 5.0
+
+
+# ------------------------------------------------------------------------------ bad input
+def test_bad_inputs_one_line(rec, tmp_path):
+    # no ephemeris for that time
+    rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["nav"], "--time", "2019-06-01T10:00:00Z"])
+    assert rc == 2 and "no ephemeris" in one_error_line(err)
+    # a bad time
+    rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["nav"], "--time", "yesterday"])
+    assert rc == 2 and "--time" in one_error_line(err)
+    # a file too short (0.5 ms)
+    short = tmp_path / "short.bin"
+    short.write_bytes(np.zeros(4000, np.int8).tobytes())
+    rc, out, err = cli(["snapshot", rec["yaml"], "--input", short, "--ephemeris", rec["nav"]])
+    assert rc == 2 and "too short" in one_error_line(err)
+    # noise only: fewer than 4 satellites
+    noise = tmp_path / "noise.bin"
+    rng = np.random.default_rng(0)
+    noise.write_bytes(np.clip(rng.normal(scale=8, size=2 * 40000), -127, 127).astype(np.int8).tobytes())
+    rc, out, err = cli(["snapshot", rec["yaml"], "--input", noise, "--ephemeris", rec["nav"], "--time",
+                        f"{rec['truth']['week']}:{rec['truth']['tow']}"])
+    assert rc == 2 and "no snapshot fix" in one_error_line(err) and "needed" in err
+    # not a RINEX file
+    rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["yaml"]])
+    assert rc == 2 and "RINEX" in one_error_line(err)
+    # a bad position
+    rc, out, err = cli(["snapshot", rec["yaml"], "--ephemeris", rec["nav"], "--position", "95,0"])
+    assert rc == 2 and "--position" in one_error_line(err)
+
+
+def test_time_from_bit_transitions(nav):
+    """Data-bit transitions (each at a multiple of 20 ms of its satellite's clock) fix the first sample's time
+    to microseconds from a fix whose time is a few ms off; a transition on the wrong epoch is outvoted."""
+    from receiver.navigation.snapshot import refine_time, with_bit_edges
+    x_true = lla2ecef(45.0, 7.0, 300.0)
+    tow = nav["tow"] + 2222.2222
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, noise_m=2.0, seed=5)
+    s = SnapshotSettings(**NO_ATMO)
+    fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow + 0.8, x_true + 30e3, s)
+    assert fix.ok
+    prns = fix.prns
+    edges = {}
+    for p in prns[:4]:
+        pos, _, clk, _, _ = sat_geometry(nav["ephs"], [p], nav["week"], tow, x_true)
+        t_sv0 = tow - np.linalg.norm(pos[0] - x_true) / C_LIGHT + clk[0] / C_LIGHT
+        edges[p] = np.ceil(t_sv0 / 0.02) * 0.02 - t_sv0      # arrival of the next transmit multiple of 20 ms
+    edges[prns[4]] = edges[prns[0]] + 3e-3 if edges[prns[0]] < 0.015 else edges[prns[0]] - 3e-3   # a wrong one
+    from dataclasses import replace
+    fake = replace(fix, gps_tow_s=tow + 4.1e-3)                             # the fix's time 4.1 ms off
+    t, n = refine_time(fake, edges, nav["ephs"], s)
+    assert n == 4 and abs(t - tow) < 2e-6
+    better = with_bit_edges(fix, obs, edges, nav["ephs"], s)
+    assert "bit transitions" in better.time_source and abs(better.gps_tow_s - tow) < 2e-6
+    assert np.linalg.norm(better.ecef - x_true) < 15.0
+    # no agreement, no refinement
+    assert refine_time(fake, {prns[0]: edges[prns[0]]}, nav["ephs"], s) is None
