@@ -133,7 +133,7 @@ def main():
 
 
 def _load(config, input_path, sets, output=None):
-    from .config import load_receiver_config
+    from .schema import load_receiver_config
     overrides = list(sets)
     if input_path:
         overrides.append(("input.path", input_path))

@@ -27,7 +27,7 @@ from .errors import UserError, warn
 from .source.io import SampleReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
-from .config import RECEIVER_SCHEMA, run_signals, signal_prns
+from .schema import RECEIVER_SCHEMA, run_signals, signal_prns
 from .runfile.provenance import provenance_async
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
@@ -536,7 +536,7 @@ def _run_system(cfg) -> str:
 def check_meaning(cfg, reader):
     """Checks of meaning (receiver.config.validate_receiver: IF, PRN list) and those that need the input
     file: vector.start_s inside the processed span (else a warning)."""
-    from .config import validate_receiver
+    from .schema import validate_receiver
     validate_receiver(cfg)
     v = cfg.vector
     if v.enabled and v.start_s is not None and v.start_s >= reader.duration_s:

@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 from receiver.acquisition import reject_cross_correlations, search, verify  # noqa: E402
 from receiver.acquisition_hs import search_hs  # noqa: E402
-from receiver.config import RECEIVER_SCHEMA  # noqa: E402
+from receiver.schema import RECEIVER_SCHEMA  # noqa: E402
 from receiver.gnss.signals import CA_CHIP_RATE, CA_CODE_LEN, L1_HZ, ca_code  # noqa: E402
 
 FS = 2.6e6

@@ -21,7 +21,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.evaluate import evaluate  # noqa: E402
 from receiver.gnss.bds_nav import EPH_LSB  # noqa: E402
 from receiver.pipeline import run  # noqa: E402

@@ -23,7 +23,7 @@ sys.path.insert(0, REPO)
 
 
 def bench(config, variant, channels, extra=()):
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     from receiver.tracking.vector import tracker as T
 

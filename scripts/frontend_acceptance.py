@@ -31,7 +31,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.pipeline import acquire, open_input, run  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402
 

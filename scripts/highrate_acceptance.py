@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.evaluate import evaluate  # noqa: E402
 from receiver.pipeline import run  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402

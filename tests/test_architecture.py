@@ -25,10 +25,10 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.estimation",),
     ("receiver.runfile",),
     ("receiver.source",),
-    ("receiver.acquisition", "receiver.acquisition_hs"),
+    ("receiver.acquisition", "receiver.acquisition_hs", "receiver.acquisition_config"),
     ("receiver.tracking",),
     ("receiver.navigation",),
-    ("receiver.pipeline",),
+    ("receiver.pipeline", "receiver.schema"),
     ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate"),
     ("receiver.cli",),
 ]

@@ -6,7 +6,7 @@ import os
 
 import yaml
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -4,7 +4,7 @@ import h5py
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config, run_signals, signal_prns
+from receiver.schema import load_receiver_config, run_signals, signal_prns
 from receiver.errors import UserError
 from receiver.gnss.satid import MIXED, parse_label, sat_key, sat_label, sat_system, split_key
 
@@ -35,7 +35,7 @@ def test_signals_config():
     # the vector loops track GPS + BeiDou runs (tests/test_vector_gnss.py); a signal they do not know is
     # refused in one line
     assert load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["vector.enabled=true"]).vector.enabled
-    import receiver.config as C
+    import receiver.tracking.vector.config as C
     known = C.VECTOR_SIGNALS
     try:
         C.VECTOR_SIGNALS = ("gps_l1ca",)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.lnav import encode_frames
 from receiver.navigation.engine import NavigationEngine
 from receiver.runfile.record import FIX_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE

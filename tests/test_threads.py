@@ -66,7 +66,7 @@ def test_thread_count_from_the_environment(monkeypatch):
 def test_run_files_are_bit_identical_whatever_the_thread_count(tmp_path, variant):
     if not (TOKYO_REC.exists() and TOKYO_NAV.exists()):
         pytest.skip("../shared/data reference recording absent")
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     sys.path.insert(0, str(ROOT / "scripts"))
     from compare_runs import compare_h5
@@ -152,7 +152,7 @@ def test_read_ahead_gives_the_samples_of_plain_reads():
         pytest.skip("../shared/data reference recording absent")
     import numpy as np
 
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import PrefetchingReader, open_input
     cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml", [("input.path", str(TOKYO_REC))])
     plain, ahead = open_input(cfg), PrefetchingReader(open_input(cfg))

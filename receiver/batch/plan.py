@@ -27,7 +27,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..config import RECEIVER_SCHEMA, apply_overrides, build, read_yaml, search_bases
+from ..config import apply_overrides, build, read_yaml, search_bases
+from ..schema import RECEIVER_SCHEMA
 from ..errors import UserError
 from .config import REPO_ROOT, Batch
 

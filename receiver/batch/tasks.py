@@ -9,7 +9,8 @@ import os
 import time
 import traceback
 
-from ..config import RECEIVER_SCHEMA, build
+from ..config import build
+from ..schema import RECEIVER_SCHEMA
 from ..logs import capture
 from .cache import _write_json
 from .metrics import METRICS_VERSION, compute_metrics

@@ -20,6 +20,9 @@ from . import kernel as K
 from .carrier import channel_variant, make_carrier_loop
 from .loops import compiled as LC
 
+#: tracking.cn0_estimator: name -> the kernel's C_CN0_EST code
+CN0_ESTIMATORS = {"snv": 0, "m2m4": 1}
+
 
 class Channel:
     def __init__(self, prn: int, doppler_hz: float, code_phase_chips: float, sample_index: int,
@@ -85,7 +88,7 @@ class Channel:
         c[K.C_CN0_WIN_MS] = trk_cfg.cn0_window_ms
         c[K.C_LOCK_CN0_MIN] = trk_cfg.lock_cn0_min_dbhz
         c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
-        c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
+        c[K.C_CN0_EST] = CN0_ESTIMATORS[trk_cfg.cn0_estimator]
         c[K.C_LOST_MS] = trk_cfg.lost_ms
         c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
         set_presence(c, trk_cfg)
