@@ -220,7 +220,8 @@ def _since_process_start() -> tuple[float, float]:
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a config key")
 def acquire(config, input_path, sets):
     """Acquire all configured PRNs and print a table."""
-    from .pipeline import acquire as do_acquire, open_input
+    from .acquisition.stage import acquire as do_acquire
+    from .pipeline import open_input
     cfg = _load(config, input_path, sets)
     reader = open_input(cfg)
     start = reader.first + int(round(cfg.acquisition.start_s * reader.fs))

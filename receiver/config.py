@@ -78,7 +78,7 @@ class Section:
 
     def to_yaml(self) -> str:
         """The section as YAML (libyaml's emitter when PyYAML has it: ~4x faster than the pure-Python one,
-        the same text for every shipped config, tests/test_config_yaml_dump.py)."""
+        the same text for every shipped config, tests/unit/core/test_config_yaml_dump.py)."""
         return yaml.dump(self.to_dict(), Dumper=_SAFE_DUMPER, sort_keys=False)
 
     def __repr__(self):

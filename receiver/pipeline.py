@@ -12,23 +12,23 @@ from __future__ import annotations
 import functools
 import logging
 import os
-import queue
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .acquisition import _has_energy, reject_cross_correlations, search, verify
+from .acquisition.stage import acquire
 from . import interrupt, threads
 from .stagetimes import stage
 from .errors import UserError, warn
 from .source.io import SampleReader
+from .source.prefetch import PrefetchingReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
 from .schema import RECEIVER_SCHEMA, run_signals, signal_prns
 from .runfile.provenance import provenance_async
+from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
@@ -161,77 +161,6 @@ def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None
     return reader
 
 
-def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
-            sensitive: bool = False, known_hz=(), doppler_window=None, signal=None) -> list:
-    """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
-    (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
-    found, search the others again over +/- acquisition.lo_search_hz; when fewer than
-    acquisition.high_sensitivity.min_found, search them with the high-sensitivity pass
-    (receiver/acquisition_hs.py).  ``sensitive``: run that pass on the PRNs not found whatever the count
-    (cold searches while few channels track; ``known_hz``: their Dopplers narrow its range).  Lines for
-    the user are appended to ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched
-    instead of the configured +/- acquisition.doppler_max_hz (the channel manager's cold searches once a
-    fix gives the clock drift).  ``signal``: the SignalDef searched (default: the run's first signal)."""
-    a = cfg.acquisition
-    fs, if_hz = reader.fs, reader.if_hz
-    sig = signal if signal is not None else get_signal(run_signals(cfg)[0])
-    notes = [] if notes is None else notes
-    # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
-    # uses up to 200 ms (20 blocks of 10 ms) where the file has them
-    dwell = int(round(a.coherent_ms * a.noncoherent * 1e-3 * fs))
-    block = reader.read(start, max(2 * dwell, int(0.2 * fs)))
-    if len(block) < dwell:
-        raise UserError("input too short for acquisition "
-                        f"({len(block) / fs * 1e3:.0f} ms available, {dwell / fs * 1e3:.0f} needed)")
-
-    centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
-
-    def _search(prns_, dmax):
-        c_ = centre if dmax == a.doppler_max_hz else 0.0
-        if doppler_window is not None and dmax == a.doppler_max_hz:
-            c_, dmax = doppler_window
-        res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
-                      a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
-                      doppler_center_hz=c_)
-        todo = [r for r in res_ if r.detected and a.verify and len(block) >= 2 * dwell]
-        # the dwells are independent: on the thread pool (the same result per detection)
-        oks = threads.map_ordered(lambda r: verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r,
-                                                   a.coherent_ms, a.noncoherent, a.doppler_step_hz, a.pfa,
-                                                   a.threshold, signal=sig), todo)
-        for r, ok in zip(todo, oks):
-            r.verified = int(ok)
-            if not ok:
-                r.detected, r.reason = False, "verify"
-        return res_
-
-    res = _search(prns, a.doppler_max_hz)
-    reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
-    found = sum(r.detected for r in res)
-    if widen and found < 4 and a.lo_search_hz > a.doppler_max_hz:
-        missing = [r.prn for r in res if not r.detected]
-        wide = {r.prn: r for r in _search(missing, a.lo_search_hz)}
-        res = [wide.get(r.prn, r) for r in res]
-        reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
-        notes.append(f"acquisition     {found} satellite(s) within +/-{a.doppler_max_hz / 1e3:g} kHz: searched "
-                     f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
-                     f"{sum(r.detected for r in res)} found")
-    hs = a.high_sensitivity
-    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and _has_energy(block) and \
-            (sensitive or (widen and sum(r.detected for r in res) < hs.min_found)):       # GPS L1 C/A
-        from .acquisition_hs import second_pass
-        res, line = second_pass(a, reader, start, if_hz, res, sig, known_hz, centre)
-        if line and widen:
-            notes.append(line)
-    dop = [r.doppler_hz for r in res if r.detected]
-    if len(dop) >= 3 and abs(np.median(dop) - centre) > a.lo_warn_hz:
-        med = float(np.median(dop))
-        notes.append(f"warning         the {len(dop)} satellites found share a common Doppler offset of "
-                     f"{med / 1e3:+.2f} kHz (median): front-end LO / oscillator error of about "
-                     f"{-med / sig.carrier_hz * 1e6:+.1f} ppm; later searches are centred there")
-        reader.doppler_centre_hz = round(med / 100.0) * 100.0     # re-acquisitions search around it
-    return res
-
-
 def _vector_handover(cfg, parts, nav, fs, quiet=False):
     """Vector-loop handover state (owned by the run): ``.step(start)`` returns a vector tracker once
     vector.start_s is reached (or 5 s after the first fix), else None.  The tracker's
@@ -309,208 +238,6 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
     finally:
         with stage("write"):
             writer.close(ok)
-
-
-class BackgroundWriter:
-    """A :class:`RunWriter` whose appends (channel records, fixes, observables, vector log) run in order on
-    one background thread, so that the HDF5 writing and compression overlap the tracking of the next chunk
-    (the tracking kernels release the GIL; h5py holds it).  Fixes, observables and vector-log rows are
-    gathered into blocks of at least ``TABLE_ROWS`` rows before they are appended (fewer, larger HDF5
-    writes; the datasets hold the same rows).  Every other attribute or method first waits for the pending
-    appends, then is the wrapped writer's, so reads of the file and one-off writes keep their order.  A
-    write error on the thread (disk full: a UserError) is raised in the caller at the next call.  The
-    queue is bounded: memory does not grow when the writing lags."""
-
-    TABLE_ROWS = 2000
-    _ASYNC = ("append_channel", "append_fixes", "append_observables", "append_vector_log")
-    _TABLES = ("append_fixes", "append_observables", "append_vector_log")
-
-    def __init__(self, writer, max_pending: int = 64):
-        self._w = writer
-        self._q: queue.Queue = queue.Queue(maxsize=max_pending)
-        self._err: BaseException | None = None
-        self._tables: dict[str, list] = {}
-        self._thread = threading.Thread(target=self._work, name="gnssrx-write", daemon=True)
-        self._thread.start()
-
-    def _work(self):
-        while True:
-            item = self._q.get()
-            try:
-                if item is None:
-                    return
-                if self._err is None:
-                    name, args = item
-                    getattr(self._w, name)(*args)
-            except BaseException as exc:     # noqa: BLE001 - handed to the caller
-                self._err = exc
-            finally:
-                self._q.task_done()
-
-    def _raise(self):
-        if self._err is not None:
-            err, self._err = self._err, None
-            raise err
-
-    def _put(self, name, args):
-        self._raise()
-        if name in self._TABLES:
-            rows = args[0]
-            if rows is None or len(rows) == 0:
-                return
-            buf = self._tables.setdefault(name, [])
-            buf.append(rows)
-            if sum(len(r) for r in buf) < self.TABLE_ROWS:
-                return
-            args = (np.concatenate(self._tables.pop(name)),)
-        self._q.put((name, args))
-
-    def write_acquisition(self, results, attrs=None):
-        """Queued like the appends (a search no longer waits for the pending writes), from copies of the
-        results taken now."""
-        import copy
-        self._put("write_acquisition", ([copy.copy(r) for r in results], dict(attrs or {})))
-
-    def flush(self):
-        """Wait until every append has been written (raises a write error)."""
-        for name in list(self._tables):
-            self._q.put((name, (np.concatenate(self._tables.pop(name)),)))
-        self._q.join()
-        self._raise()
-
-    def __getattr__(self, name):
-        if name in self._ASYNC:
-            return lambda *args: self._put(name, args)
-        self.flush()
-        return getattr(self._w, name)
-
-    def close(self, ok: bool = True):
-        try:
-            if ok:
-                self.flush()
-        except BaseException:
-            ok = False
-            raise
-        finally:
-            if not ok:
-                self._tables.clear()
-                self._err = None
-                while True:                          # drop what is pending: the file is discarded
-                    try:
-                        self._q.get_nowait()
-                        self._q.task_done()
-                    except queue.Empty:
-                        break
-            self._q.put(None)
-            self._thread.join()
-            self._w.close(ok)
-
-
-class PrefetchingReader:
-    """The pipeline's view of the input: every read goes through it (counted), and :meth:`chunk` reads the
-    chunk at ``start`` while the next chunk is read ahead on a background thread, from a copy of the
-    input stage's state (the conditioning filter is causal and continues from the last read).  The
-    read-ahead is used only if no other read happened in between (the channel manager's searches read
-    elsewhere and move the filter stream), so the samples are exactly those of a plain read; otherwise it is
-    discarded and the chunk read again.  The read-ahead runs the resampling / filtering kernels (which
-    release the GIL) while the main thread does navigation and bookkeeping.  Only integer sample formats
-    (a float input counts its non-finite samples as it reads) and the known input stages are read ahead."""
-
-    def __init__(self, reader):
-        object.__setattr__(self, "_r", reader)
-        object.__setattr__(self, "reads", 0)
-        object.__setattr__(self, "_spec", None)
-        object.__setattr__(self, "_pool", None)
-        object.__setattr__(self, "_ok", _can_read_ahead(reader))
-        object.__setattr__(self, "ahead_used", 0)
-
-    def __getattr__(self, name):
-        return getattr(self._r, name)
-
-    def __setattr__(self, name, value):
-        setattr(self._r, name, value)
-
-    def read(self, start: int, n: int) -> np.ndarray:
-        object.__setattr__(self, "reads", self.reads + 1)
-        return self._r.read(start, n)
-
-    def chunk(self, start: int, n: int, next_start: int) -> np.ndarray:
-        """read(start, n), then read ahead (next_start, n)."""
-        spec, block = self._spec, None
-        object.__setattr__(self, "_spec", None)
-        if spec is not None:
-            s0, n0, reads0, fut, fork, snap = spec
-            try:
-                got = fut.result()                   # (also when unused: no two reads of the stage at once)
-            except Exception:                        # noqa: BLE001 - the plain read below reports it
-                got, reads0 = None, -1
-            if (s0, n0, reads0) == (start, n, self.reads):
-                for k, v in fork.__dict__.items():   # the stage's state after that read
-                    if snap.get(k, snap) is not v:
-                        self._r.__dict__[k] = v
-                object.__setattr__(self, "reads", self.reads + 1)
-                object.__setattr__(self, "ahead_used", self.ahead_used + 1)
-                block = got
-        if block is None:
-            block = self.read(start, n)
-        if self._ok and next_start < self._r.end:
-            if self._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
-                # the read-ahead's resampling runs on this thread beside the tracking pool (not queued
-                # behind the chunk's tracking jobs, which the main thread submits right after this)
-                object.__setattr__(self, "_pool", ThreadPoolExecutor(1, thread_name_prefix="gnssrx-read",
-                                                                     initializer=threads.serial_here))
-            fork = _fork_stage(self._r)
-            snap = dict(self._r.__dict__)
-            object.__setattr__(self, "_spec", (next_start, n, self.reads,
-                                               self._pool.submit(fork.read, next_start, n), fork, snap))
-        return block
-
-    def close(self):
-        if self._spec is not None:
-            try:
-                self._spec[3].result()
-            except Exception:                        # noqa: BLE001 - an unused read-ahead
-                pass
-            object.__setattr__(self, "_spec", None)
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            object.__setattr__(self, "_pool", None)
-
-
-def _stages(reader):
-    """The input stages from the outermost to the file reader."""
-    out = [reader]
-    while hasattr(out[-1], "__dict__") and "_reader" in out[-1].__dict__:
-        out.append(out[-1].__dict__["_reader"])
-    return out
-
-
-def _can_read_ahead(reader) -> bool:
-    from .source.conditioning import ConditionedReader
-    st = _stages(reader)
-    if not isinstance(st[-1], SampleReader) or getattr(st[-1], "_raw", None) is None or \
-            st[-1]._raw.dtype.kind == "f":
-        return False
-    # stateless stages (file reader, resampler) and the conditioning stage (state copied: _fork_stage),
-    # the latter only outermost (its state is what the read-ahead copies)
-    return all(isinstance(s, (SampleReader, DecimatingReader)) for s in st[1:]) and \
-        isinstance(st[0], (SampleReader, DecimatingReader, ConditionedReader))
-
-
-def _fork_stage(reader):
-    """A reader that reads like ``reader`` from its current state without changing it: the stateless
-    stages are shared; the conditioning stage is copied with its filter state."""
-    from .source.conditioning import ConditionedReader
-    if isinstance(reader, ConditionedReader):
-        fork = object.__new__(ConditionedReader)          # (its __getattr__ forwards: no copy.copy)
-        fork.__dict__.update(reader.__dict__)
-        c = reader.canceller
-        cc = object.__new__(type(c))
-        cc.__dict__.update({k: v.copy() if isinstance(v, np.ndarray) else v for k, v in c.__dict__.items()})
-        fork.__dict__["canceller"] = cc
-        return fork
-    return reader
 
 
 def _writer(cfg, reader, out_path, fs, if_hz, reads, prov):

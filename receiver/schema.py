@@ -6,8 +6,8 @@ stage's registries, each default is stated there once); :mod:`receiver.config` h
 runs the checks that span several sections:
 
     input        receiver/source/config.py
-    signal(s)    here (the names of receiver.gnss.registry)
-    acquisition  receiver/acquisition_config.py
+    signal(s)    receiver/acquisition/config.py (the names of receiver.gnss.registry)
+    acquisition  receiver/acquisition/config.py
     tracking     receiver/tracking/config.py
     navigation   receiver/navigation/config.py
     vector       receiver/tracking/vector/config.py
@@ -15,27 +15,18 @@ runs the checks that span several sections:
 """
 from __future__ import annotations
 
-from . import acquisition_config
-from .config import P, Section, build, find_file, read_yaml, resolve_path
-from .errors import UserError
-from .gnss.registry import SIGNAL_NAMES
+from .acquisition import config as acquisition_config
+from .acquisition.config import SIGNAL_PRNS, run_signals, signal_prns  # noqa: F401 (the receiver's config API)
+from .config import Section, build, find_file, read_yaml, resolve_path
 from .navigation import config as navigation_config
 from .runfile import config as output_config
 from .source import config as input_config
 from .tracking import config as tracking_config
 from .tracking.vector import config as vector_config
 
-SIGNAL_PRNS = acquisition_config.SIGNAL_PRNS
-
 RECEIVER_SCHEMA = {
     "input": input_config.SCHEMA,
-    "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
-                                   "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages)",
-                choices=SIGNAL_NAMES),
-    "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
-                             "every signal is acquired and tracked from the same input (input.if_hz is the IF "
-                             "of the first; the others sit at if_hz + their carrier - the first's), and the "
-                             "fixes use all systems with an inter-system clock bias; README \"Multi-GNSS\""),
+    **acquisition_config.SIGNALS_SCHEMA,
     "acquisition": acquisition_config.SCHEMA,
     "tracking": tracking_config.SCHEMA,
     "navigation": navigation_config.SCHEMA,
@@ -65,30 +56,6 @@ def load_receiver_config(path=None, overrides=None) -> Section:
     cfg = build(RECEIVER_SCHEMA, raw, overrides)
     validate_receiver(cfg)
     return cfg
-
-
-def run_signals(cfg: Section) -> list:
-    """The run's signal names: ``signals`` when set (checked: known names, no repeats), else [``signal``]."""
-    sigs = list(cfg.signals or [])
-    if not sigs:
-        return [cfg.signal]
-    for s in sigs:
-        if s not in SIGNAL_NAMES:
-            raise UserError(f"config key 'signals' must list names of {', '.join(SIGNAL_NAMES)}; got {s!r}")
-    if len(set(sigs)) < len(sigs):
-        raise UserError(f"config key 'signals' names a signal twice: {sigs}")
-    return sigs
-
-
-def signal_prns(cfg: Section, name: str) -> list:
-    """The PRNs searched for signal ``name`` of the run (acquisition.prns_by_signal, else acquisition.prns
-    for the first signal, else all of the signal's PRNs)."""
-    by = cfg.acquisition.prns_by_signal or {}
-    if name in by:
-        return list(by[name])
-    if name == run_signals(cfg)[0]:
-        return list(cfg.acquisition.prns)
-    return list(SIGNAL_PRNS[name])
 
 
 def validate_receiver(cfg: Section) -> Section:

@@ -2,7 +2,7 @@
 
 Each case runs the real CLI in a subprocess (so exit codes, stderr and file-size limits are those a user
 sees) in a fresh directory, then lists the files left there and checks the input recording's checksum.
-tests/test_bad_inputs.py asserts the same cases; scripts/signal_trials.py repeats the signal cases.
+tests/system/test_bad_inputs.py asserts the same cases; scripts/signal_trials.py repeats the signal cases.
 
     PYTHONPATH=$PWD .venv/bin/python scripts/bad_input_matrix.py
 """

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Measured vs simulated C/N0: simulate 3 satellites (no clock noise) at each level, receive, print
-the median estimate after 2 s of each channel.  (tests/test_sim_receiver.py asserts +/- 1 dB.)
+the median estimate after 2 s of each channel.  (tests/system/test_sim_receiver.py asserts +/- 1 dB.)
 
     python scripts/cn0_table.py [--levels 30 35 40 45 50] [--seconds 5]
 """

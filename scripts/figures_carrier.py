@@ -5,7 +5,7 @@
     FULL=1 python scripts/figures_carrier.py --out figures/carrier     # 10 min per scenario
 
 Experiments (correlator-level simulator receiver/sim/corrsim.py; its statistics are checked against IF-level
-simulator + receiver runs in tests/test_carrier_corrsim.py):
+simulator + receiver runs in tests/system/test_carrier_corrsim.py):
   * scintillation: BDS B1I (1561.098 MHz) PRN 5, 40 dB-Hz, data wiped off, T_coh = 5 ms, CSM scintillation
     (tau0 = 0.5 s) in five (S4, sigma_phi) scenarios, >= 10 Monte Carlo seeds; loops cpll_atan (ATAN, 3rd
     order, Bn = 15 Hz), ekf and pli_ekf (bn_hz = 15 at 40 dB-Hz); receiver oscillator h0 = 1.2e-20,
@@ -15,7 +15,7 @@ simulator + receiver runs in tests/test_carrier_corrsim.py):
     at T = 1, 5, 10, 20 ms (data wiped off); tracking threshold = true C/N0 at the end of the last 1 s
     window in lock (Costas-folded phase-error std < 30 deg).
 Runs: receiver.evaluate.corrloop.run (all epochs in one numba function with the loops' compiled
-twins); --engine python runs the numpy + Python-loop reference path receiver.sim.corrsim.run (the same numbers: tests/test_corrsim_compiled.py).
+twins); --engine python runs the numpy + Python-loop reference path receiver.sim.corrsim.run (the same numbers: tests/unit/tracking/test_corrsim_compiled.py).
 Outputs in --out: fig1_theory.png, fig2_pli.png, fig4_cn0_phase.png, fig5_phase_std.png, fig6_loss_of_lock.png,
 fig_weak_threshold.png, carrier.h5 (all numbers), table.md, carrier_results.json (the table's numbers per seed).
 """

@@ -473,7 +473,7 @@ def _reading(met, sens):
         "x (|sin 116.4| = 0.90) and partly onto y (0.44); the paper reports y as its worst axis.",
         "* The CKF and the square-root CKF agree to round-off (Table 3 footnote): the square-root "
         "form changes the numerics, not the estimate, as long as the Cholesky factor of P exists "
-        "(tests/test_leo_filters.py shows a case where it does not and only the SR-CKF survives).",
+        "(tests/unit/leo/test_leo_filters.py shows a case where it does not and only the SR-CKF survives).",
         "* With the GeoSOT initial value (hundreds of metres) the Doppler model is linear over the "
         "filter's uncertainty: the second-order term (f0/c)|v| d^2/rho^2 is ~1e-3 Hz for d = 300 m, "
         "rho = 1500 km, far below the 0.5 Hz noise.  The cubature rule then yields the EKF's gain, "
@@ -483,7 +483,7 @@ def _reading(met, sens):
         "geometry change); at the end of the window the LSM batch uses the same data without the "
         "random-walk process noise and is the most accurate (Table 1): the filters forget part of "
         "the information through Q (sigma_D^2 = 10 m^2 on a static receiver); with Q = 0 the EKF "
-        "reproduces the batch LSM (tests/test_leo_solvers.py).",
+        "reproduces the batch LSM (tests/unit/leo/test_leo_solvers.py).",
     ]
     if coarse is not None:
         txt += [

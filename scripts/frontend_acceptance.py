@@ -32,7 +32,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from receiver.schema import load_receiver_config  # noqa: E402
-from receiver.pipeline import acquire, open_input, run  # noqa: E402
+from receiver.acquisition.stage import acquire  # noqa: E402
+from receiver.pipeline import open_input, run  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402
 
 SKY = {"cn0": {"mode": "elevation", "dbhz": 45.0, "horizon_dbhz": 38.0}}

@@ -2,7 +2,7 @@
 every system").
 
     PYTHONPATH=. python scripts/vector_gnss.py OUTDIR            # 25 s, every satellite in view, handover 10 s
-    PYTHONPATH=. python scripts/vector_gnss.py OUTDIR --short    # tests/test_vector_gnss.py's 7-s scenarios
+    PYTHONPATH=. python scripts/vector_gnss.py OUTDIR --short    # tests/system/test_vector_gnss.py's 7-s scenarios
 
 Simulates (45 dB-Hz, static Tokyo, 5 MS/s complex baseband, one file per signal recorded at the same instant;
 QZSS case: 42 dB-Hz, 2.6 MS/s), writes the simulator's ephemerides as RINEX (assisted mode, mixed file for
@@ -68,7 +68,7 @@ def rms(x):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("outdir")
-    ap.add_argument("--short", action="store_true", help="the 7-s scenarios of tests/test_vector_gnss.py")
+    ap.add_argument("--short", action="store_true", help="the 7-s scenarios of tests/system/test_vector_gnss.py")
     a = ap.parse_args()
     d = Path(a.outdir)
     d.mkdir(parents=True, exist_ok=True)

@@ -9,15 +9,15 @@ assisted mode (ephemerides from ``../shared/data/brdc0010.22n``; fixes from ~10 
 common temporary directory, the others wait and reuse it.  Treat the file as read-only: tests that
 write files beside a run file should link or copy it into their own tmp_path first.
 """
+import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
-TOKYO_REC = SHARED / "gpssim_static_tokyo.bin"
-TOKYO_NAV = SHARED / "brdc0010.22n"
-TOKYO_META = SHARED / "gpssim_static_tokyo.yaml"
+# the test helpers (repo_paths, synth) import by name from every test folder
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from repo_paths import ROOT, TOKYO_META, TOKYO_NAV, TOKYO_REC  # noqa: E402
 
 
 def _shared_tmp(tmp_path_factory) -> Path:
@@ -51,7 +51,7 @@ def _run_tokyo(out: Path) -> None:
                                [("input.path", str(TOKYO_REC)), ("output.path", str(out)),
                                 ("navigation.ephemeris", str(TOKYO_NAV)),
                                 # RTKLIB's error model, so rnx2rtkp on the exported files is judged
-                                # against our fixes on equal terms (tests/test_export_rinex.py)
+                                # against our fixes on equal terms (tests/unit/export/test_export_rinex.py)
                                 ("navigation.weighting", "rtklib")])
     run(cfg, quiet=True)
 

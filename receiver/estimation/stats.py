@@ -6,7 +6,7 @@ importing scipy.special (~0.1 s CPU at start-up; scipy.stats ~0.5 s).  The shape
 numbers (K non-coherent sums of exponential cells, the periodograms averaged by the tone detector): then the
 regularised upper incomplete gamma function has the closed form Q(k, x) = exp(-x) sum_{i<k} x^i / i!, and
 Newton's method on log Q (concave and decreasing: the iterates converge monotonically from the right)
-inverts it to ~1e-13 relative for tail probabilities q <= 0.5 (tests/test_stats.py compares with
+inverts it to ~1e-13 relative for tail probabilities q <= 0.5 (tests/unit/estimation/test_stats.py compares with
 scipy.special).  Other shapes and q > 0.5 fall back on scipy.special.
 """
 from __future__ import annotations

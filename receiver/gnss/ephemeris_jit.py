@@ -4,7 +4,7 @@
 transmit times, the same operations in the same order (the Kepler iteration runs in lock step over the
 satellites until every step is below 1e-15, as the numpy version does), compiled: the numpy version
 spends ~1 ms per epoch in per-call overhead on 12-element arrays.  Results agree with it to the last
-bits (tests/test_gnss_ephemeris_jit.py).  The compiled function is self-contained (it calls no compiled
+bits (tests/unit/gnss/test_gnss_ephemeris_jit.py).  The compiled function is self-contained (it calls no compiled
 function of another module, and its constants are written here), so numba's on-disk cache, keyed on this
 file, cannot go stale.
 """
@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 # The constants as literals: numba freezes globals into the cached machine code without tracking the module
-# they came from, so they live in this file (tests/test_gnss_ephemeris_jit.py checks them against
+# they came from, so they live in this file (tests/unit/gnss/test_gnss_ephemeris_jit.py checks them against
 # receiver.gnss.signals).
 OMEGA_E = 7.2921151467e-5        # Earth rotation rate, rad/s (WGS-84)
 MU_GPS = 3.986005e14             # Earth's gravitational constant, m^3/s^2 (IS-GPS-200)

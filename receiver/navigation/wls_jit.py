@@ -4,7 +4,7 @@
 ``NavSolver._wls`` computed with ~60 numpy calls on 4-12 element arrays per iteration: travel times,
 Sagnac-rotated positions, ranges and lines of sight, azimuth / elevation, Klobuchar and Saastamoinen
 delays, the weights and the residuals -- the same formulas in the same order, compiled (the numpy
-version is kept, ``NavSolver._linearise_numpy``; tests/test_navigation_wls_jit.py checks they agree to
+version is kept, ``NavSolver._linearise_numpy``; tests/unit/navigation/test_navigation_wls_jit.py checks they agree to
 float rounding).  The position's geodetic coordinates come from the caller (receiver.gnss.geodesy).
 Self-contained: the compiled functions call no compiled function of another module (numba's on-disk
 cache is keyed on this file).
@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-# literals (numba freezes globals into the cached code; tests/test_navigation_wls_jit.py checks them against
+# literals (numba freezes globals into the cached code; tests/unit/navigation/test_navigation_wls_jit.py checks them against
 # receiver.gnss.signals / atmosphere)
 C_LIGHT = 299792458.0
 OMEGA_E = 7.2921151467e-5

@@ -49,7 +49,7 @@ def chunk_rows_for(duration_s: float | None, channel_rate_hz: float | None = Non
 
 #: /channels columns stored rounded to 10**-digits of their unit by the HDF5 scale-offset filter (the
 #: dataset stays float64; every HDF5 reader undoes the filter).  The rounding step is far below each
-#: column's noise (README "HDF5 run file"; tests/test_runfile_storage.py checks it on the reference run):
+#: column's noise (README "HDF5 run file"; tests/unit/runfile/test_runfile_storage.py checks it on the reference run):
 #: doppler_hz 1e-3 Hz, code_rate_hz 1e-5 chip/s, code_phase_chips 1e-7 chip.  A chunk holding a NaN or
 #: Inf is stored unrounded (the filter declines it), so non-finite values survive.
 ROUNDED_DIGITS = {"doppler_hz": 3, "code_rate_hz": 5, "code_phase_chips": 7}
@@ -97,7 +97,7 @@ def _dcpl(chunk: tuple, compression: str, digits, kind: str):
     scaleoffset=digits, **COMPRESSION[compression])`` builds (h5py/_hl/filters.py fill_dcpl and
     dataset.py make_new_dset: chunk, scale-offset, shuffle, deflate or LZF in that order, no creation
     times, attribute creation order per h5py's track_order setting; fill value and times HDF5's defaults).
-    tests/test_runfile_lowlevel.py checks it equals h5py's (H5Pequal)."""
+    tests/unit/runfile/test_runfile_lowlevel.py checks it equals h5py's (H5Pequal)."""
     track_order = bool(h5py.get_config().track_order)
     key = (chunk, compression, digits, kind, track_order)
     p = _DCPLS.get(key)

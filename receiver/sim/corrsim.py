@@ -135,7 +135,7 @@ def run(loop, sc: CorrScenario, truth=None, record_pli=True):
 
     This is the reference path: numpy per epoch and the Python loop's ``step``.  The figure scripts run the
     same model compiled (receiver.evaluate.corrloop.run: the loops' compiled twins, the same noise and the
-    same arithmetic; equal records, tests/test_corrsim_compiled.py) — it lives above the receiver stages
+    same arithmetic; equal records, tests/unit/tracking/test_corrsim_compiled.py) — it lives above the receiver stages
     because the simulator must not depend on them."""
     P = prepare(sc, truth)
     t, theta, cn0, th_mid, fr, a_mid = P["t"], P["theta"], P["cn0"], P["th_mid"], P["fr"], P["a_mid"]

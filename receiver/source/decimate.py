@@ -29,7 +29,7 @@ compiled call (a 256-entry byte table, no complex64 intermediate); ``iq_swap`` (
 receiver's thread pool (:mod:`receiver.threads`): each output is computed by the same operations whatever
 the split, so the samples are identical for any thread count.
 
-The stage keeps no state between reads (the pipeline's read-ahead, ``receiver.pipeline.PrefetchingReader``,
+The stage keeps no state between reads (the pipeline's read-ahead, ``receiver.source.prefetch.PrefetchingReader``,
 relies on that to resample the next chunk on a background thread).
 
 Every output sample depends only on the J input samples around its position, so a read at any position

@@ -10,7 +10,7 @@ stepped once per epoch from Python:
     doppler_hz = loop.update(epoch)    # epoch: one row of receiver.runfile.record.EPOCH_DTYPE (+ halves)
 
 Adding a variant = one module in ``loops/`` with a :class:`~receiver.tracking.loops.base.CarrierLoop` subclass +
-one line in :data:`REGISTRY` + its compiled twin in ``loops/compiled.py`` (tests/test_carrier_compiled.py
+one line in :data:`REGISTRY` + its compiled twin in ``loops/compiled.py`` (tests/unit/tracking/test_carrier_compiled.py
 checks every variant has one).  The loop modules import only ``loops/base.py`` (and ``loops/common.py``),
 never this registry.
 """

@@ -12,7 +12,7 @@ Per satellite (:class:`SatTrack`)::
 * While tracking, the manager keeps the satellite's last *good* state (epochs in lock, C/N0 above the lock
   threshold): sample, relative transmit time (code period count + code phase), Doppler and Doppler rate.
 * Re-acquiring: every chunk the satellite is searched in the first samples of the next chunk, in a narrow
-  window (receiver.tracking.reacq) around the Doppler and code phase predicted at that sample.  The
+  window (receiver.acquisition.reacquisition) around the Doppler and code phase predicted at that sample.  The
   Doppler is extrapolated from the last good state; with an ephemeris and a fix, the change of the
   satellite's line-of-sight velocity seen from the last fix is added (the receiver's own velocity is
   assumed constant).  The window starts at ``reacquisition.doppler_hz`` / ``code_chips`` and widens with
@@ -53,7 +53,7 @@ from ..gnss.satid import sat_label
 from ..gnss.signals import C_LIGHT
 from . import kernel as K
 from ..acquisition import AcqResult, cross_correlation_image
-from .reacq import narrow_search
+from ..acquisition.reacquisition import narrow_search
 from .scalar import Channel
 
 REACQ_PER_ATTEMPT = 4           # cold searches per attempt

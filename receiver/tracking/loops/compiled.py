@@ -6,7 +6,7 @@ and ``ls`` (state), packed from the Python object by :func:`pack`.  :func:`run_e
 epochs over a block with the loop's update between epochs, all in compiled code, exactly as
 ``Channel.process`` stepped them from Python (hand-over from the built-in pull-in loop at bit sync, the
 exact epoch duration from the sample count, NCO frequency / phase step, carrier-aided DLL).  The results
-agree with the Python-stepped loops to float rounding (tests/test_carrier_compiled.py).
+agree with the Python-stepped loops to float rounding (tests/unit/tracking/test_carrier_compiled.py).
 
 Interface per variant: a ``KIND_*`` code, a packing branch in :func:`pack`, a start branch in
 :func:`loop_start` and an update branch in :func:`loop_update`.
@@ -121,7 +121,7 @@ def _nwpr(lp, ls, p1i, p1q, p2i, p2q, T):
     """NWPR C/N0 (common.NWPR.update)."""
     # |p|^2 rounded as the Python NWPR's abs(p) ** 2: hypot, then libm pow(x, 2.0) (not always x * x: glibc's
     # pow is not correctly rounded).  The exponent comes from lp so that LLVM cannot rewrite pow(x, 2.0) as
-    # x * x; a last-bit difference here would be amplified by chaotic runs (tests/test_corrsim_compiled.py).
+    # x * x; a last-bit difference here would be amplified by chaotic runs (tests/unit/tracking/test_corrsim_compiled.py).
     two = lp[P_TWO]
     wbp = math.hypot(p1i, p1q) ** two + math.hypot(p2i, p2q) ** two
     if wbp <= 0:

@@ -1,0 +1,88 @@
+"""The acquisition stage as the receiver runs it, from the configuration: the search, the verification
+dwell on the next independent block, the rejection of cross-correlation images, the wider search for a
+front-end LO offset and the high-sensitivity second pass (:func:`acquire`).  The pipeline and the channel
+manager call :func:`acquire`; the numerical pieces live in :mod:`.code_search` and
+:mod:`.high_sensitivity`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import threads
+from .config import run_signals
+from ..errors import UserError
+from ..gnss.registry import get_signal
+from ..source.io import SampleReader
+from .code_search import _has_energy, reject_cross_correlations, search, verify
+
+
+def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
+            sensitive: bool = False, known_hz=(), doppler_window=None, signal=None) -> list:
+    """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
+    (when the file has it), cross-correlation rejection.  ``widen``: when fewer than 4 satellites are
+    found, search the others again over +/- acquisition.lo_search_hz; when fewer than
+    acquisition.high_sensitivity.min_found, search them with the high-sensitivity pass
+    (receiver.acquisition.high_sensitivity).  ``sensitive``: run that pass on the PRNs not found whatever the count
+    (cold searches while few channels track; ``known_hz``: their Dopplers narrow its range).  Lines for
+    the user are appended to ``notes`` (a list).  ``doppler_window``: (centre, half width) Hz searched
+    instead of the configured +/- acquisition.doppler_max_hz (the channel manager's cold searches once a
+    fix gives the clock drift).  ``signal``: the SignalDef searched (default: the run's first signal)."""
+    a = cfg.acquisition
+    fs, if_hz = reader.fs, reader.if_hz
+    sig = signal if signal is not None else get_signal(run_signals(cfg)[0])
+    notes = [] if notes is None else notes
+    # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
+    # uses up to 200 ms (20 blocks of 10 ms) where the file has them
+    dwell = int(round(a.coherent_ms * a.noncoherent * 1e-3 * fs))
+    block = reader.read(start, max(2 * dwell, int(0.2 * fs)))
+    if len(block) < dwell:
+        raise UserError("input too short for acquisition "
+                        f"({len(block) / fs * 1e3:.0f} ms available, {dwell / fs * 1e3:.0f} needed)")
+
+    centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
+
+    def _search(prns_, dmax):
+        c_ = centre if dmax == a.doppler_max_hz else 0.0
+        if doppler_window is not None and dmax == a.doppler_max_hz:
+            c_, dmax = doppler_window
+        res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
+                      a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
+                      doppler_center_hz=c_)
+        todo = [r for r in res_ if r.detected and a.verify and len(block) >= 2 * dwell]
+        # the dwells are independent: on the thread pool (the same result per detection)
+        oks = threads.map_ordered(lambda r: verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r,
+                                                   a.coherent_ms, a.noncoherent, a.doppler_step_hz, a.pfa,
+                                                   a.threshold, signal=sig), todo)
+        for r, ok in zip(todo, oks):
+            r.verified = int(ok)
+            if not ok:
+                r.detected, r.reason = False, "verify"
+        return res_
+
+    res = _search(prns, a.doppler_max_hz)
+    reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
+    found = sum(r.detected for r in res)
+    if widen and found < 4 and a.lo_search_hz > a.doppler_max_hz:
+        missing = [r.prn for r in res if not r.detected]
+        wide = {r.prn: r for r in _search(missing, a.lo_search_hz)}
+        res = [wide.get(r.prn, r) for r in res]
+        reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
+        notes.append(f"acquisition     {found} satellite(s) within +/-{a.doppler_max_hz / 1e3:g} kHz: searched "
+                     f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
+                     f"{sum(r.detected for r in res)} found")
+    hs = a.high_sensitivity
+    if hs.enabled and sig.bit_ms(1) == 20 and sig.secondary(1) is None and _has_energy(block) and \
+            (sensitive or (widen and sum(r.detected for r in res) < hs.min_found)):       # GPS L1 C/A
+        from .high_sensitivity import second_pass
+        res, line = second_pass(a, reader, start, if_hz, res, sig, known_hz, centre)
+        if line and widen:
+            notes.append(line)
+    dop = [r.doppler_hz for r in res if r.detected]
+    if len(dop) >= 3 and abs(np.median(dop) - centre) > a.lo_warn_hz:
+        med = float(np.median(dop))
+        notes.append(f"warning         the {len(dop)} satellites found share a common Doppler offset of "
+                     f"{med / 1e3:+.2f} kHz (median): front-end LO / oscillator error of about "
+                     f"{-med / sig.carrier_hz * 1e6:+.1f} ppm; later searches are centred there")
+        reader.doppler_centre_hz = round(med / 100.0) * 100.0     # re-acquisitions search around it
+    return res
+
