@@ -18,9 +18,15 @@ from __future__ import annotations
 
 from ..errors import UserError
 from .loops.base import CarrierLoop
+from .loops.compiled import CompiledTwin
 from .loops.cpll import CPLL
 from .loops.ekf import EKF, PLIEKF
 from .loops.kfpll import KFPLL, AdaptiveKFPLL
+
+
+def _with_twin(cls):
+    """The Python reference loop ``cls`` with its compiled path (loops/compiled.py)."""
+    return type(cls.__name__, (CompiledTwin, cls), {"__module__": cls.__module__, "__doc__": cls.__doc__})
 
 
 class BuiltinPLL(CarrierLoop):
@@ -31,11 +37,11 @@ class BuiltinPLL(CarrierLoop):
 
 REGISTRY: dict[str, type[CarrierLoop]] = {
     "pll": BuiltinPLL,
-    "cpll_atan": CPLL,
-    "ekf": EKF,
-    "pli_ekf": PLIEKF,
-    "kf": KFPLL,
-    "adaptive_kf": AdaptiveKFPLL,
+    "cpll_atan": _with_twin(CPLL),
+    "ekf": _with_twin(EKF),
+    "pli_ekf": _with_twin(PLIEKF),
+    "kf": _with_twin(KFPLL),
+    "adaptive_kf": _with_twin(AdaptiveKFPLL),
 }
 
 
