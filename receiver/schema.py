@@ -17,7 +17,12 @@ from __future__ import annotations
 
 from .acquisition import config as acquisition_config
 from .acquisition.config import SIGNAL_PRNS, run_signals, signal_prns  # noqa: F401 (the receiver's config API)
-from .config import Section, build, find_file, read_yaml, resolve_path
+import copy
+import json
+
+from . import plugins
+from .errors import UserError
+from .config import Section, apply_overrides, build, find_file, read_yaml, resolve_path
 from .navigation import config as navigation_config
 from .runfile import config as output_config
 from .source import config as input_config
@@ -53,9 +58,108 @@ def load_receiver_config(path=None, overrides=None) -> Section:
         for v in files.values():
             if isinstance(v, dict) and isinstance(v.get("path"), str):
                 v["path"] = resolve_path(v["path"], path)
-    cfg = build(RECEIVER_SCHEMA, raw, overrides)
+    cfg = build_receiver(raw, overrides)
     validate_receiver(cfg)
     return cfg
+
+
+#: config keys that name an extensible variant: (section path, key, plugin kind)
+VARIANT_KEYS = ((("tracking", "carrier"), "variant", "carrier_loop"),
+                (("tracking", "carrier"), "auto_weak", "carrier_loop"),
+                (("tracking", "carrier"), "auto_strong", "carrier_loop"),
+                (("vector",), "variant", "vector_filter"))
+
+
+def _plugin_class(kind: str, name: str):
+    if kind == "carrier_loop":
+        from .tracking.carrier import loop_class
+        return loop_class(name)
+    from .tracking.vector import filter_class
+    return filter_class(name)
+
+
+def _used(raw: dict):
+    """(section path, key, kind, name) of every variant key of ``raw`` naming a plugin (not a built-in)."""
+    out = []
+    for path, key, kind in VARIANT_KEYS:
+        node, spec = raw, RECEIVER_SCHEMA
+        for part in path:
+            node = node.get(part) if isinstance(node, dict) else None
+            spec = spec[part]
+        name = node.get(key) if isinstance(node, dict) and key in node else spec[key].default
+        if isinstance(name, str) and name not in spec[key].choices:
+            out.append((path, key, kind, name))
+    return out
+
+
+def receiver_schema(raw: dict | None = None) -> dict:
+    """RECEIVER_SCHEMA, extended for the plugins ``raw`` (a parsed config, overrides applied) names: each
+    plugin is one more choice of its variant key, and its PARAMS are mounted as the section of its name
+    beside that key (``tracking.carrier.<name>``, ``vector.<name>``).  One-line errors for a plugin that
+    cannot be found or loaded."""
+    used = _used(raw or {})
+    if not used:
+        return RECEIVER_SCHEMA
+    schema = dict(RECEIVER_SCHEMA)
+    for path, key, kind, name in used:
+        if not plugins.is_reference(name) and name not in plugins.entry_points(kind):
+            spec = RECEIVER_SCHEMA
+            for part in path + (key,):
+                spec = spec[part]
+            raise UserError(f"config key '{'.'.join(path + (key,))}' must be one of "
+                            f"{', '.join(map(str, spec.choices))}, an installed plugin or module:Class; "
+                            f"got {name!r}")
+        cls = _plugin_class(kind, name)
+        # copy the sections on the path (the fragments themselves stay untouched)
+        node = schema
+        for part in path:
+            node[part] = dict(node[part])
+            node = node[part]
+        node[key] = copy.copy(node[key])
+        node[key].choices = tuple(node[key].choices) + (name,)
+        section = cls.name
+        if section in node and node[section] is not cls.PARAMS:
+            raise UserError(f"{kind.replace('_', ' ')} plugin '{name}': its name '{section}' is already the "
+                            f"config key {'.'.join(path)}.{section}")
+        if cls.PARAMS:
+            node[section] = cls.PARAMS
+    return schema
+
+
+def build_receiver(raw: dict | None = None, overrides=None) -> Section:
+    """The receiver config of a parsed YAML mapping and overrides, against :func:`receiver_schema`."""
+    raw = apply_overrides(raw or {}, overrides)
+    return build(receiver_schema(raw), raw)
+
+
+def used_plugins(cfg: Section) -> list:
+    """The plugins a config uses: [{kind, key, name, class, origin, version, params}] (the run file's
+    ``plugins`` attribute)."""
+    out = []
+    for path, key, kind in VARIANT_KEYS:
+        sec = cfg
+        for part in path:
+            sec = sec[part]
+        name = sec[key]
+        choices = RECEIVER_SCHEMA
+        for part in path:
+            choices = choices[part]
+        if name in choices[key].choices or (key != "variant" and sec["variant"] != "auto") or \
+                (kind == "vector_filter" and not cfg.vector.enabled):
+            continue
+        cls = _plugin_class(kind, name)
+        found = plugins.find(kind, name)
+        params = sec[cls.name].to_dict() if cls.PARAMS else {}
+        out.append({"kind": kind, "key": ".".join(path + (key,)), "name": name,
+                    "class": f"{cls.__module__}.{cls.__qualname__}", "origin": found.origin,
+                    "version": found.version, "params": params})
+    return out
+
+
+def plugins_attr(cfg: Section) -> str | None:
+    """JSON of :func:`used_plugins`, or None when the config uses none."""
+    used = used_plugins(cfg)
+    return json.dumps(used, sort_keys=True) if used else None
 
 
 def validate_receiver(cfg: Section) -> Section:

@@ -27,8 +27,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..config import apply_overrides, build, read_yaml, search_bases
-from ..schema import RECEIVER_SCHEMA
+from ..config import apply_overrides, read_yaml, search_bases
+from ..schema import build_receiver
 from ..errors import UserError
 from .config import REPO_ROOT, Batch
 
@@ -248,7 +248,7 @@ def make_plan(batch: Batch) -> Plan:
             raw = apply_overrides(raw, [("output.path", None)])
             where = f"variant '{var.label}', input '{inp.name}'"
             try:
-                cfg = build(RECEIVER_SCHEMA, raw).to_dict()
+                cfg = build_receiver(raw).to_dict()
             except UserError as exc:
                 raise UserError(f"{where}: {exc}") from None
             cfg = _walk_strings(cfg, lambda k, v: (_receiver_file(v, b.base_dir) or v)
