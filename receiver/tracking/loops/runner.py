@@ -114,11 +114,12 @@ def _wrap(fn, sig) -> CompiledFunction:
 def _entry(dispatcher, args):
     """The compiled specialisation of ``dispatcher`` for these arrays (loaded from numba's cache), whose
     last two arguments are the loop's start / update function values."""
-    from numba import typeof
-    key = (dispatcher,) + tuple(typeof(a) for a in args)
+    key = (dispatcher,) + tuple((a.dtype.str, a.ndim, a.flags.c_contiguous) if isinstance(a, np.ndarray)
+                                else type(a) for a in args)
     e = _ENTRIES.get(key)
     if e is None:
-        sig = key[1:] + (START_T, UPDATE_T)
+        from numba import typeof
+        sig = tuple(typeof(a) for a in args) + (START_T, UPDATE_T)
         dispatcher.compile(sig)
         e = _ENTRIES[key] = dispatcher.overloads[sig].entry_point
     return e
