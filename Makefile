@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
+.PHONY: venv demo test test-fast lint docs docs-serve bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,14 +17,34 @@ venv: $(VENV)/.installed
 	@$(PY) -m compileall -q receiver > /dev/null
 
 demo: venv
-	$(PY) scripts/demo.py
+	$(PY) scripts/tools/demo.py
 
 test: venv
 	$(PY) -m pytest -q -n auto --dist loadfile
 
+# the fast lane (< 1 min): everything not marked slow
+test-fast: venv
+	$(PY) -m pytest -q -n auto --dist loadfile -m "not slow"
+
+lint: venv
+	$(VENV)/bin/ruff check .
+
+# the documentation site (mkdocs.yml, docs/): mkdocs --strict fails on any warning (broken link, missing page,
+# unresolved API reference); the HTML goes to site/
+$(VENV)/.docs-installed: docs/requirements.txt | venv
+	$(PY) -m pip install -q -r docs/requirements.txt
+	touch $@
+
+docs: $(VENV)/.docs-installed
+	$(PY) scripts/tools/gen_config_docs.py --check
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
+
+docs-serve: $(VENV)/.docs-installed
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve
+
 bench: venv
-	$(PY) scripts/bench_tracking.py
-	$(PY) scripts/bench_simulate.py
+	$(PY) scripts/bench/bench_tracking.py
+	$(PY) scripts/bench/bench_simulate.py
 
 # Figure runs: FIGJOBS = runs / processes at a time (vector batch -j, carrier --jobs; the LEO Monte Carlo is one
 # process); FIGDIR = tables and figures; FIGDATA = the vector batch cache (recordings, run files): a second run
@@ -34,25 +54,25 @@ FIGDIR ?= figures
 FIGDATA ?= out/vector
 
 figures: figures-leo figures-vector figures-carrier
-	$(PY) scripts/figures_index.py $(FIGDIR)
+	$(PY) scripts/figures/figures_index.py $(FIGDIR)
 
 figures-leo: venv
-	$(PY) scripts/figures_leo.py --out $(FIGDIR)/leo $(FIGLEO_ARGS)
+	$(PY) scripts/figures/figures_leo.py --out $(FIGDIR)/leo $(FIGLEO_ARGS)
 
 figures-vector: venv
-	$(PY) scripts/figures_vector.py --out $(FIGDIR)/vector --data $(FIGDATA) -j $(FIGJOBS) $(FIGVECTOR_ARGS)
+	$(PY) scripts/figures/figures_vector.py --out $(FIGDIR)/vector --data $(FIGDATA) -j $(FIGJOBS) $(FIGVECTOR_ARGS)
 
 figures-carrier: venv
-	$(PY) scripts/figures_carrier.py --out $(FIGDIR)/carrier --jobs $(FIGJOBS) $(FIGCARRIER_ARGS)
+	$(PY) scripts/figures/figures_carrier.py --out $(FIGDIR)/carrier --jobs $(FIGJOBS) $(FIGCARRIER_ARGS)
 
 # compare two figure directories (e.g. two FIGDIRs made with different FIGJOBS) within the stated intervals
 figures-compare: venv
-	$(PY) scripts/figures_compare.py $(A) $(B)
+	$(PY) scripts/figures/figures_compare.py $(A) $(B)
 
 # a cheap seeded subset of the three figure scripts against configs/figures_reference.json (a few minutes;
 # not part of `make test`); FIGCHECK_ARGS='--set tracking.carrier.ekf.bn_hz=12' shows it failing
 figures-check: venv
-	$(PY) scripts/figures_check.py -j $(FIGJOBS) $(FIGCHECK_ARGS)
+	$(PY) scripts/figures/figures_check.py -j $(FIGJOBS) $(FIGCHECK_ARGS)
 
 batch-full: venv
 	$(VENV)/bin/gnssrx batch configs/batch/full.yaml
@@ -60,7 +80,7 @@ batch-full: venv
 
 batch-outages: venv
 	$(VENV)/bin/gnssrx batch configs/batch/outages.yaml
-	$(PY) scripts/outage_table.py out/batch/outages/summary.h5 --out out/batch/outages/acceptance.md
+	$(PY) scripts/tools/outage_table.py out/batch/outages/summary.h5 --out out/batch/outages/acceptance.md
 
 clean:
-	rm -rf out figures .pytest_cache
+	rm -rf out figures site .pytest_cache

@@ -13,9 +13,20 @@ import sys
 
 import click
 
-from . import __version__, interrupt      # (the package sets BLAS to one thread before numpy loads)
+from . import __version__, interrupt, limit_blas_threads
 from .errors import UserError
 from .logs import setup_cli
+
+
+def _prepare_process() -> None:
+    """What every command sets up before its work: one BLAS thread (:func:`receiver.limit_blas_threads`,
+    effective when numpy has not loaded yet), stale numba caches of a source tree dropped, and numba's
+    first cache load without its BLAS probe importing scipy.linalg (receiver/_numba_start.py)."""
+    limit_blas_threads()
+    from . import _numba_start
+    from .tracking import refresh_compiled_caches
+    refresh_compiled_caches()
+    _numba_start.prepare()
 
 
 class _Group(click.Group):
@@ -36,6 +47,7 @@ class _Group(click.Group):
 
     def _main(self, *args, **kwargs):
         import signal
+        _prepare_process()
         saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGXFSZ)}
         interrupt.install()
         try:

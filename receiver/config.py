@@ -245,7 +245,7 @@ def build(schema: dict, raw: dict | None = None, overrides=None) -> Section:
 
 
 def defaults_doc(schema: dict, prefix: str = "") -> list[tuple[str, str, Any, str]]:
-    """(key, kind, default, doc) rows, for the README config reference."""
+    """(key, kind, default, doc) rows, for the configuration reference (docs/reference/config.md)."""
     rows = []
     for name, spec in schema.items():
         if isinstance(spec, dict):

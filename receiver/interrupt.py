@@ -27,6 +27,7 @@ class Interrupted(BaseException):
 
     @property
     def name(self) -> str:
+        """Name of the signal (``SIGINT``, ``SIGTERM``), or ``signal <n>`` for an unknown number."""
         try:
             return signal.Signals(self.signum).name
         except ValueError:
@@ -34,6 +35,7 @@ class Interrupted(BaseException):
 
     @property
     def exit_code(self) -> int:
+        """Process exit code for the signal: 128 + its number (130 for SIGINT, 143 for SIGTERM)."""
         return 128 + self.signum
 
 

@@ -35,9 +35,6 @@ from .gnss.registry import get_signal
 from .gnss.satid import MIXED, sat_key, sat_label
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
-from . import _numba_start
-
-_numba_start.prepare()          # numba's first cache load without importing scipy.linalg (receiver/_numba_start.py)
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
@@ -45,6 +42,10 @@ OVERLAP_S = 0.03
 
 @dataclass
 class RunSummary:
+    """What :func:`run` returns (and ``gnssrx run`` prints): the output path, the signal duration and wall
+    time, the satellites tracked with their mean C/N0, the number of fixes and the first fix time, the
+    mean position and its east/north/up scatter, and counters (parity failures, re-acquisitions, false
+    locks restarted, non-finite samples, fixes per ionospheric parameter set)."""
     output: str
     duration_s: float
     wall_s: float
@@ -305,7 +306,7 @@ def _nonfinite(reader, writer, summary):
 
 def _run(cfg, readers, writer, ephemerides, iono, quiet, log) -> RunSummary:
     reader = readers[0]
-    fs, if_hz = reader.fs, reader.if_hz
+    fs = reader.fs
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
     readers = [PrefetchingReader(r) for r in readers]
@@ -378,107 +379,140 @@ class _Part:
 
 
 def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono) -> RunSummary:
-    from .navigation.engine import NavigationEngine
-    reader = readers[0]
-    fs, if_hz = reader.fs, reader.if_hz
-    notes = []
-    week_hint = cfg.input.start_gps_week
-    sigs = [get_signal(n) for n in run_signals(cfg)]
-    multi = len(sigs) > 1
-    nav = None
-    if cfg.navigation.enabled:                  # L1 C/A: LNAV; B1I: D1/D2 (gnss/bds_nav.py)
-        nav = NavigationEngine(cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint,
-                               cfg.input.start_gps_tow_s, signal=sigs[0],
-                               signals={g.system: (g, r.if_hz) for g, r in zip(sigs, readers)} if multi else None)
-        pres = cfg.tracking.presence
-        if pres.window_ms > 0:
-            from .navigation.engine import PRESENCE_MARGIN_DB
-            nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
-    parts = []
-    for sig, rd in zip(sigs, readers):
-        part = _Part(sig, rd, multi)
-        p_nav = _Keyed(nav, sig.system) if multi and nav is not None else nav
-        p_writer = _Keyed(writer, sig.system) if multi else writer
-        part.manager = ChannelManager(cfg, rd, p_nav, fs, rd.if_hz, sig,
-                                      functools.partial(acquire, signal=sig), p_writer,
-                                      prns=signal_prns(cfg, sig.name))
-        parts.append(part)
-    with stage("acquisition"):
-        for part in parts:
-            p_notes = [] if multi else notes
-            part.manager.start(acq_start, p_notes)
-            notes += [f"{ln} [{part.signal.name}]" for ln in p_notes] if multi else []
-    manager = parts[0].manager
-    channels = manager.channels             # prn -> Channel (shared with the vector tracker)
-    cn0_sum: dict[int, list] = {}
-    n_fixes, first_fix, fix_ecef = 0, None, []
-    iono_counts, iono_from = {}, None
-    chunk = int(CHUNK_S * fs)
-    overlap = int(OVERLAP_S * fs)
-    vector = None
-    handover = _vector_handover(cfg, parts, nav, fs, quiet) if cfg.vector.enabled else None
-    bar = _progress(reader.duration_s, quiet)
+    run = _ChunkLoop(cfg, readers, writer, quiet, acq_start, ephemerides, iono)
+    run.loop()
+    return run.summary(t_wall)
 
-    def finish_chunk(end):
+
+class _ChunkLoop:
+    """One run's chunk loop: set-up (navigation engine, one channel manager per signal, the first
+    acquisition), the loop over chunks (read, track -- scalar channels on the pool or the vector tracker --,
+    write, navigation, channel lifecycle) and the run's summary."""
+
+    def __init__(self, cfg, readers, writer, quiet, acq_start, ephemerides, iono):
+        from .navigation.engine import NavigationEngine
+        self.cfg, self.readers, self.writer, self.iono = cfg, readers, writer, iono
+        self.acq_start = acq_start
+        reader = self.reader = readers[0]
+        fs = self.fs = reader.fs
+        if_hz = reader.if_hz
+        self.notes = []
+        week_hint = cfg.input.start_gps_week
+        sigs = [get_signal(n) for n in run_signals(cfg)]
+        multi = self.multi = len(sigs) > 1
+        nav = self.nav = None
+        if cfg.navigation.enabled:                  # L1 C/A: LNAV; B1I: D1/D2 (gnss/bds_nav.py)
+            nav = self.nav = NavigationEngine(
+                cfg.navigation, fs, if_hz, reader.first, ephemerides, iono, week_hint, cfg.input.start_gps_tow_s,
+                signal=sigs[0], signals={g.system: (g, r.if_hz) for g, r in zip(sigs, readers)} if multi else None)
+            pres = cfg.tracking.presence
+            if pres.window_ms > 0:
+                from .navigation.channel import PRESENCE_MARGIN_DB
+                nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
+        self.parts = []
+        for sig, rd in zip(sigs, readers):
+            part = _Part(sig, rd, multi)
+            p_nav = _Keyed(nav, sig.system) if multi and nav is not None else nav
+            p_writer = _Keyed(writer, sig.system) if multi else writer
+            part.manager = ChannelManager(cfg, rd, p_nav, fs, rd.if_hz, sig,
+                                          functools.partial(acquire, signal=sig), p_writer,
+                                          prns=signal_prns(cfg, sig.name))
+            self.parts.append(part)
+        with stage("acquisition"):
+            for part in self.parts:
+                p_notes = [] if multi else self.notes
+                part.manager.start(acq_start, p_notes)
+                self.notes += [f"{ln} [{part.signal.name}]" for ln in p_notes] if multi else []
+        self.cn0_sum: dict[int, list] = {}
+        self.n_fixes, self.first_fix, self.fix_ecef = 0, None, []
+        self.iono_counts, self.iono_from = {}, None
+        self.chunk = int(CHUNK_S * fs)
+        self.overlap = int(OVERLAP_S * fs)
+        self.vector = None
+        self.vfixes = None
+        self.handover = _vector_handover(cfg, self.parts, nav, fs, quiet) if cfg.vector.enabled else None
+        self.bar = _progress(reader.duration_s, quiet)
+
+    def finish_chunk(self, end):
         """The chunk's navigation epochs up to sample ``end`` (fixes, observables) and their bookkeeping."""
-        nonlocal n_fixes, first_fix, iono_from
+        writer, reader, fs = self.writer, self.reader, self.fs
         with stage("navigation"):
-            fixes, obs = nav.update(end)
+            fixes, obs = self.nav.update(end)
         with stage("write"):
-            if vector is None:
+            if self.vector is None:
                 writer.append_fixes(fixes)
             else:
-                fixes = vfixes          # the summary counts the fixes that were written
+                fixes = self.vfixes     # the summary counts the fixes that were written
             writer.append_observables(obs)
         if len(fixes):
-            n_fixes += len(fixes)
-            if first_fix is None:
-                first_fix = float(fixes["time_s"][0]) - reader.first / fs
+            self.n_fixes += len(fixes)
+            if self.first_fix is None:
+                self.first_fix = float(fixes["time_s"][0]) - reader.first / fs
             codes, counts = np.unique(fixes["iono_params"], return_counts=True)
             for c, k in zip(codes.tolist(), counts.tolist()):
-                iono_counts[c] = iono_counts.get(c, 0) + k
+                self.iono_counts[c] = self.iono_counts.get(c, 0) + k
             bc = np.flatnonzero(fixes["iono_params"] == IONO_BROADCAST)
-            if iono_from is None and len(bc):
-                iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
-            fix_ecef.append(fixes["ecef"])
+            if self.iono_from is None and len(bc):
+                self.iono_from = float(fixes["time_s"][bc[0]]) - reader.first / fs
+            self.fix_ecef.append(fixes["ecef"])
 
-    # Scalar tracking on several threads: a chunk's navigation epochs (nav.update, the fixes) are computed
-    # on this thread while the pool tracks the next chunk.  The navigation engine's calls keep their order
-    # (records of chunk k, channel manager, epochs of chunk k, records of chunk k+1, ...) and so do the
-    # writer's: the same run file as one thread computing them in turn.  Not with the vector tracker (its
-    # handover reads the last fix before the chunk).
-    defer = nav is not None and handover is None and threads.threads() > 1
-    pending = None                          # end sample of the chunk whose navigation epochs are due
-    vfixes = None
-    start = acq_start
-    while start < reader.end:
-        interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
+    def loop(self):
+        """Every chunk from the acquisition start to the end of the input."""
+        # Scalar tracking on several threads: a chunk's navigation epochs (nav.update, the fixes) are computed
+        # on this thread while the pool tracks the next chunk.  The navigation engine's calls keep their order
+        # (records of chunk k, channel manager, epochs of chunk k, records of chunk k+1, ...) and so do the
+        # writer's: the same run file as one thread computing them in turn.  Not with the vector tracker (its
+        # handover reads the last fix before the chunk).
+        nav, reader, chunk = self.nav, self.reader, self.chunk
+        defer = nav is not None and self.handover is None and threads.threads() > 1
+        pending = None                          # end sample of the chunk whose navigation epochs are due
+        start = self.acq_start
+        while start < reader.end:
+            interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
+            pending = self._track_chunk(start, pending)
+            if nav is not None:
+                if defer:
+                    pending = start + chunk
+                else:
+                    self.finish_chunk(start + chunk)
+            start += chunk
+            if self.bar is not None:
+                self.bar.update(round(min(chunk, reader.end - start + chunk) / self.fs, 3))
+        if pending is not None:
+            self.finish_chunk(pending)
+        if self.bar is not None:
+            self.bar.close()
+
+    def _track_chunk(self, start, pending):
+        """Read, track and write the chunk at ``start``, feed the navigation engine, run the channel
+        lifecycle; the previous chunk's deferred navigation epochs (``pending``) are computed while the pool
+        tracks.  Returns what is still pending."""
+        readers, writer, nav, chunk, overlap = self.readers, self.writer, self.nav, self.chunk, self.overlap
         with stage("read input"):               # (one input stage per signal: the same span of samples)
             if threads.threads() > 1:           # the next chunk is read ahead on a background thread
                 blocks = [r.chunk(start, chunk + overlap, start + chunk) for r in readers]
             else:
                 blocks = [r.read(start, chunk + overlap) for r in readers]
-        block = blocks[0]
-        if vector is None and handover is not None:
-            vector = handover.step(start)
-        if vector is not None:
+        if self.vector is None and self.handover is not None:
+            self.vector = self.handover.step(start)
+        if self.vector is not None:
             with stage("vector tracking"):
-                block_recs, vfixes = vector.process(blocks, start)
+                block_recs, self.vfixes = self.vector.process(blocks, start)
             with stage("write"):
-                writer.append_fixes(vfixes)
-                writer.append_vector_log(vector.last_diag)
+                writer.append_fixes(self.vfixes)
+                writer.append_vector_log(self.vector.last_diag)
         else:
             # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
             with stage("tracking"):
-                items = [(part.key(prn), ch, blk) for part, blk in zip(parts, blocks)
+                items = [(part.key(prn), ch, blk) for part, blk in zip(self.parts, blocks)
                          for prn, ch in part.manager.channels.items()]
                 job = threads.submit_ordered(lambda it, s0=start: it[1].process(it[2], s0), items)
             if pending is not None:             # the previous chunk's epochs, while the pool tracks
-                finish_chunk(pending)
+                self.finish_chunk(pending)
                 pending = None
             with stage("tracking"):
                 block_recs = {key: r for (key, _, _), r in zip(items, job())}
-        for part in parts:
+        for part in self.parts:
             for prn, ch in list(part.manager.channels.items()):
                 key = part.key(prn)
                 recs = block_recs.get(key, np.zeros(0, EPOCH_DTYPE))
@@ -487,72 +521,66 @@ def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, io
                 if len(recs):
                     c = recs["cn0_dbhz"][recs["pll_lock"] > 0]
                     if len(c):
-                        acc = cn0_sum.setdefault(key, [0.0, 0])
+                        acc = self.cn0_sum.setdefault(key, [0.0, 0])
                         acc[0] += float(c.sum())
                         acc[1] += len(c)
                 part.manager.note(prn, recs)
                 if nav is not None:
                     with stage("navigation"):
                         nav.add_records(key, recs, ch.bit_offset)
-        if vector is not None and vector.reinit_needed:
-            vector = handover.fall_back(vector, start + chunk)      # scalar channels, hand over again
+        if self.vector is not None and self.vector.reinit_needed:
+            self.vector = self.handover.fall_back(self.vector, start + chunk)   # scalar channels, hand over again
         # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest.
         # Before the chunk's navigation epochs: a satellite found again inside the chunk just tracked (its
         # channel catches up to the chunk end) enters the epochs after its pull-in, not only the next chunk's
-        if start + chunk + overlap < reader.end:
+        if start + chunk + overlap < self.reader.end:
             with stage("re-acquisition"):
-                for part in parts:
+                for part in self.parts:
                     part.manager.after_chunk(start, start + chunk)
+        return pending
+
+    def summary(self, t_wall) -> RunSummary:
+        """The run's summary; the run file's closing attributes, ephemerides and ionosphere written."""
+        cfg, reader, writer, nav, iono, parts = self.cfg, self.reader, self.writer, self.nav, self.iono, self.parts
+        wall = time.perf_counter() - t_wall
+        s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall, system=_run_system(cfg))
+        s.mean_cn0 = {p: v[0] / v[1] for p, v in sorted(self.cn0_sum.items()) if v[1]}
+        s.tracked = sorted(s.mean_cn0)
+        s.n_fixes = self.n_fixes
+        s.first_fix_s = self.first_fix
+        s.iono_counts, s.iono_broadcast_from_s = self.iono_counts, self.iono_from
+        s.reacquisitions = sum(v["reacquisitions"] for part in parts for v in part.manager.summary().values())
+        s.false_locks = {part.key(p): v["false_locks"] for part in parts
+                         for p, v in part.manager.summary().items() if v["false_locks"]}
+        for part in parts:
+            if hasattr(part.reader, "resample"):      # the decimating input stage
+                s.notes.append(part.reader.describe() + (f" [{part.signal.name}]" if self.multi else ""))
+        if hasattr(reader, "summary_lines"):         # the input conditioning stage
+            s.notes += reader.summary_lines()
+            reader.write(writer)
+        s.notes += self.notes
         if nav is not None:
-            if defer:
-                pending = start + chunk
-            else:
-                finish_chunk(start + chunk)
-        start += chunk
-        if bar is not None:
-            bar.update(round(min(chunk, reader.end - start + chunk) / fs, 3))
-    if pending is not None:
-        finish_chunk(pending)
-    if bar is not None:
-        bar.close()
-    wall = time.perf_counter() - t_wall
-    s = RunSummary(output="", duration_s=reader.duration_s, wall_s=wall, system=_run_system(cfg))
-    s.mean_cn0 = {p: v[0] / v[1] for p, v in sorted(cn0_sum.items()) if v[1]}
-    s.tracked = sorted(s.mean_cn0)
-    s.n_fixes = n_fixes
-    s.first_fix_s = first_fix
-    s.iono_counts, s.iono_broadcast_from_s = iono_counts, iono_from
-    s.reacquisitions = sum(v["reacquisitions"] for part in parts for v in part.manager.summary().values())
-    s.false_locks = {part.key(p): v["false_locks"] for part in parts for p, v in part.manager.summary().items()
-                     if v["false_locks"]}
-    for part in parts:
-        if hasattr(part.reader, "resample"):      # the decimating input stage
-            s.notes.append(part.reader.describe() + (f" [{part.signal.name}]" if multi else ""))
-    if hasattr(reader, "summary_lines"):         # the input conditioning stage
-        s.notes += reader.summary_lines()
-        reader.write(writer)
-    s.notes += notes
-    if nav is not None:
-        s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
-        # every satellite decoded during the run (navigation memory, not only the channels still tracking)
-        writer.write_ephemerides(nav.decoded_ephemerides())
-        # the RINEX header's set (its GPS-UTC terms even without ION ALPHA / BETA), else the decoded one
-        bc = nav.broadcast_iono()
-        from_bds = any(ch.decoder.iono_utc is bc and ch.signal.system == "C" for ch in nav.channels.values())
-        writer.write_iono_utc(iono if iono is not None else bc,
-                              "rinex" if iono is not None else ("d1/d2" if from_bds else "lnav"))
-        if nav.iono_fallback is not None:               # /navigation/iono_params 2: this set
-            from .gnss.atmosphere import FALLBACK_KLOBUCHAR_SOURCE
-            writer.set_attrs("navigation", {"iono_fallback_alpha": np.asarray(nav.iono_fallback.alpha, float),
-                                            "iono_fallback_beta": np.asarray(nav.iono_fallback.beta, float),
-                                            "iono_fallback_source": FALLBACK_KLOBUCHAR_SOURCE})
-    if fix_ecef:
-        from .gnss.geodesy import ecef2enu, ecef2lla
-        e = np.concatenate(fix_ecef)
-        mean = e.mean(axis=0)
-        lat, lon, h = ecef2lla(mean)
-        s.mean_llh = (float(lat), float(lon), float(h))
-        s.scatter_m = tuple(float(v) for v in ecef2enu(e, mean).std(axis=0))
-    writer.set_attrs("/", {"wall_time_s": wall, "realtime_factor": s.realtime_factor,
-                           "n_fixes": n_fixes})
-    return s
+            s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
+            # every satellite decoded during the run (navigation memory, not only the channels still tracking)
+            writer.write_ephemerides(nav.decoded_ephemerides())
+            # the RINEX header's set (its GPS-UTC terms even without ION ALPHA / BETA), else the decoded one
+            bc = nav.broadcast_iono()
+            from_bds = any(ch.decoder.iono_utc is bc and ch.signal.system == "C" for ch in nav.channels.values())
+            writer.write_iono_utc(iono if iono is not None else bc,
+                                  "rinex" if iono is not None else ("d1/d2" if from_bds else "lnav"))
+            if nav.iono_fallback is not None:               # /navigation/iono_params 2: this set
+                from .gnss.atmosphere import FALLBACK_KLOBUCHAR_SOURCE
+                writer.set_attrs("navigation", {
+                    "iono_fallback_alpha": np.asarray(nav.iono_fallback.alpha, float),
+                    "iono_fallback_beta": np.asarray(nav.iono_fallback.beta, float),
+                    "iono_fallback_source": FALLBACK_KLOBUCHAR_SOURCE})
+        if self.fix_ecef:
+            from .gnss.geodesy import ecef2enu, ecef2lla
+            e = np.concatenate(self.fix_ecef)
+            mean = e.mean(axis=0)
+            lat, lon, h = ecef2lla(mean)
+            s.mean_llh = (float(lat), float(lon), float(h))
+            s.scatter_m = tuple(float(v) for v in ecef2enu(e, mean).std(axis=0))
+        writer.set_attrs("/", {"wall_time_s": wall, "realtime_factor": s.realtime_factor,
+                               "n_fixes": self.n_fixes})
+        return s

@@ -86,6 +86,8 @@ class OutputLock:
         self.held = False
 
     def acquire(self):
+        """Create the lock file (a stale lock of a dead process is taken over); returns self.  Another live writer
+        holding it, or a lock that cannot be created, is a one-line UserError."""
         for _ in range(2):
             try:
                 fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
@@ -122,6 +124,7 @@ class OutputLock:
             return None
 
     def release(self):
+        """Remove the lock file if this object holds it (idempotent)."""
         if self.held:
             self.held = False
             remove_quietly(self.path)
@@ -138,6 +141,7 @@ def _alive(pid: int) -> bool:
 
 
 def remove_quietly(path):
+    """Remove a file, ignoring any OSError (missing file included)."""
     try:
         os.remove(path)
     except FileNotFoundError:
@@ -147,6 +151,7 @@ def remove_quietly(path):
 
 
 def write_error_message(what: str, path: str, exc: BaseException) -> str:
+    """The one-line message for a failed write of `what` to `path`; a full disk or file size limit is named as such."""
     reason = getattr(exc, "strerror", None) or str(exc)
     if getattr(exc, "errno", None) in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT):
         reason += " (disk full or file size limit)"
@@ -169,15 +174,19 @@ class GuardedFile(io.RawIOBase):
         self._pos = 0
 
     def readable(self):
+        """Always True (h5py's file-object driver reads back what it wrote)."""
         return True
 
     def writable(self):
+        """Always True."""
         return True
 
     def seekable(self):
+        """Always True."""
         return True
 
     def seek(self, offset, whence=0):
+        """Move the logical position (``whence`` 0 and 1 only set it; 2 seeks the real file); returns the position."""
         if whence == 0:
             self._pos = offset
         elif whence == 1:
@@ -187,15 +196,19 @@ class GuardedFile(io.RawIOBase):
         return self._pos
 
     def tell(self):
+        """The logical position (bytes from the start of the file)."""
         return self._pos
 
     def readinto(self, b):
+        """Read into `b` from the logical position; returns the number of bytes read."""
         self._fh.seek(self._pos)
         n = self._fh.readinto(b) or 0
         self._pos += n
         return n
 
     def write(self, b):
+        """Write `b` at the logical position and report it all written; after a write error (kept in ``error``)
+        nothing more reaches the disk but the position still advances."""
         mv = memoryview(b).cast("B")
         n = len(mv)
         if self.error is None:
@@ -213,6 +226,7 @@ class GuardedFile(io.RawIOBase):
         return n
 
     def truncate(self, size=None):
+        """Truncate the file to `size` bytes (default: the logical position); an OSError is kept in ``error``."""
         size = self._pos if size is None else size
         if self.error is None:
             try:
@@ -222,6 +236,7 @@ class GuardedFile(io.RawIOBase):
         return size
 
     def flush(self):
+        """Nothing to do: the file is unbuffered (:meth:`sync` fsyncs it)."""
         pass
 
     def sync(self):
@@ -233,6 +248,7 @@ class GuardedFile(io.RawIOBase):
                 self.error = exc
 
     def close(self):
+        """Close the real file; an OSError is kept in ``error`` unless an earlier one already is."""
         try:
             self._fh.close()
         except OSError as exc:
@@ -267,6 +283,7 @@ class AtomicH5:
             raise
 
     def check(self):
+        """Raise a one-line UserError if a write to the temporary file has failed."""
         if self._file is not None and self._file.error is not None:
             raise UserError(write_error_message(self.what, self.path, self._file.error))
 
@@ -291,6 +308,7 @@ class AtomicH5:
         self._release()
 
     def abort(self):
+        """Close and remove the temporary file and release the lock (errors on closing ignored; idempotent)."""
         try:
             if self.f is not None:
                 self.f.close()

@@ -45,8 +45,12 @@ PATH_KEYS = (("input", "path"), ("navigation", "ephemeris"))
 
 
 def load_receiver_config(path=None, overrides=None) -> Section:
-    """The receiver config of YAML file ``path`` (None: the defaults) with ``--set`` overrides, validated
-    (one-line UserErrors)."""
+    """Load and validate a receiver configuration: the YAML file ``path`` (None: the defaults) merged over
+    the schema's defaults, then ``overrides`` applied (a list of ``(dotted_key, value)`` pairs, as
+    ``--set``).  ``path`` and the relative file names inside it are looked up as ``gnssrx run`` does
+    (current directory, then the checkout and the shipped files); a bad key or value raises
+    :class:`receiver.errors.UserError` naming it.  Plugins the config names extend the schema
+    (:func:`receiver_schema`)."""
     if path is not None:
         path = find_file(path)
     raw = read_yaml(path) if path is not None else {}

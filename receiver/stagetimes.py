@@ -18,6 +18,7 @@ _stack: list[list] = []          # [name, wall of the children, cpu of the child
 
 
 def reset() -> None:
+    """Forget all stage times (before a run)."""
     _wall.clear()
     _cpu.clear()
     _calls.clear()
@@ -26,6 +27,7 @@ def reset() -> None:
 
 @contextmanager
 def stage(name: str):
+    """Context manager: add the block's wall and process CPU time (s), less that of nested stages, to `name`."""
     w0, c0 = time.perf_counter(), time.process_time()
     _stack.append([name, 0.0, 0.0])
     try:
@@ -54,6 +56,8 @@ def table() -> dict[str, tuple[float, float, int]]:
 
 
 def text(total_wall: float | None = None, total_cpu: float | None = None) -> str:
+    """The stage table as aligned text (wall s, CPU s, calls), with the sum over the stages and, when given, the
+    whole process's totals."""
     rows = table()
     lines = [f"{'stage':<22} {'wall s':>8} {'CPU s':>8} {'calls':>6}"]
     for k, (w, c, n) in rows.items():

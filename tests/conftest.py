@@ -19,6 +19,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from repo_paths import ROOT, TOKYO_META, TOKYO_NAV, TOKYO_REC  # noqa: E402
 
+import receiver  # noqa: E402
+
+receiver.limit_blas_threads()          # as the command line (before numpy loads)
+from receiver.tracking import refresh_compiled_caches  # noqa: E402
+
+refresh_compiled_caches()              # a changed compiled callee: its callers compile again
+
 
 def _shared_tmp(tmp_path_factory) -> Path:
     """A directory every xdist worker of this session sees (the per-worker base's parent), or the

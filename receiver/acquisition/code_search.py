@@ -12,6 +12,9 @@ The row floor makes the test hold when a CW tone or a strong signal raises whole
 Then (receiver/pipeline.py ``acquire``): a verification dwell on the next independent block
 (:func:`verify`) and the rejection of cross-correlation images of stronger satellites at the same
 Doppler or at whole-kHz offsets (:func:`reject_cross_correlations`).
+
+Search, verification dwell and fine Doppler refinement stay in one module: they share the code spectra, the
+compiled power kernels and the detection statistic's helpers.
 """
 from __future__ import annotations
 
@@ -28,6 +31,9 @@ from ..threads import map_ordered, threads
 
 @dataclass
 class AcqResult:
+    """Outcome of the search for one PRN: detected or not, carrier Doppler (Hz), code phase (chips) of the signal
+    at file sample ``sample_index`` (the searched block's first), detection metrics, C/N0 estimate (dB-Hz),
+    why a peak was rejected and the verification dwell's result."""
     prn: int
     detected: bool
     doppler_hz: float          # carrier Doppler (fine if detected)

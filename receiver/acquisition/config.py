@@ -18,7 +18,7 @@ SIGNALS_SCHEMA = {
     "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
                              "every signal is acquired and tracked from the same input (input.if_hz is the IF "
                              "of the first; the others sit at if_hz + their carrier - the first's), and the "
-                             "fixes use all systems with an inter-system clock bias; README \"Multi-GNSS\""),
+                             "fixes use all systems with an inter-system clock bias (docs: BeiDou and multi-GNSS)"),
 }
 
 SCHEMA = {
@@ -34,7 +34,7 @@ SCHEMA = {
                          lo=1.0),
     "pfa": P(1e-3, "float", "false-alarm probability over one PRN's search grid", lo=1e-12, hi=0.5),
     "threshold": P(1.25, "float", "factor on the pfa-derived detection threshold: margin for the "
-                                  "non-Gaussian tail that strong signals' cross-correlation adds (README)",
+                                  "non-Gaussian tail that strong signals' cross-correlation adds (docs: Acquisition)",
                    lo=0.1),
     "start_s": P(0.0, "float", "time into the processed span where acquisition starts", lo=0.0),
     "width_ratio": P(0.3, "float", "a peak is rejected when the mean power 2-4 chips beside it, above "

@@ -19,7 +19,7 @@ searches the satellites it missed with
 Detections are confirmed by a verification dwell on the next independent block (same statistics, 3
 Doppler bins x +/- 1.5 chips) and rejected when they are cross-correlation images of a satellite found by
 the fast pass (C/N0 estimates compared, :func:`reject_images`).  The sensitivity of both passes is
-measured by ``scripts/acq_sensitivity.py`` (table in the README).
+measured by ``scripts/bench/acq_sensitivity.py`` (table in the README).
 """
 from __future__ import annotations
 

@@ -25,6 +25,8 @@ from ..gnss.signals import GPS_L1CA, sample_code
 
 @dataclass
 class HotResult:
+    """A detection of :func:`narrow_search`: Doppler (Hz) and code phase (chips) of the signal at file sample
+    ``sample_index``, the metric (peak / noise mean over the threshold, >= 1) and a C/N0 estimate (dB-Hz)."""
     prn: int
     doppler_hz: float
     code_phase_chips: float     # at sample_index

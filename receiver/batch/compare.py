@@ -58,6 +58,7 @@ def summary_rows(plan, results: dict) -> list:
 
 
 def columns_of(plan) -> list:
+    """Column order of a plan's summary table: run identity, the batch's set keys, status, metrics, tail columns."""
     return (list(ID_COLUMNS) + list(plan.batch.set_keys) + ["status", "executed"] + list(METRIC_KEYS)
             + list(TAIL_COLUMNS))
 

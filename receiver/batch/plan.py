@@ -31,7 +31,7 @@ from pathlib import Path
 from ..config import apply_overrides, read_yaml, search_bases
 from ..schema import build_receiver, used_plugins
 from ..errors import UserError
-from .config import REPO_ROOT, Batch
+from .config import Batch
 
 SIG_FULL_BYTES = 16 << 20
 SIG_PART_BYTES = 4 << 20

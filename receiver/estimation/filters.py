@@ -141,6 +141,7 @@ class KalmanFilter(_Base):
     """Linear Kalman filter: x_k = F x_{k-1} + w, z = H x + v."""
 
     def predict(self, F, Q=None, B=None, u=None):
+        """Time update x <- F x (+ B u), P <- F P F^T + Q; returns the predicted state."""
         F = np.asarray(F, float)
         self.x = F @ self.x
         if B is not None and u is not None:
@@ -149,6 +150,7 @@ class KalmanFilter(_Base):
         return self.x
 
     def update(self, z, H, R):
+        """Measurement update with z = H x + v (R: scalar, diagonal vector or matrix); returns the updated state."""
         H = np.atleast_2d(np.asarray(H, float))
         z = np.atleast_1d(np.asarray(z, float))
         return self._correct(z - H @ self.x, H, _cov(R, z.size))
@@ -158,6 +160,7 @@ class ExtendedKalmanFilter(_Base):
     """EKF: nonlinear f, h linearised at the current estimate (Jacobians F, H)."""
 
     def predict(self, f=None, F=None, Q=None):
+        """Time update x <- f(x) (F x when f is None), P <- F P F^T + Q with the Jacobian F; returns the state."""
         n = self.n
         Fm = np.eye(n) if F is None else _as_matrix(F, self.x)
         self.x = np.asarray(f(self.x), float) if f is not None else Fm @ self.x
@@ -165,6 +168,7 @@ class ExtendedKalmanFilter(_Base):
         return self.x
 
     def update(self, z, h, H, R):
+        """Measurement update, innovation z - h(x) (H x when h is None) with the Jacobian H; returns the state."""
         z = np.atleast_1d(np.asarray(z, float))
         Hm = np.atleast_2d(_as_matrix(H, self.x))
         zp = np.atleast_1d(np.asarray(h(self.x), float)) if h is not None else Hm @ self.x
@@ -191,6 +195,7 @@ class CubatureKalmanFilter(_Base):
         return x[None, :] + self.xi @ S.T
 
     def predict(self, f=None, Q=None):
+        """Time update through the cubature points of f (f None: state unchanged, P grows by Q); returns the state."""
         if f is None:                        # identity dynamics: mean unchanged, P grows by Q
             if Q is not None:
                 self._P = self._P + _cov(Q, self.n)
@@ -206,6 +211,7 @@ class CubatureKalmanFilter(_Base):
         return self.x
 
     def update(self, z, h, R):
+        """Measurement update through the cubature points of h (R: scalar, diagonal or matrix); returns the state."""
         z = np.atleast_1d(np.asarray(z, float))
         S = _chol(self._P)
         X = self.points(self.x, S)
@@ -246,6 +252,7 @@ class SquareRootCubatureKalmanFilter(CubatureKalmanFilter):
 
     @property
     def P(self) -> np.ndarray:
+        """Covariance S S^T (setting it stores a square root of the value)."""
         return self.S @ self.S.T
 
     @P.setter
@@ -253,6 +260,8 @@ class SquareRootCubatureKalmanFilter(CubatureKalmanFilter):
         self.S = _psd_sqrt(np.asarray(value, float), self.n)
 
     def predict(self, f=None, Q=None, SQ=None):
+        """Time update of x and the square root S through the cubature points of f (f None: S grows by SQ);
+        noise given as Q or its square root SQ.  Returns the predicted state; FilterDivergence if S is non-finite."""
         n = self.n
         SQ = _psd_sqrt(Q, n) if SQ is None else np.atleast_2d(np.asarray(SQ, float))
         if f is None:
@@ -268,6 +277,8 @@ class SquareRootCubatureKalmanFilter(CubatureKalmanFilter):
         return self.x
 
     def update(self, z, h, R=None, SR=None):
+        """Measurement update of x and S with the cubature points of h (noise as R or its square root SR);
+        returns the state; FilterDivergence on non-finite values."""
         z = np.atleast_1d(np.asarray(z, float))
         p = z.size
         SR = _psd_sqrt(R, p) if SR is None else np.atleast_2d(np.asarray(SR, float))

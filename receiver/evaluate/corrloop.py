@@ -1,7 +1,8 @@
 """The correlator-level simulator (receiver.sim.corrsim) closed around a carrier loop's compiled twin: every
-epoch of a run in one numba function.  The figure scripts (scripts/figures_carrier.py, figures_check.py) use
+epoch of a run in one numba function.  The figure scripts (scripts/figures/figures_carrier.py, figures_check.py) use
 it; corrsim.run (numpy per epoch, the Python loop's ``step``) stays the reference, and the two give the same
-records (tests/unit/tracking/test_corrsim_compiled.py: the same noise draw, the same arithmetic in the same order, numpy's
+records (tests/unit/tracking/test_corrsim_compiled.py: the same noise draw, the same arithmetic in the same order,
+numpy's
 pairwise sums included).  It lives in this top layer because it needs both the simulator's correlator model
 and the receiver's loops, and the simulator must not depend on the receiver stages."""
 from __future__ import annotations

@@ -286,6 +286,8 @@ def batch_metrics(rep: dict) -> dict:
 
 # ------------------------------------------------------------------------------------------ files
 def read_visibility(truth_h5) -> Visibility:
+    """The truth file's :class:`Visibility`: satellites visible per truth row and the blockage windows; a file
+    that is not a simulator truth file is a one-line UserError."""
     with TruthFile(truth_h5) as tf:
         if not (tf.has("receiver") and tf.has("satellites")):
             raise UserError(f"truth file {truth_h5} has no /receiver or /satellites group "
@@ -379,6 +381,7 @@ def report(run_h5, truth_h5, good_m: float = GOOD_M) -> dict:
 
 
 def has_outages(rep: dict) -> bool:
+    """True when an outage report (:func:`report`) has total-outage or urban-canyon results."""
     return rep.get("total") is not None or rep.get("canyon") is not None
 
 

@@ -103,6 +103,7 @@ def run_info(path) -> dict:
 
 
 def format_info(info: dict, show_config: bool = True) -> str:
+    """The :func:`run_info` dict as the text ``gnssrx info`` prints (the configuration too when ``show_config``)."""
     L = []
     add = L.append
     add(f"file            {info['file']} ({info['size_bytes'] / 1e6:.1f} MB)")

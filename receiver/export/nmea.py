@@ -44,6 +44,7 @@ def checksum(body: str) -> str:
 
 
 def sentence(body: str) -> str:
+    """``$body*hh``: the sentence with its checksum (no line end)."""
     return f"${body}*{checksum(body)}"
 
 
@@ -70,6 +71,8 @@ def _utc(run: RunData, week: int, tow: float):
 
 
 def gga(t, lat, lon, h, n_sats, hdop, talker="GP") -> str:
+    """GGA sentence: UTC time t (datetime), lat/lon (deg), ellipsoidal height h (m, geoid separation 0),
+    satellites used, HDOP."""
     la, ns = _latlon(lat, True)
     lo, ew = _latlon(lon, False)
     return sentence(f"{talker}GGA,{_hms(t)},{la},{ns},{lo},{ew},1,{min(int(n_sats), 99):02d},{_num(hdop, '.2f')},"
@@ -77,15 +80,18 @@ def gga(t, lat, lon, h, n_sats, hdop, talker="GP") -> str:
 
 
 def rmc(t, lat, lon, speed_mps, course_deg, talker="GP") -> str:
+    """RMC sentence: UTC time t (datetime), lat/lon (deg), speed over ground (m/s, written in knots) and course
+    (deg true); None leaves the field empty."""
     la, ns = _latlon(lat, True)
     lo, ew = _latlon(lon, False)
     spd = _num(speed_mps * KNOTS_PER_MPS if speed_mps is not None else None, ".3f")
     crs = _num(course_deg, ".2f")
-    return sentence(f"{talker}RMC,{_hms(t)},A,{la},{ns},{lo},{ew},{spd},{crs},{t.day:02d}{t.month:02d}{t.year % 100:02d},"
-                    f",,A")
+    date = f"{t.day:02d}{t.month:02d}{t.year % 100:02d}"
+    return sentence(f"{talker}RMC,{_hms(t)},A,{la},{ns},{lo},{ew},{spd},{crs},{date},,,A")
 
 
 def gsa(prns_used, pdop, hdop, vdop, talker="GP") -> str:
+    """GSA sentence (automatic, 3D fix): the first 12 of the sorted satellite IDs used, PDOP/HDOP/VDOP."""
     prns = [f"{int(p):02d}" for p in sorted(prns_used)[:12]]
     prns += [""] * (12 - len(prns))
     return sentence(f"{talker}GSA,A,3,{','.join(prns)},{_num(pdop, '.2f')},{_num(hdop, '.2f')},{_num(vdop, '.2f')}")
@@ -108,6 +114,8 @@ def gsv(sats, talker="GP") -> list:
 
 
 def nmea_lines(run: RunData) -> list:
+    """All sentences of a run without line ends: GGA, RMC, GSA and GSV for every fix with a finite position.
+    Fills the observables' missing azimuth/elevation in place (:meth:`RunData.fill_azel`)."""
     fx, obs = run.fixes, run.obs
     run.fill_azel()
     o_time = obs["time_s"] if len(obs) else np.zeros(0)
@@ -155,6 +163,7 @@ def nmea_lines(run: RunData) -> list:
 
 
 def write_nmea(path, run: RunData) -> dict:
+    """Write the run's sentences to `path` (CRLF line ends); returns {"sentences": count, "fixes": GGA count}."""
     lines = nmea_lines(run)
     with open(path, "w", newline="") as fh:
         fh.write("".join(ln + "\r\n" for ln in lines))

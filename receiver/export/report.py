@@ -8,6 +8,8 @@ the velocity itself), satellites used and DOP, and the receiver clock.  Periods 
 
 Channel records are reduced to at most ``MAX_POINTS`` time bins per channel (mean C/N0 and Doppler, the
 lock state), one channel at a time.
+
+One module for the report: its panels share the run's arrays and the layout.
 """
 from __future__ import annotations
 
@@ -222,7 +224,8 @@ def make_figure(run: RunData, truth=None, channels=None):
         ch = channels.get(p)
         if ch is None:
             continue
-        ax_cn0.plot(*_broken(ch["time_s"], ch["cn0"], ch["gap"]), lw=0.9, color=colors[p], label=sat_label(p, run.system))
+        ax_cn0.plot(*_broken(ch["time_s"], ch["cn0"], ch["gap"]), lw=0.9, color=colors[p],
+                    label=sat_label(p, run.system))
         ax_dop.plot(*_broken(ch["time_s"], ch["doppler"] / 1e3, ch["gap"]), lw=1.2, color=colors[p],
                     label=sat_label(p, run.system))
     _cn0_ylim(ax_cn0, channels)
@@ -254,7 +257,8 @@ def make_figure(run: RunData, truth=None, channels=None):
         ax_sky.plot(az, el, "-", color=colors.get(p, "k"), lw=2.5)
         ax_sky.plot(az[-1], el[-1], "o", ms=9, color=colors.get(p, "k"),
                     mfc=colors.get(p, "k") if used[-1] else "white", mew=1.8)
-        ax_sky.annotate(sat_label(p, run.system), (az[-1], el[-1]), textcoords="offset points", xytext=(6, 5), fontsize=9)
+        ax_sky.annotate(sat_label(p, run.system), (az[-1], el[-1]), textcoords="offset points", xytext=(6, 5),
+                        fontsize=9)
     ax_sky.plot([], [], "o", color="gray", label="used")
     ax_sky.plot([], [], "o", color="gray", mfc="white", label="not used")
     ax_sky.legend(loc="lower left", bbox_to_anchor=(-0.12, -0.12), fontsize=8, framealpha=0.85)

@@ -175,6 +175,8 @@ def nav_ephemerides(run: RunData) -> list:
 
 
 def write_nav(path, run: RunData) -> dict:
+    """Write the RINEX 3.04 navigation file of the ephemerides the fixes used, with the iono/UTC parameters; returns
+    {"ephemerides": count, "satellites": keys, "iono": written}.  ValueError when the run has none."""
     from ..gnss.rinex import write_rinex_nav
     ephs = nav_ephemerides(run)
     if not ephs:

@@ -35,6 +35,7 @@ def _iso(run: RunData, week, tow) -> str:
 
 
 def kml_text(run: RunData) -> str:
+    """KML 2.2 document of the run's fixes: the track line and one point placemark per fix (ellipsoidal heights)."""
     pts = _points(run)
     name = escape(run.name)
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
@@ -71,6 +72,7 @@ def _f(v, fmt):
 
 
 def gpx_text(run: RunData) -> str:
+    """GPX 1.1 document of the run's fixes: one track segment, ``ele`` the ellipsoidal height, times in UTC."""
     pts = _points(run)
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            f'<gpx version="1.1" creator="gnssrx {escape(__version__)}" '
@@ -100,6 +102,7 @@ def gpx_text(run: RunData) -> str:
 
 
 def write_kml(path, run: RunData) -> dict:
+    """Write the KML track to `path`; returns {"points": number of fixes written}."""
     text = kml_text(run)
     with open(path, "w", encoding="utf-8") as fh:
         fh.write(text)
@@ -107,6 +110,7 @@ def write_kml(path, run: RunData) -> dict:
 
 
 def write_gpx(path, run: RunData) -> dict:
+    """Write the GPX track to `path`; returns {"points": number of fixes written}."""
     text = gpx_text(run)
     with open(path, "w", encoding="utf-8") as fh:
         fh.write(text)

@@ -24,7 +24,8 @@ GPS_PI = 3.1415926535898
 # printed there (4 significant digits; the broadcast integers behind them are alpha 13, -1, -1, 2 x 2^-30,
 # 2^-27, 2^-24, 2^-24 and beta 57, -15, -1, 17 x 2^11, 2^14, 2^16, 2^16, within 0.1 %).  One day's set
 # (moderate solar activity, early 2022); on other days it describes the ionosphere less well than that day's
-# broadcast set.  tests/unit/navigation/test_navigation_iono.py checks these values against the file when ../shared is there.
+# broadcast set.  tests/unit/navigation/test_navigation_iono.py checks these values against the file when ../shared is
+# there.
 FALLBACK_KLOBUCHAR_ALPHA = (0.1211e-07, -0.7451e-08, -0.5960e-07, 0.1192e-06)      # s, s/sc, s/sc^2, s/sc^3
 FALLBACK_KLOBUCHAR_BETA = (0.1167e+06, -0.2458e+06, -0.6554e+05, 0.1114e+07)       # s, s/sc, s/sc^2, s/sc^3
 FALLBACK_KLOBUCHAR_SOURCE = "brdc0010.22n (GPS broadcast, 2022-01-01)"

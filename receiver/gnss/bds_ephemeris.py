@@ -47,6 +47,7 @@ class BdsEphemeris(Ephemeris):
 
     @property
     def geo(self) -> bool:
+        """True for a GEO satellite (PRN 1-5, 59-63: the GEO orbit case of ICD 5.2.4.12)."""
         return self.prn in GEO_PRNS
 
     @staticmethod

@@ -25,6 +25,9 @@ the ICD tables).  Scale factors (LSBs) are the ICD's.
 
 Time: BDT = GPST - 14 s; BDT week 0 began at GPS week 1356 (2006-01-01).  Decoded SOW values are turned
 into GPS time of week for the navigation engine.
+
+D1 and D2 stay in one module: their BCH coding, interleaving, page layouts and scale factors are one ICD
+chapter, shared by the encoder (the simulator's) and the decoder.
 """
 from __future__ import annotations
 
@@ -101,6 +104,7 @@ EPH_LSB = {
 
 
 def d2_page_fields(page: int):
+    """Field layout (name, bits, LSB, signed) of D2 subframe 1, page `page`: head, Pnum, then the page's fields."""
     return _HEAD + [("pnum", 4, 1, False)] + D2_PAGES[page]
 
 
@@ -228,7 +232,7 @@ def _unpack(layout, info) -> dict:
 
 def _join(parts_hi, parts_lo, base):
     nn, lsb, signed = SPLIT[base]
-    (hi, nh), (lo, nl) = parts_hi, parts_lo
+    (hi, _), (lo, nl) = parts_hi, parts_lo
     raw = (hi << nl) | lo
     if signed and raw >> (nn - 1):
         raw -= 1 << nn
@@ -288,11 +292,15 @@ def gps_from_bdt(bdt_week: int, sow: float) -> tuple[int, float]:
 
 
 def d1_subframe(values: dict, fraid: int, sow: int, page: int = 1) -> np.ndarray:
+    """The 300 transmitted bits of D1 subframe `fraid` at SOW `sow` (s) from the broadcast `values` (field name ->
+    value in ICD units, see :func:`eph_values`); subframes 4 and 5 carry only page number `page`."""
     layout = {1: D1_SF1, 2: D1_SF2, 3: D1_SF3}.get(fraid, D1_SF45)
     return encode_words(_pack(layout, {**values, "fraid": fraid, "sow": sow, "pnum": page}))
 
 
 def d2_subframe(values: dict, fraid: int, sow: int, page: int) -> np.ndarray:
+    """The 300 transmitted bits of D2 subframe `fraid`, page `page`, at SOW `sow` (s) from the broadcast
+    `values` (as for :func:`d1_subframe`); subframes 2-5 carry only the page number."""
     layout = d2_page_fields(page) if fraid == 1 else _HEAD + [("pnum", 4, 1, False)]
     return encode_words(_pack(layout, {**values, "fraid": fraid, "sow": sow, "pnum": page}))
 
@@ -401,9 +409,12 @@ class BdsDecoder:
 
     @property
     def ephemerides_held(self) -> int:
+        """Number of suspect ephemeris sets held for a second reception so far."""
         return self._held.count
 
     def feed(self, bits, first_bit_index: int) -> list:
+        """Add bits (D1) or symbols (D2), soft or hard, starting at index `first_bit_index`; returns the events
+        decoded from them.  A gap drops the buffer and frame sync."""
         hard = hard_bits(bits)
         if self._next is not None and first_bit_index != self._next:
             self._bits = np.zeros(0, np.uint8)        # gap: start over (sync kept only with continuity)

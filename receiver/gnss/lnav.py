@@ -9,6 +9,9 @@ Bit conventions
   polarity itself from the preamble.
 * Words 2 (HOW) and 10 of every subframe end with D29 = D30 = 0 (the two "t" bits solved),
   so the TLM word of the next subframe is always sent with D30* = 0.
+
+The whole LNAV message stays in one module: the parity, the encoder (the simulator's) and the decoder share
+the word layouts and scale factors of IS-GPS-200, and each would import the others' tables.
 """
 from __future__ import annotations
 
@@ -99,6 +102,7 @@ def int_to_bits(value: int, n: int) -> np.ndarray:
 
 
 def bits_to_int(bits) -> int:
+    """Integer of a 0/1 bit sequence, first bit most significant."""
     v = 0
     for b in np.asarray(bits, dtype=np.uint8).ravel():
         v = (v << 1) | int(b)
@@ -482,6 +486,7 @@ class HeldSet:
         self.count = 0
 
     def offer(self, eph, src, same) -> bool:
+        """True when `eph` may be used now (see the class docstring); otherwise it is held or kept waiting."""
         if self.eph is None or not same(self.eph, eph):
             self.eph, self.src = eph, max(src)
             self.count += 1
@@ -489,6 +494,7 @@ class HeldSet:
         return min(src) > self.src
 
     def clear(self) -> None:
+        """Forget the held set (once a set is used)."""
         self.eph = None
 
 
@@ -555,10 +561,13 @@ class LnavDecoder:
 
     @property
     def ephemerides_held(self) -> int:
+        """Number of suspect ephemeris sets held for a second reception so far."""
         return self._held.count
 
     # -- input ---------------------------------------------------------------------------
     def feed(self, bits, first_bit_index: int) -> list:
+        """Add bits (soft or hard) starting at bit index `first_bit_index`; returns the events decoded from them.
+        Bits already fed are dropped; a gap restarts the buffer (in frame sync the subframe grid is kept)."""
         hard = hard_bits(bits)
         first = int(first_bit_index)
         if self._next is not None and first != self._next:

@@ -32,6 +32,7 @@ def ura_index_from_m(ura_m: float) -> int:
 
 
 def ura_m_from_index(idx: int) -> float:
+    """Nominal URA (m) of a 4-bit URA index (clipped to 0..15), the value written to RINEX."""
     return _URA_NOMINAL[min(max(int(idx), 0), 15)]
 
 

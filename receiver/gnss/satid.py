@@ -3,7 +3,8 @@
 A run over one signal keys its channels by the signal's PRN numbers (``SignalDef.prns``); a run over several
 signals (``signals: [gps_l1ca, bds_b1i]``, run-file ``system`` ``M``) by satellite keys (:func:`sat_key`).
 The L1 C/A signal carries GPS (PRN 1..32) and QZSS (PRN 193..202) satellites: QZSS PRN 193 is RINEX
-``J01`` (PRN - 192).  BeiDou B1I PRNs are ``Cnn``; in an epoch combining systems BeiDou PRN p is 400 + p.  ``system`` is the signal's RINEX letter
+``J01`` (PRN - 192).  BeiDou B1I PRNs are ``Cnn``; in an epoch combining systems BeiDou PRN p is 400 + p.  ``system``
+is the signal's RINEX letter
 (``SignalDef.system``).
 """
 from __future__ import annotations

@@ -101,10 +101,13 @@ def nh_signs() -> np.ndarray:
 
 
 def is_geo(prn: int) -> bool:
+    """True for the GEO satellites (PRN 1-5, 59-63): D2 message at 500 bps, no NH code."""
     return prn in B1I_GEO_PRNS
 
 
 class B1ISignal(SignalDef):
+    """BeiDou B1I (``bds_b1i``, system C): 2046-chip code at 2.046 Mcps on 1561.098 MHz; MEO/IGSO send D1
+    under the NH code, GEO satellites D2."""
     name = "bds_b1i"
     system = "C"
     carrier_hz = B1I_HZ
@@ -113,12 +116,15 @@ class B1ISignal(SignalDef):
     prns = B1I_PRNS
 
     def code(self, prn: int) -> np.ndarray:
+        """B1I ranging code of `prn` as +/-1 float32 chips."""
         return b1i_code(prn)
 
     def bit_ms(self, prn: int) -> int:
+        """Data bit length (ms): 20 for D1, 2 for D2 (GEO)."""
         return D2_BIT_MS if is_geo(prn) else D1_BIT_MS
 
     def secondary(self, prn: int):
+        """The NH code (+/-1 per 1-ms code period, 20 long) for MEO/IGSO; None for GEO."""
         return None if is_geo(prn) else nh_signs()
 
 

@@ -118,6 +118,8 @@ def _check_times(section, prefix):
 
 
 def load_scenario(path=None, overrides=None):
+    """The ``gnssrx leo simulate`` scenario (SCENARIO_SCHEMA) from a YAML file (None: defaults) and overrides;
+    invalid keys or times are a one-line UserError."""
     cfg = build(SCENARIO_SCHEMA, read_yaml(path) if path is not None else {}, overrides)
     _check_times(cfg.time, "time")
     if to_datetime64(cfg.time.stop_utc) < to_datetime64(cfg.time.start_utc):
@@ -126,6 +128,8 @@ def load_scenario(path=None, overrides=None):
 
 
 def load_fix_config(path=None, overrides=None):
+    """The ``gnssrx leo fix`` configuration (FIX_SCHEMA) from a YAML file (None: defaults) and overrides, checked
+    (times, ``leo.init_lla`` for a given initial value, GeoSOT levels); errors are one-line UserErrors."""
     cfg = build(FIX_SCHEMA, read_yaml(path) if path is not None else {}, overrides)
     _check_times(cfg.leo, "leo")
     if cfg.leo.init == "given":

@@ -262,6 +262,8 @@ def parse_tle_text(text: str, source: str = "<text>") -> list[tuple[str, str, st
 
 
 def read_tle_file(path) -> list[tuple[str, str, str]]:
+    """(name, line1, line2) of every satellite in a TLE file (checksums validated); a missing or non-ASCII file is
+    a one-line UserError."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise UserError(f"TLE file not found: {path}")
@@ -301,6 +303,7 @@ class Constellation:
 
     @classmethod
     def from_file(cls, path=None) -> "Constellation":
+        """The constellation of a TLE file (default: the synthetic Iridium-like set shipped with the package)."""
         return cls(read_tle_file(path or default_tle_path()))
 
     def __len__(self):
@@ -308,6 +311,7 @@ class Constellation:
 
     @property
     def satnums(self) -> np.ndarray:
+        """NORAD catalogue numbers of the satellites, in order."""
         return np.array([s.satnum for s in self.satrecs])
 
     def propagate_teme(self, times):

@@ -102,10 +102,12 @@ class DopplerData:
 
     @property
     def n_epochs(self) -> int:
+        """Number of epochs T."""
         return len(self.t_s)
 
     @property
     def observed(self) -> np.ndarray:
+        """(T, N) mask of the satellites observed at each epoch (finite Doppler)."""
         return np.isfinite(self.doppler_hz)
 
     def epoch(self, k: int):
@@ -119,6 +121,7 @@ class DopplerData:
         return k, self.sat_pos[k, j], self.sat_vel[k, j], self.doppler_hz[k, j]
 
     def with_doppler(self, doppler_hz) -> "DopplerData":
+        """A copy with the Doppler measurements (T, N; Hz, NaN = not observed) replaced."""
         return replace(self, doppler_hz=np.asarray(doppler_hz, float))
 
     def window(self, start_utc=None, stop_utc=None, step_s=None) -> "DopplerData":
@@ -149,6 +152,7 @@ class DopplerData:
 # Simulation
 # --------------------------------------------------------------------------------------------------
 def epoch_times(start_utc, stop_utc, step_s) -> np.ndarray:
+    """UTC epochs from start to stop (inclusive when on the grid) every step_s seconds, datetime64[us]."""
     t0, t1 = to_datetime64(start_utc), to_datetime64(stop_utc)
     if t1 < t0:
         raise UserError("time.stop_utc must not be before time.start_utc")
@@ -233,6 +237,8 @@ def save_measurements(path, data: DopplerData):
 
 
 def load_measurements(path) -> DopplerData:
+    """Read a measurement file written by :func:`save_measurements` (with its truth when present); a missing or
+    malformed file is a one-line UserError."""
     path = os.fspath(path)
     f = open_h5(path, "measurement file")
     with f:

@@ -132,21 +132,25 @@ class Cells:
     lon_p: np.ndarray
 
     def extents(self):
+        """(lat_lo, lat_hi, lon_lo, lon_hi, valid) of every cell, real degrees clipped to +-90 / +-180."""
         la0, la1, vla = prefix_extent(self.lat_p, self.level, 90.0)
         lo0, lo1, vlo = prefix_extent(self.lon_p, self.level, 180.0)
         return la0, la1, lo0, lo1, vla & vlo
 
     def centres(self):
+        """(lat, lon) of the cell centres, deg."""
         la0, la1, lo0, lo1, _ = self.extents()
         return 0.5 * (la0 + la1), 0.5 * (lo0 + lo1)
 
     def children(self) -> "Cells":
+        """The four level + 1 children of every cell (only those that exist)."""
         lat = (self.lat_p[:, None] << 1) | np.array([0, 0, 1, 1])[None, :]
         lon = (self.lon_p[:, None] << 1) | np.array([0, 1, 0, 1])[None, :]
         c = Cells(self.level + 1, lat.ravel(), lon.ravel())
         return c.valid_only()
 
     def valid_only(self) -> "Cells":
+        """The cells that exist (minutes and seconds < 60, inside +-90 / +-180 deg)."""
         v = self.extents()[4]
         return Cells(self.level, self.lat_p[v], self.lon_p[v])
 
@@ -221,6 +225,9 @@ def _region_boxes(sat_pos, mask_deg, margin_deg):
 
 @dataclass
 class GridResult:
+    """Result of :func:`grid_search`: centre of the best cell (deg, deg, m and ECEF m), the fitted receiver
+    frequency offset (Hz), the cell's level and prefixes, its cost ||Y||_2 (Hz), the cell diagonal (m), the
+    number of cells evaluated and per level the centres and costs searched."""
     lat_deg: float
     lon_deg: float
     height_m: float
@@ -236,6 +243,7 @@ class GridResult:
 
     @property
     def code(self) -> str:
+        """GeoSOT code of the best cell ('G' + one base-4 digit per level)."""
         return quadtree_code(self.lat_prefix, self.lon_prefix, self.level)
 
 

@@ -37,6 +37,8 @@ DEFAULT_SETTINGS = dict(sigma_hz=0.5, sigma_d2_m2=10.0, sf_hz2_per_s=0.01, init_
 
 @dataclass
 class SolveResult:
+    """Output of one solver: the state [x, y, z (ECEF m), f_u (Hz)] after every epoch (T, 4), the filter
+    covariances (T, 4, 4; None for lsm), the run time (s) and, on failure, the reason."""
     method: str
     estimates: np.ndarray            # (T, 4) state after each epoch (NaN after a failure)
     covariances: np.ndarray | None   # (T, 4, 4) filter covariance (None for lsm)
@@ -46,6 +48,7 @@ class SolveResult:
 
     @property
     def final(self) -> np.ndarray:
+        """The state [x, y, z, f_u] after the last epoch (ECEF m, Hz)."""
         return self.estimates[-1]
 
 
@@ -68,10 +71,12 @@ def initial_state(data: DopplerData, start_level=9, end_level=18, keep=32, heigh
 
 
 def earth_center_state() -> np.ndarray:
+    """The Earth's centre with no frequency offset, [0, 0, 0, 0]: the uninformed initial value."""
     return np.zeros(4)
 
 
 def given_state(lat_deg, lon_deg, h_m, f_u=0.0) -> np.ndarray:
+    """The state [x, y, z (ECEF m), f_u (Hz)] at a given latitude/longitude (deg) and ellipsoidal height (m)."""
     return np.r_[lla2ecef(lat_deg, lon_deg, h_m), f_u]
 
 
@@ -191,6 +196,8 @@ def solve_filter(data: DopplerData, x0, method: str, settings=None) -> SolveResu
 
 
 def solve(data: DopplerData, method: str, x0, settings=None) -> SolveResult:
+    """Run one of :data:`METHODS` (``lsm``, ``ekf``, ``ckf``, ``sqrt_ckf``) from the initial state x0; an
+    unknown name is a UserError."""
     if method == "lsm":
         return solve_lsm(data, x0, settings)
     if method in ("ekf", "ckf", "sqrt_ckf"):

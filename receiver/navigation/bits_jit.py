@@ -1,11 +1,12 @@
-"""Compiled per-bit prompt sums of a channel's records (receiver.navigation.engine.ChannelNav.add).
+"""Compiled per-bit prompt sums of a channel's records (receiver.navigation.channel.ChannelNav.add).
 
 :func:`bit_segments` returns, for the bit-synchronised records of one chunk, the bit index of each run of
 records, the prompt sums over the bit's first and second 10-ms halves, the integration time and whether
 a frequency-locked epoch is among them: what ``add`` computed with ~25 numpy calls per chunk and channel.
 The sums are numpy's own: ``np.add.reduceat`` adds a segment's first element to the pairwise sum of the
 rest (numpy's pairwise summation: 8 partial sums below 128 elements, halving above), and so does
-:func:`_segment_sum`, so the values are bit-identical (tests/unit/navigation/test_navigation_bits_jit.py).  Self-contained
+:func:`_segment_sum`, so the values are bit-identical (tests/unit/navigation/test_navigation_bits_jit.py).
+Self-contained
 for numba's on-disk cache.
 
 The entry point keeps the GIL (no ``nogil``), as do the other small compiled navigation kernels

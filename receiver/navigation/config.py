@@ -71,7 +71,7 @@ SCHEMA = {
     "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                      lo=0.0),
     "aiding": {
-        "enabled": P(True, "bool", "clock/height-aided fixes (README \"Aided fixes\"): an epoch with at most "
+        "enabled": P(True, "bool", "clock/height-aided fixes (docs: Navigation, aided fixes): an epoch with at most "
                                    "max_sats satellites, or whose unaided fix is refused (max_pdop), is "
                                    "solved with the receiver clock bias and height predicted from the "
                                    "unaided fixes of the last second as extra measurements; 3 satellites "

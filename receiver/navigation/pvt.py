@@ -1,4 +1,4 @@
-"""Single-point positioning: iterative weighted least squares on L1 C/A pseudoranges,
+"""Single-point positioning: iterative weighted least squares on code pseudoranges (GPS, QZSS, BeiDou),
 velocity and clock drift from Doppler.
 
 Measurement model (all in metres):
@@ -7,6 +7,9 @@ Measurement model (all in metres):
 where r_sv is the satellite position at the true transmit time tx_tow - dt_sv, R(tau) the
 Earth-rotation (Sagnac) correction over the travel time tau, I and T the ionospheric and
 tropospheric delays and b the receiver clock bias (c times the receiver clock error).
+
+The solver, its weighting models and its aiding constraints stay in one module: they are one measurement model
+and one least-squares iteration.
 """
 from __future__ import annotations
 

@@ -16,7 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
-# literals (numba freezes globals into the cached code; tests/unit/navigation/test_navigation_wls_jit.py checks them against
+# literals (numba freezes globals into the cached code; tests/unit/navigation/test_navigation_wls_jit.py checks them
+# against
 # receiver.gnss.signals / atmosphere)
 C_LIGHT = 299792458.0
 OMEGA_E = 7.2921151467e-5

@@ -82,6 +82,8 @@ class BackgroundWriter:
         return getattr(self._w, name)
 
     def close(self, ok: bool = True):
+        """Finish the run file (ok: write what is pending, then the writer's close renames it to the final name;
+        not ok or a failure: drop the pending appends and remove the temporary file); stops the thread."""
         try:
             if ok:
                 self.flush()

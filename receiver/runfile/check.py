@@ -77,7 +77,7 @@ def _check_attrs(obj, path: str, names, what: str):
 
 
 def check_run_file(f, path: str):
-    """Validate the dataset types and shapes of an open gnssrx run file (see the README schema)."""
+    """Validate the dataset types and shapes of an open gnssrx run file (see docs/reference/runfile-format.md)."""
     import h5py
     tables, epoch = _run_tables()
     what = "not a valid gnssrx run file"

@@ -21,8 +21,8 @@ SCHEMA = {
                                      "none; both with the shuffle filter", choices=tuple(COMPRESSION)),
     "round_columns": P(True, "bool", "store the channel columns doppler_hz, code_rate_hz and "
                                      "code_phase_chips rounded to 1e-3 Hz, 1e-5 chip/s and 1e-7 chip "
-                                     "(HDF5 scale-offset filter; far below their noise, README \"HDF5 run "
-                                     "file\"); false: exact float64"),
+                                     "(HDF5 scale-offset filter; far below their noise, docs: Run-file "
+                                     "format); false: exact float64"),
     "channel_rate_hz": P(None, "float", "store the /channels records at most at this rate (the first epoch "
                                         "of every 1/rate interval; empty: every epoch).  Per-channel "
                                         "statistics (lock losses, locked epochs, mean C/N0) are computed "

@@ -15,6 +15,7 @@ HASH_BYTES = 1 << 20
 
 
 def package_versions() -> str:
+    """Installed versions of the :data:`PACKAGES` as a JSON object ('absent' for a package not installed)."""
     out = {}
     for p in PACKAGES:
         try:
@@ -40,6 +41,7 @@ def git_commit() -> str:
 
 
 def input_provenance(path) -> dict:
+    """Size (bytes) and SHA-256 of the first MB of the input file, as run-file attributes."""
     with open(path, "rb") as fh:
         head = fh.read(HASH_BYTES)
     return {"input_size_bytes": os.path.getsize(path),
@@ -47,6 +49,7 @@ def input_provenance(path) -> dict:
 
 
 def provenance(input_path) -> dict:
+    """All provenance attributes of a run: package versions, git commit, input size and hash."""
     return {"package_versions": package_versions(), "git_commit": git_commit(), **input_provenance(input_path)}
 
 

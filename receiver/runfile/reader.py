@@ -16,6 +16,9 @@ prompt correlator outputs of ``/channels``.
 GPS week/seconds become UTC with the leap seconds broadcast in the message (or the table in
 :mod:`receiver.gnss.time` when they were not decoded).  The simulator's truth file has its own reader,
 :mod:`receiver.runfile.truth`.
+
+The module is the one place that opens run files for reading (every consumer goes through :class:`RunFile`),
+so its size follows the file's layout.
 """
 from __future__ import annotations
 
@@ -76,12 +79,14 @@ class H5Input:
         self.close()
 
     def close(self):
+        """Close the HDF5 file; calling it again does nothing."""
         if self.f is not None:
             self.f.close()
             self.f = None
 
     @property
     def attrs(self) -> dict:
+        """Root attributes of the file as a dict (bytes decoded to str)."""
         return {k: _plain(v) for k, v in self.f.attrs.items()}
 
 
@@ -109,12 +114,15 @@ class RunFile(H5Input):
         return str(_plain(self.f.attrs.get("system", "G")))
 
     def has(self, path: str) -> bool:
+        """True when the file has a group or dataset at `path`."""
         return path in self.f
 
     def groups(self) -> list[str]:
+        """Names of the file's top-level groups and datasets."""
         return list(self.f.keys())
 
     def is_run_file(self) -> bool:
+        """True when the file looks like a run file (a ``config`` attribute, ``/navigation`` or ``/channels``)."""
         return "config" in self.f.attrs or "navigation" in self.f or "channels" in self.f
 
     def datasets(self) -> list[tuple[str, tuple, np.dtype]]:
@@ -163,6 +171,7 @@ class RunFile(H5Input):
         return _table(self.f["observables"], OBS_DTYPE) if "observables" in self.f else np.zeros(0, OBS_DTYPE)
 
     def observable_columns(self, names=None) -> dict:
+        """``/observables`` columns as a dict (only the ones present; {} when the run has none)."""
         return self.columns("observables", names)
 
     def vector_log(self, names=None, step: int = 1) -> dict | None:
@@ -172,6 +181,7 @@ class RunFile(H5Input):
         return self.columns("vector", names, step)
 
     def acquisition(self, names=None) -> dict:
+        """``/acquisition`` columns as a dict (only the ones present; {} when the run has none)."""
         return self.columns("acquisition", names)
 
     def ephemerides(self) -> list:
@@ -180,17 +190,21 @@ class RunFile(H5Input):
         return [e for g in ("ephemeris", "ephemeris_bds") if g in self.f for e in _ephemerides(self.f[g])]
 
     def iono_utc_attrs(self) -> dict | None:
+        """Attributes of the ``/iono_utc`` group (named like the IonoUtc fields), or None when the file has none."""
         return self.group_attrs("iono_utc")
 
     # ---------------------------------------------------------------------------------- channels
     def channel_names(self) -> list[str]:
+        """Names of the ``/channels`` groups (satellite labels such as ``G05``); [] when the run has none."""
         return list(self.f["channels"].keys()) if "channels" in self.f else []
 
     def channel_prn(self, name: str) -> int:
+        """PRN of one channel group: its ``prn`` attribute, else the digits of its name (0 when there are none)."""
         g = self.f["channels"][name]
         return int(g.attrs.get("prn", int(name[1:]) if name[1:].isdigit() else 0))
 
     def channel_length(self, name: str) -> int:
+        """Number of epoch records stored for one channel."""
         return self.length(f"channels/{name}")
 
     def channel(self, name: str, names=None, step: int = 1) -> dict:
@@ -200,6 +214,9 @@ class RunFile(H5Input):
 
 @dataclass
 class RunData:
+    """One run file loaded by :func:`load_run`: root attributes, parsed configuration, the fix table (FIX_DTYPE),
+    the observables (OBS_DTYPE), the stored ephemerides and the top-level group names; the iono/UTC parameters
+    and the ephemerides decoded from the channel records are derived on first use (and cached)."""
     path: str
     attrs: dict
     config: dict
@@ -214,13 +231,16 @@ class RunData:
 
     @property
     def stem(self) -> str:
+        """The run file's path without its extension."""
         return os.path.splitext(self.path)[0]
 
     @property
     def name(self) -> str:
+        """The run file's name without directory and extension."""
         return os.path.splitext(os.path.basename(self.path))[0]
 
     def cfg(self, dotted: str, default=None):
+        """Configuration value at a dotted key (e.g. ``"navigation.ephemeris"``), or `default` when absent."""
         node = self.config
         for part in dotted.split("."):
             if not isinstance(node, dict) or part not in node:
@@ -230,6 +250,7 @@ class RunData:
 
     @property
     def assisted(self) -> bool:
+        """True for a run assisted by a RINEX navigation file (``navigation.ephemeris`` set)."""
         return bool(self.cfg("navigation.ephemeris"))
 
     @property
@@ -295,6 +316,7 @@ class RunData:
         return self._decoded
 
     def leap_seconds(self) -> int:
+        """GPS-UTC leap seconds (s): the broadcast value when decoded, else the table's at the first fix (or now)."""
         io = self.iono()
         if io is not None and io.dt_ls:
             return int(io.dt_ls)
@@ -303,6 +325,7 @@ class RunData:
         return leap_seconds_at(_dt.datetime.utcnow())
 
     def utc(self, week: int, tow: float) -> _dt.datetime:
+        """UTC time of a GPS week and time of week (s), with :meth:`leap_seconds`."""
         return gps_datetime(week, tow) - _dt.timedelta(seconds=self.leap_seconds())
 
     # ----------------------------------------------------------------------------- derived

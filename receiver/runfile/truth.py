@@ -2,7 +2,7 @@
 :mod:`receiver.sim.simulate`) and of static truth YAML, the interpolation of truth to fix times, and the one
 carrier-phase-error computation of a tracked channel against the truth.
 
-Truth file layout (see README): attributes (``gps_week``, ``start_gps_tow_s``, ``sample_rate_hz``, ...);
+Truth file layout (docs/reference/runfile-format.md): attributes (``gps_week``, ``start_gps_tow_s``, ...);
 ``/receiver`` (``time_s`` since the first sample, ``gps_tow``, ``ecef``, ``velocity_ecef``, ``clock_bias_m``,
 ``clock_drift_mps``); ``/satellites/Gnn`` per PRN (``time_s``, ``carrier_phase_cycles``, ``doppler_hz``,
 ``pseudorange_m``, ``visible``, ...); optional ``/blockage``.

@@ -1,4 +1,4 @@
-"""HDF5 run file: one self-describing file per run (schema in README.md).
+"""HDF5 run file: one self-describing file per run (schema in docs/reference/runfile-format.md).
 
 The file is written under a temporary name and renamed when the run finishes; a failed run leaves no
 output file behind.  Per-channel datasets are appended chunk by chunk, so memory does not grow with the
@@ -49,7 +49,8 @@ def chunk_rows_for(duration_s: float | None, channel_rate_hz: float | None = Non
 
 #: /channels columns stored rounded to 10**-digits of their unit by the HDF5 scale-offset filter (the
 #: dataset stays float64; every HDF5 reader undoes the filter).  The rounding step is far below each
-#: column's noise (README "HDF5 run file"; tests/unit/runfile/test_runfile_storage.py checks it on the reference run):
+#: column's noise (docs/how-it-works/runfile.md; tests/unit/runfile/test_runfile_storage.py checks it on the
+#: reference run):
 #: doppler_hz 1e-3 Hz, code_rate_hz 1e-5 chip/s, code_phase_chips 1e-7 chip.  A chunk holding a NaN or
 #: Inf is stored unrounded (the filter declines it), so non-finite values survive.
 ROUNDED_DIGITS = {"doppler_hz": 3, "code_rate_hz": 5, "code_phase_chips": 7}

@@ -1,4 +1,4 @@
-"""Truth-tagged GPS L1 C/A IF simulator (``gnssrx simulate scenario.yaml``).
+"""Truth-tagged IF simulator of GPS L1 C/A, QZSS and BeiDou B1I signals (``gnssrx simulate scenario.yaml``).
 
 Entry point: :func:`receiver.sim.simulate.simulate`.  Modules: scenario (schema, loading),
 constellation (RINEX or the embedded nominal constellation -> Ephemeris), trajectory, clock (bias, drift,

@@ -25,6 +25,8 @@ def _wrap(x):
 
 
 def bds_nominal_ephemerides(path, gps_week: int, gps_tow: float) -> tuple[dict, IonoUtc]:
+    """(prn -> BdsEphemeris, IonoUtc) of the nominal BeiDou constellation file, re-epoched to the scenario's start
+    (GPS week and seconds of week) in BDT and quantised to the broadcast LSBs; a bad file is a UserError."""
     raw = read_yaml(path)
     sats = raw.get("satellites")
     if not isinstance(sats, list) or not sats:
@@ -57,6 +59,7 @@ def bds_nominal_ephemerides(path, gps_week: int, gps_tow: float) -> tuple[dict, 
 
 
 def source_name(path, kind="bds_nominal") -> str:
+    """Label of the ephemeris source for the truth file: ``<kind>:<file name>``."""
     return f"{kind}:{os.path.basename(path)}"
 
 

@@ -73,10 +73,12 @@ def parse_outages(raw):
 
 
 def parse_total(raw):
+    """``blockage.total`` -> [(start_s, end_s), ...]; a malformed entry is a one-line UserError."""
     return [_window(item, f"blockage.total[{i}]", {"start_s", "end_s"}) for i, item in enumerate(raw or [])]
 
 
 def parse_visible_count(raw):
+    """``blockage.visible_count`` -> [(t_s, n), ...] sorted by time; a malformed entry is a one-line UserError."""
     rows = []
     for i, item in enumerate(raw or []):
         try:

@@ -20,11 +20,12 @@ import click
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="override a scenario key")
 @click.option("--quiet", "-q", is_flag=True, help="no progress bar or summary")
 def simulate(scenario, out, sets, quiet):
-    """Simulate a GPS L1 C/A IF recording with truth from a SCENARIO YAML file."""
+    """Simulate an IF recording (GPS L1 C/A, QZSS, BeiDou B1I) with truth from a SCENARIO YAML file."""
     from .simulate import simulate as run_sim
     if out is None:
         out = os.path.splitext(os.path.basename(scenario))[0] + ".bin"
-    paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet and sys.stderr.isatty())   # no bar off a terminal
+    # (no progress bar off a terminal)
+    paths = run_sim(scenario, out, overrides=list(sets), progress=not quiet and sys.stderr.isatty())
     if not quiet:
         from ..runfile.truth import TruthFile
         with TruthFile(paths["truth"]) as tf:

@@ -32,6 +32,10 @@ G0 = 9.80665
 
 @dataclass
 class CorrScenario:
+    """One correlator-level scenario: duration (s), coherent integration (ms), carrier (Hz), C/N0 (dB-Hz, constant
+    or a linear schedule), scintillation S4 / sigma_phi (rad) / tau0 (s), receiver oscillator h0 / h_-2,
+    line-of-sight dynamics (static or manoeuvre up to accel_g g), true Doppler and the loop's initial error (Hz),
+    seed."""
     duration_s: float = 120.0
     t_coh_ms: int = 5
     carrier_hz: float = 1561.098e6
@@ -211,6 +215,8 @@ def loss_of_lock_probability(ip, qp, T, window_s=0.1, threshold=13.56, skip_epoc
 
 
 def windowed_pli(ip, qp, T, window_s=0.1):
+    """Phase lock indicator (sum I^2 - sum Q^2) / (sum I^2 + sum Q^2) of the prompts over consecutive windows of
+    window_s (s), one value per whole window (T: epoch length, s)."""
     n = max(1, int(round(window_s / T)))
     i2 = np.asarray(ip) ** 2
     q2 = np.asarray(qp) ** 2

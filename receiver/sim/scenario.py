@@ -163,7 +163,7 @@ SCENARIO_SCHEMA = {
     "frontend": {
         "sample_rate_hz": P(2.6e6, "float", "nominal sample rate", lo=1e5, hi=1e9),
         "if_hz": P(0.0, "float", "intermediate frequency (complex formats: may be 0; real formats: > 0)"),
-        "format": P("int8_iq", "str", "sample format (README \"Input formats\")", choices=tuple(FORMATS)),
+        "format": P("int8_iq", "str", "sample format (docs: Your own recording)", choices=tuple(FORMATS)),
         "bit_order": P("msb_first", "str", "packed formats: bit order (as input.bit_order)",
                        choices=BIT_ORDERS),
         "encoding": P("sign_magnitude", "str", "packed formats: field encoding (as input.encoding)",
@@ -270,5 +270,5 @@ def noise_sigma(sc: Section) -> float:
 
 
 def scenario_doc() -> list:
-    """(key, kind, default, doc) rows for the README."""
+    """(key, kind, default, doc) rows for the scenario reference (docs/reference/scenario.md)."""
     return defaults_doc(SCENARIO_SCHEMA)

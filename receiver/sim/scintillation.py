@@ -44,10 +44,12 @@ def s4_index(intensity) -> float:
 
 
 def sigma_phi(phase_rad) -> float:
+    """Phase scintillation index sigma_phi: standard deviation of a phase series (rad)."""
     return float(np.std(np.asarray(phase_rad, dtype=float)))
 
 
 def butterworth_cutoff_hz(tau0_s: float) -> float:
+    """Cut-off frequency (Hz) of the 2nd-order Butterworth shaping filter for decorrelation time tau0 (s)."""
     return math.sqrt(2.0) * BETA0 / (2.0 * math.pi * tau0_s)
 
 

@@ -1,6 +1,6 @@
-"""Truth-tagged GPS L1 C/A IF simulator: ``simulate(scenario, out_path)``.
+"""Truth-tagged IF simulator (GPS L1 C/A, QZSS, BeiDou B1I): ``simulate(scenario, out_path)``.
 
-Time conventions (see also the README of the simulator and the truth file attributes)
+Time conventions (see also docs/how-it-works/simulator.md and the truth file attributes)
 -----------------------------------------------------------------------------------
 * Receiver clock = sample counter: the receiver time of sample n is ``T = tow_s + n / fs`` (fs nominal).
   ``time_s`` in the truth file is ``n / fs``.
@@ -11,7 +11,7 @@ Time conventions (see also the README of the simulator and the truth file attrib
   ``c tau = |r_rx(t) - R_z(omega_e tau) r_sat(t - tau)| + I + T`` (Sagnac by rotating the satellite into
   the ECEF frame at reception; I, T ionospheric and tropospheric group delays, metres).  The code it
   carries is the satellite clock time ``t - tau + dt_sv`` (dt_sv: af0.. + relativistic - TGD, as
-  :func:`receiver.nav.ephemeris.sat_state`).  The carrier arrives with the ionosphere ADVANCED:
+  :func:`receiver.gnss.ephemeris.sat_state`).  The carrier arrives with the ionosphere ADVANCED:
   its phase is that of satellite time ``t - tau_c + dt_sv`` with ``c tau_c = rho - I + T``.
 * Hence with D_code = b + tau - dt_sv and D_carr = b + tau_c - dt_sv (seconds, functions of T):
     pseudorange_m        = c D_code   (= c (receiver clock reading - satellite transmit time))
@@ -29,6 +29,9 @@ receiver time (on the truth rows) and carried to a 1 ms grid by cubic Hermite in
 and their exact rates; receiver clock, scintillation and visibility are evaluated on the 1 ms grid; the
 numba kernel interpolates code phase, carrier phase and amplitude linearly between grid points.  The
 truth file is appended block by block (buffered), so memory does not grow with the duration.
+
+The simulator's time base, per-satellite state and block synthesis stay together: they share the truth
+conventions above; the compiled synthesis is receiver.sim.kernel.
 """
 from __future__ import annotations
 
@@ -193,7 +196,7 @@ class _Cn0:
 class SatelliteTrack:
     """Satellite position, velocity and clock at TRUE GPS times, by cubic Hermite interpolation.
 
-    :func:`receiver.nav.ephemeris.sat_state` is evaluated at nodes ``step`` apart (true time; position,
+    :func:`receiver.gnss.ephemeris.sat_state` is evaluated at nodes ``step`` apart (true time; position,
     velocity, clock offset and drift at each node) covering [t_lo, t_hi]; between nodes the cubic Hermite
     interpolant of (value, derivative) is accurate to far below a micrometre for GPS orbits at
     step = 0.1 s (error ~ step^4 n^4 a / 384).

@@ -15,7 +15,7 @@ REAL_FORMAT_ALIASES = tuple(a for a, f in ALIASES.items() if not FORMATS[f].comp
 SCHEMA = {
     "path": P(None, "str", "IF sample file (relative paths are taken from the current directory; "
                           "`--input` overrides)", nullable=True),
-    "format": P("int8_iq", "str", "sample format (README \"Input formats\"; GNSS-SDR item_type and SigMF "
+    "format": P("int8_iq", "str", "sample format (docs: Your own recording; GNSS-SDR item_type and SigMF "
                                   "datatype names are accepted as aliases)",
                 choices=tuple(FORMATS) + tuple(ALIASES)),
     "header_bytes": P(0, "int", "bytes skipped at the start of the file before the first sample", lo=0),
@@ -33,11 +33,15 @@ SCHEMA = {
                                   "and sample rate as input.path, which holds the first signal); a signal "
                                   "not listed is read from input.path"),
     "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
-    "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and decimate by this "
-                                 "integer factor before acquisition and tracking (auto: the largest factor "
-                                 "that keeps >= 3 chip rates and the code-phase grid, 1 below ~6 MS/s, and a "
-                                 "rate that is not a whole number of samples per ms, e.g. 16.3676 MS/s, "
-                                 "resampled to one; 1: off); README \"High sample rates\""),
+    "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and resample to a "
+                                 "complex baseband stream before acquisition and tracking.  auto: when the "
+                                 "input is at least 1.5x the target rate (4 MS/s for gps_l1ca, 8 MS/s for "
+                                 "bds_b1i), resample to it by an exact ratio L/M (L, M <= 4096; else the "
+                                 "largest whole factor, else the lowest whole rate above it that such a "
+                                 "ratio reaches); slower inputs stay as they are, except a rate that is "
+                                 "not a whole number of samples per ms (e.g. 2.0461 MS/s), which is "
+                                 "resampled slightly up to one.  An integer N: decimate by N.  1: off "
+                                 "(docs: Input conditioning)"),
     "skip_s": P(0.0, "float", "seconds skipped at the start of the file", lo=0.0),
     "duration_s": P(None, "float", "seconds processed (empty: to the end of the file)",
                     nullable=True, lo=0.0),

@@ -394,10 +394,12 @@ class DecimatingReader:
 
     @property
     def n_samples(self) -> int:
+        """Number of output samples in the span (``end - first``)."""
         return self.end - self.first
 
     @property
     def duration_s(self) -> float:
+        """Length of the span (s)."""
         return self.n_samples / self.fs
 
     @property
@@ -437,6 +439,7 @@ class DecimatingReader:
             e = max(a, min(hi, r.end))
             k = r._table.shape[1]                         # fields per byte
             b0 = a // k
+            r.release_before(a)                           # (resident memory flat along the file)
             raw = np.asarray(r._raw[b0:-(-e // k)]) if e > a else np.zeros(1, np.uint8)
             _resample_packed_real(raw, r._table, a - b0 * k, a, e, lo, hi, self._real_step, _LUT, _LUT_FINE,
                                   self._hr, self._hi, self._inv, c, l, m, k0, out)
@@ -454,6 +457,7 @@ class DecimatingReader:
         _resample(raw, lo, self._step, _LUT, self._shift, self._hv, self._inv, c, l, m, k0, self._real, out)
 
     def describe(self) -> str:
+        """One line for the run log: input rate (and IF) -> output rate, the ratio L/M and the filter length."""
         return (f"resampling      {self.input_fs / 1e6:g} MS/s" + (f" (IF {self.input_if_hz / 1e6:g} MHz)"
                 if self.input_if_hz else "") + f" -> {self.fs / 1e6:g} MS/s complex baseband (x{self.resample}, "
                 f"{self.taps} input samples per output)")

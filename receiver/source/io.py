@@ -1,6 +1,6 @@
 """IF sample files: formats, chunked (memory-mapped) reading and quantised writing.
 
-Formats (``input.format``; the table ``FORMATS``; README "Input formats" maps devices to them):
+Formats (``input.format``; the table ``FORMATS``; docs/own-recording.md maps devices to them):
 
   int8_iq, int16_iq      interleaved I, Q signed integers (HackRF, bladeRF SC8/SC16, USRP sc8/sc16)
   uint8_iq               interleaved I, Q unsigned offset binary, centre 127.5 (RTL-SDR): value = u - 127.5
@@ -36,6 +36,7 @@ table.  Real formats come back as complex64 with zero imaginary part; the correl
 """
 from __future__ import annotations
 
+import mmap
 import os
 from dataclasses import dataclass
 
@@ -184,6 +185,12 @@ def _unpack(raw, table, first_field, ncomp, out):
     return out
 
 
+#: how far behind the latest read the mapped pages stay resident (s of signal; re-acquisition reads back
+#: less than this) and the smallest span released at once
+RELEASE_MARGIN_S = 2.0
+RELEASE_STEP_BYTES = 16 << 20
+
+
 class SampleReader:
     """Random access to a span of an IF file as complex64 blocks.
 
@@ -219,6 +226,7 @@ class SampleReader:
             self.n_file = data // bps
             self._raw = np.memmap(path, dtype=f.dtype, mode="r", offset=header_bytes)
         self._ncomp = f.ncomp
+        self._released = 0             # bytes of the mapping handed back to the kernel (below the read front)
         self.first = int(round(skip_s * self.fs))
         if self.first >= self.n_file:
             raise UserError(f"input.skip_s={skip_s} is beyond the end of {path} "
@@ -245,6 +253,7 @@ class SampleReader:
             return np.zeros(0, np.complex64)
         c = self._ncomp
         f = self.format
+        self.release_before(start)
         out = np.empty(stop - start, np.complex64)
         if f.kind == "packed":
             k = self._table.shape[1]                             # fields per byte
@@ -273,6 +282,23 @@ class SampleReader:
         if self._raw.dtype.kind == "f":
             self._sanitize(out, start, stop)
         return out
+
+    def release_before(self, index: int):
+        """Hand the mapped file pages more than :data:`RELEASE_MARGIN_S` before file index ``index`` back to
+        the kernel (``madvise(MADV_DONTNEED)``, in steps of at least :data:`RELEASE_STEP_BYTES`), so that the
+        process's resident memory does not grow with the file read so far.  The mapping is read-only and
+        file-backed: a later read of a released span faults its pages in again from the file (the same
+        bytes), so this changes no result, only what stays resident."""
+        mm = getattr(self._raw, "_mmap", None)
+        if mm is None or not hasattr(mm, "madvise") or not hasattr(mmap, "MADV_DONTNEED"):
+            return
+        bits = self._bits if self.format.kind == "packed" else 8 * self._raw.itemsize * self._ncomp
+        keep = int(RELEASE_MARGIN_S * self.fs)
+        head = self._raw.offset % mmap.ALLOCATIONGRANULARITY    # the array's first byte in the mapping
+        target = (head + max(index - keep, 0) * bits // 8) // mmap.PAGESIZE * mmap.PAGESIZE
+        if target - self._released >= RELEASE_STEP_BYTES:
+            mm.madvise(mmap.MADV_DONTNEED, self._released, target - self._released)
+            self._released = target
 
     def _sanitize(self, out: np.ndarray, start: int, stop: int):
         """Zero NaN/Inf samples in place; count those at or after the reading front."""
@@ -334,7 +360,7 @@ def quantize(x: np.ndarray, fmt: str, scale: float = 1.0, bit_order: str = "msb_
     by scale.
 
     Integer formats round and saturate; uint8_iq stores round(x + 127.5); packed formats take the
-    nearest level (README) and need a whole number of bytes' worth of samples.  For real formats the
+    nearest level (docs/own-recording.md) and need a whole number of bytes' worth of samples.  For real formats the
     real part is written.
     """
     f = resolve_format(fmt)

@@ -48,6 +48,7 @@ SIGMF_DATATYPE = {ours: sig for sig, ours in ALIASES.items() if "_" in sig or si
 
 
 def meta_path(data_path) -> str:
+    """Path of the SigMF metadata file beside a recording (``<stem>.sigmf-meta``)."""
     p = os.fspath(data_path)
     stem = p[:-len(".sigmf-data")] if p.endswith(".sigmf-data") else os.path.splitext(p)[0]
     return stem + SIGMF_EXT
@@ -138,6 +139,7 @@ TAG_WRITE = {"int8_real": ("INT8", 1, 8), "int8_iq": ("CS8", 2, 8), "int16_iq": 
 
 
 def tag_path(data_path) -> str:
+    """Path of the PocketSDR tag file of a recording (``<data path>.tag``)."""
     return os.fspath(data_path) + TAG_EXT
 
 

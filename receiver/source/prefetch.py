@@ -35,6 +35,8 @@ class PrefetchingReader:
         setattr(self._r, name, value)
 
     def read(self, start: int, n: int) -> np.ndarray:
+        """Plain read of samples [start, start+n) of the input stage, counted in ``reads`` (a pending read-ahead is
+        then not used)."""
         object.__setattr__(self, "reads", self.reads + 1)
         return self._r.read(start, n)
 
@@ -71,6 +73,7 @@ class PrefetchingReader:
         return block
 
     def close(self):
+        """Wait for a pending read-ahead and stop the background thread (the input stage itself stays open)."""
         if self._spec is not None:
             try:
                 self._spec[3].result()

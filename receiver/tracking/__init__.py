@@ -1,4 +1,9 @@
 """Tracking: scalar channels (numba kernel), pluggable carrier loops, vector loops."""
-from ._jitcache import refresh as _refresh_jit_cache
 
-_refresh_jit_cache()        # numba caches of functions whose compiled callees changed (see _jitcache.py)
+
+def refresh_compiled_caches() -> list:
+    """Drop stale numba cache files of compiled functions whose compiled callees changed in a source tree
+    (see receiver/tracking/_jitcache.py); the command line and the test suite call it before any compiled
+    function loads.  Returns the removed paths."""
+    from ._jitcache import refresh
+    return refresh()

@@ -41,6 +41,9 @@ Per satellite (:class:`SatTrack`)::
 
 The pipeline calls ``start`` once, then per chunk ``note(prn, recs)`` for every channel's records and
 ``after_chunk(start, next_start)``.  ``channels`` (prn -> Channel) is the dict the vector tracker shares.
+
+The channel lifecycle's states and transitions stay in one module, so the whole state machine reads in one
+place.
 """
 from __future__ import annotations
 
@@ -127,7 +130,7 @@ class ChannelManager:
 
     def _open(self, prn, doppler, code_phase, sample, cn0_est=None):
         sat = self._sat(prn)
-        weak = cn0_est is not None and cn0_est < self.cfg.tracking.weak.cn0_dbhz     # README "Weak signals"
+        weak = cn0_est is not None and cn0_est < self.cfg.tracking.weak.cn0_dbhz     # docs: tracking, weak signals
         ch = Channel(prn, doppler, code_phase, sample, self.cfg.tracking, self.fs, self.if_hz,
                      channel_id=sat.channel_id, signal=self.signal, weak=weak)
         self.channels[prn] = ch

@@ -29,7 +29,7 @@ SCHEMA = {
                                         "(0.5 chip becomes 0.79 chip at 2.6 MS/s: 1.8x the 3D RMS on the "
                                         "third-party recording); off: whole samples only while a channel "
                                         "pulls in and on weak channels, the exact spacing otherwise "
-                                        "(README)"),
+                                        "(docs: Tracking)"),
     "cn0_window_ms": P(200, "int", "window for the C/N0 estimator (ms)", lo=20),
     "cn0_estimator": P("snv", "str", "C/N0 estimator: snv (signal-to-noise variance of the locked "
                                      "prompt; M2M4 before lock) or m2m4", choices=tuple(CN0_ESTIMATORS)),
@@ -37,7 +37,7 @@ SCHEMA = {
     "lock_ratio_min": P(1.5, "float", "PLL lock detector: lock while low-passed |I| exceeds this "
                                       "times low-passed |Q|", lo=1.0),
     "lost_ms": P(200, "int", "time below the lock thresholds before a channel declares the signal lost "
-                            "(its satellite is then re-acquired around the prediction, README: outages)",
+                            "(its satellite is then re-acquired around the prediction; docs: Tracking, signal outages)",
                  lo=10),
     "lost_grace_ms": P(1000, "int", "a channel is declared lost only after this long below the lock "
                                     "thresholds while it is younger than this (since its pull-in began): a "

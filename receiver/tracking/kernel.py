@@ -6,6 +6,8 @@ detection and bit synchronisation - runs in compiled code.  Python sees the chan
 vector loop or a Python carrier loop steps the kernel one epoch at a time and rewrites the NCO state
 (S_CARR_FREQ, S_CODE_RATE, S_CODE_PHASE) between epochs.  ``C_CARRIER_EXTERNAL`` / ``C_CODE_EXTERNAL``
 stop the kernel from touching the carrier / code NCO itself.
+
+The compiled channel kernel is one function by design (numba compiles one epoch loop).
 """
 import math
 

@@ -101,7 +101,7 @@ class Channel:
         c[K.C_BIT_MS] = bit_ms
         c[K.C_NH_BASE] = nh_base
         c[K.C_NO_DATA] = 1.0 if dataless else 0.0
-        if wk.enabled:                     # weak channels (README "Weak signals"); never stricter than above
+        if wk.enabled:                     # weak channels (docs: tracking, weak signals); never stricter than above
             c[K.C_WEAK_CN0] = wk.cn0_dbhz
             c[K.C_WEAK_INT_MS] = weak_int
             c[K.C_WEAK_PLL_BW] = min(wk.pll_bw_hz, trk_cfg.pll_bw_hz)
@@ -285,7 +285,7 @@ def early_late_spacing(trk_cfg, fs: float, chip_rate: float, snap: bool | None =
     sit a whole number of samples from the prompt: with few samples per chip and an unfiltered signal,
     a fractional-sample offset gives a code bias that wanders with the sub-sample phase when the code
     Doppler is small; a whole-sample offset cancels it but widens the spacing at low sample rates (0.79
-    chip at 2.6 MS/s), and the wider spacing costs more than the bias: off by default (README)."""
+    chip at 2.6 MS/s), and the wider spacing costs more than the bias: off by default (docs: tracking)."""
     d = float(trk_cfg.early_late_chips)
     if not (trk_cfg.early_late_snap if snap is None else snap):
         return d

@@ -5,7 +5,7 @@ traceback, never an output file after a failure, and the input file is unchanged
 The recordings are simulated here (embedded constellation, no ../shared needed) and kept short.  The CLI
 is driven in-process with click's CliRunner where that is faithful, and in a subprocess for what needs a
 real process: the file-size limit (``resource.setrlimit(RLIMIT_FSIZE)``, the ``ulimit -f`` disk-full case)
-and signals sent mid-run.  scripts/signal_trials.py repeats the signal cases 20 + 20 times.
+and signals sent mid-run.  scripts/bench/signal_trials.py repeats the signal cases 20 + 20 times.
 """
 import hashlib
 import os
@@ -24,7 +24,6 @@ from click.testing import CliRunner
 
 from receiver.cli import main
 from receiver.schema import load_receiver_config
-from receiver.errors import UserError
 
 from repo_paths import ROOT
 SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"

@@ -1,6 +1,6 @@
 """BeiDou B1I navigation on a tracked simulated signal (configs/scenarios/bds_nominal_short.yaml): the GEO
 satellite's D2 subframes are frame-synchronised from the tracking records and the transmit times they give
-match the simulator's truth.  (The full BeiDou fix, 45 s, is measured by scripts/bds_acceptance.py.)"""
+match the simulator's truth.  (The full BeiDou fix, 45 s, is measured by scripts/bench/accuracy_bds.py.)"""
 import h5py
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ import pytest
 from receiver.schema import load_receiver_config
 from receiver.gnss.registry import get_signal
 from receiver.gnss.signals import C_LIGHT
-from receiver.navigation.engine import ChannelNav
+from receiver.navigation.channel import ChannelNav
 from receiver.pipeline import run
 from receiver.runfile.record import EPOCH_DTYPE, STATE_BIT_SYNC
 from receiver.sim.simulate import simulate

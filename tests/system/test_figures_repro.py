@@ -10,7 +10,7 @@ from repo_paths import ROOT
 
 
 def _load(name):
-    spec = importlib.util.spec_from_file_location(name, os.path.join(ROOT, "scripts", f"{name}.py"))
+    spec = importlib.util.spec_from_file_location(name, os.path.join(ROOT, "scripts", "figures", f"{name}.py"))
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -23,7 +23,8 @@ def test_carrier_monte_carlo_is_identical_for_one_and_two_jobs(tmp_path):
         out = tmp_path / f"j{jobs}"
         js = tmp_path / f"j{jobs}.json"
         # a subprocess: the worker pool pickles the script's job functions by module name
-        subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "figures_carrier.py"), "--out", str(out),
+        subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "figures", "figures_carrier.py"),
+                        "--out", str(out),
                         "--seeds", "2", "--duration", "4", "--scenarios", "3", "--weak-seeds", "2", "--weak-T", "20",
                         "--jobs", str(jobs), "--json", str(js)], check=True, stdout=subprocess.DEVNULL,
                        env={**os.environ, "PYTHONPATH": os.path.abspath(ROOT)})

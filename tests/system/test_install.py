@@ -41,8 +41,8 @@ def _build_wheel(dest: Path) -> Path:
     # build from a copy: the build writes build/ and *.egg-info beside the sources
     src = dest / "src"
     shutil.copytree(ROOT, src, symlinks=True,
-                    ignore=shutil.ignore_patterns(".git", ".venv", "out", "figures", "build", "*.egg-info",
-                                                  "__pycache__", ".pytest_cache", "*.h5", "*.bin"))
+                    ignore=shutil.ignore_patterns(".git", ".venv", "out", "figures", "site", "build",
+                                                  "*.egg-info", "__pycache__", ".pytest_cache", "*.h5", "*.bin"))
     r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
                         "-q", "-w", str(dest / "dist"), str(src)], capture_output=True, text=True, env=env)
     assert r.returncode == 0, r.stderr[-2000:]
@@ -58,6 +58,11 @@ def test_wheel_installs_and_runs_in_an_empty_directory(tmp_path):
     for f in ("receiver/_share/configs/default.yaml", "receiver/_share/configs/scenarios/static_default.yaml",
               "receiver/_share/data/gps_nominal_constellation.yaml", "receiver/_share/data/iridium_synthetic.tle"):
         assert f in names, f
+    # the long description is the (short) README: what `pip show -v gnssrx` and a package index show
+    meta = next(n for n in names if n.endswith(".dist-info/METADATA"))
+    body = zipfile.ZipFile(whl).read(meta).decode().split("\n\n", 1)[1]
+    readme = (ROOT / "README.md").read_text()
+    assert body.strip() == readme.strip() and len(readme.splitlines()) <= 300
     site = tmp_path / "site"
     r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-compile", "--target",
                         str(site), str(whl)], capture_output=True, text=True)

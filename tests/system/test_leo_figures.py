@@ -1,4 +1,4 @@
-"""Smoke test of scripts/figures_leo.py with a handful of Monte Carlo runs."""
+"""Smoke test of scripts/figures/figures_leo.py with a handful of Monte Carlo runs."""
 import importlib.util
 import os
 
@@ -12,7 +12,7 @@ from repo_paths import ROOT
 def test_figures_script_writes_consistent_tables_and_numbers(tmp_path, monkeypatch):
     # the script sets BLAS thread variables on import: keep them out of the test process
     monkeypatch.setattr(os, "environ", dict(os.environ))
-    spec = importlib.util.spec_from_file_location("figs", os.path.join(ROOT, "scripts",
+    spec = importlib.util.spec_from_file_location("figs", os.path.join(ROOT, "scripts", "figures",
                                                                        "figures_leo.py"))
     figs = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(figs)

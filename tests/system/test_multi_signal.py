@@ -1,7 +1,6 @@
 """One run over several signals (issue 21): GPS L1 C/A + BeiDou B1I from one wideband recording (complex, 20 MS/s,
 centred between L1 and B1I), satellite keys (BeiDou PRN p -> 400 + p), the config checks."""
 import h5py
-import numpy as np
 import pytest
 
 from receiver.schema import load_receiver_config, run_signals, signal_prns
@@ -151,7 +150,7 @@ def test_one_file_per_signal(tmp_path):
 def test_common_slope_ignores_a_cross_correlation_lock():
     """The carrier smoothing's common code-minus-carrier drift: a channel locked on a cross-correlation (its own
     drift -67 m/s, as B1I C08 at the GEO Doppler in the 40-s GPS+BeiDou recording) must not move it."""
-    from receiver.navigation.engine import common_slope
+    from receiver.navigation.channel import common_slope
     good = [(0.02 * k - 0.1, 50.0 + k) for k in range(10)]
     ref = sum(s * w for s, w in good) / sum(w for _, w in good)
     assert common_slope(good) == pytest.approx(ref, abs=1e-12)

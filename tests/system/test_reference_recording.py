@@ -3,7 +3,6 @@
 Acceptance of the receiver backbone: acquisition, tracking, LNAV decoding and PVT on a file made by an
 independent simulator with a known antenna position.  Skips when ../shared is absent.
 """
-from pathlib import Path
 
 import h5py
 import numpy as np

@@ -1,6 +1,5 @@
 """The simulator judged by the receiver, and the receiver's conventions judged against the third-party
 recording through the simulator (issue: truth-tagged IF simulator, acceptance)."""
-from pathlib import Path
 
 import h5py
 import numpy as np

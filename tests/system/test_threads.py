@@ -1,7 +1,7 @@
 """Parallel tracking (receiver/threads.py): the run file does not depend on the thread count.
 
 Two runs of the first seconds of the reference recording (assisted: fixes within ~2 s), one thread and
-two threads, compared bit for bit with scripts/compare_runs.py (every dataset and attribute except the
+two threads, compared bit for bit with scripts/tools/compare_runs.py (every dataset and attribute except the
 wall-clock ones)."""
 import sys
 
@@ -72,8 +72,7 @@ def test_run_files_are_bit_identical_whatever_the_thread_count(tmp_path, variant
         pytest.skip("../shared/data reference recording absent")
     from receiver.schema import load_receiver_config
     from receiver.pipeline import run
-    sys.path.insert(0, str(ROOT / "scripts"))
-    from compare_runs import compare_h5
+    from receiver.runfile.compare import compare_h5
     out = {}
     for n in (1, 2):
         threads.set_threads(n)
@@ -213,7 +212,8 @@ def test_background_writer_queues_acquisition_tables_from_a_snapshot():
 
 
 _BLAS_PROBE = """
-import receiver                       # first: it sets the BLAS thread count before numpy loads
+import receiver
+receiver.limit_blas_threads()         # first: the BLAS thread count before numpy loads
 import numpy as np
 from receiver.acquisition import refine_doppler
 rng = np.random.default_rng(2)
@@ -226,8 +226,9 @@ print(repr(refine_doppler(x, 2.6e6, 0.0, 7, 100.5, 1250.0, 125.0, block_ms=10, n
 def test_results_do_not_depend_on_the_environments_blas_threads():
     """The fine Doppler's line powers are BLAS matrix products; a threaded BLAS sums them in a
     thread-count-dependent order (the last bit of the Doppler moved with OPENBLAS_NUM_THREADS, and through
-    a vector loop whole figure results between -j 1 and -j 2).  Importing receiver pins BLAS to one
-    thread unless the environment says otherwise: a process with nothing set equals one told 1 thread."""
+    a vector loop whole figure results between -j 1 and -j 2).  receiver.limit_blas_threads() (what the
+    command line does first) pins BLAS to one thread unless the environment says otherwise: a process with
+    nothing set equals one told 1 thread."""
     import os
     import subprocess
     env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
@@ -235,3 +236,17 @@ def test_results_do_not_depend_on_the_environments_blas_threads():
     out = [subprocess.run([sys.executable, "-c", _BLAS_PROBE], capture_output=True, text=True, check=True,
                           cwd=ROOT, env={**env, **extra}).stdout for extra in ({}, {"OPENBLAS_NUM_THREADS": "1"})]
     assert out[0] == out[1] and out[0].strip()
+
+
+def test_importing_the_package_changes_no_environment_variable():
+    """No import-time side effect: importing receiver and its stages leaves the environment as it was (the BLAS
+    default is the entry points' explicit call)."""
+    import os
+    import subprocess
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                                                             "OMP_NUM_THREADS")}
+    probe = ("import os, json; before = dict(os.environ); import receiver, receiver.pipeline; "
+             "print(json.dumps(sorted(k for k in os.environ if os.environ.get(k) != before.get(k))))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=ROOT,
+                         env=env).stdout
+    assert out.strip() == "[]"

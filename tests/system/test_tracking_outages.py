@@ -1,13 +1,13 @@
 """Continuity through signal outages (issue 14): channel lifecycle, satellite navigation memory, coasting.
 
 One 32-s simulated drive (50 m/s figure-eight, ten satellites at 45 dB-Hz, configs/scenarios/outage_fig8.yaml)
-with every signal removed for 1.5 s at 26.3-27.8 s G11 blocked from 28.5 s to the end and G24 from 29.0 to 30.6 s (its return inside a 0.5-s processing chunk, the
+with every signal removed for 1.5 s at 26.3-27.8 s G11 blocked from 28.5 s to the end and G24 from 29.0 to 30.6 s (its
+return inside a 0.5-s processing chunk, the
 other satellites tracked).  The first fix
 comes at ~21 s (subframes 1-3 decoded); subframes start at 2, 8, ..., 26, 32 s, so after the outage no
 subframe is complete before the end of the file: pseudoranges after the outage come from the navigation
 memory.
 """
-from pathlib import Path
 
 import h5py
 import numpy as np
@@ -81,7 +81,8 @@ def test_narrow_search_finds_the_signal_in_its_window_only():
 
 
 def test_channels_lose_and_hot_reacquire_the_signal(drive, scalar_run):
-    """Every channel declares the loss within 0.1 s (signal-presence test), is re-acquired within 1 s of the signal's return with
+    """Every channel declares the loss within 0.1 s (signal-presence test), is re-acquired within 1 s of the signal's
+    return with
     the predicted Doppler (within 10 Hz of the truth) and continues its code-period count: the relative
     transmit time minus the true transmit time is the same constant before and after the outage."""
     with h5py.File(scalar_run, "r") as f:
@@ -151,7 +152,8 @@ def test_navigation_memory_fixes_resume_without_a_new_subframe(drive, scalar_run
 
 
 def test_vector_coast_is_flagged_and_fixes_resume(drive, tmp_path):
-    """Vector loop from 23 s: epochs of the outage from 0.1 s on are written as coast (mode 2) with the channels actually
+    """Vector loop from 23 s: epochs of the outage from 0.1 s on are written as coast (mode 2) with the channels
+    actually
     carrying signal as n_sats (< 4); every non-coast fix is within 30 m; vector fixes within 10 m again
     within 2 s of the signal's return."""
     out = _run(drive, tmp_path / "vec.h5", [("vector.enabled", True), ("vector.start_s", 23.0)])

@@ -4,7 +4,6 @@ Assisted mode (broadcast ephemeris from the RINEX file) so that the scalar recei
 the handover can happen at 15 s; 25 s of the file are processed (about 15-25 s per variant).
 """
 import os
-from pathlib import Path
 
 import h5py
 import numpy as np

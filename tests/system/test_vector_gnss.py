@@ -12,7 +12,6 @@ vector handover at 3.5 s; errors against the simulator's truth.
 """
 import logging
 import os
-from pathlib import Path
 
 import h5py
 import numpy as np

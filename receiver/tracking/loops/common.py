@@ -30,6 +30,8 @@ class PythonLoop(CarrierLoop):
         self.carrier_hz = GPS_L1CA.carrier_hz      # until start() is given the channel signal's carrier
 
     def start(self, doppler_hz: float, T: float, rate_hz_s: float = 0.0, carrier_hz: float | None = None):
+        """Reset at handover: NCO at phase 0 (cycles) and ``doppler_hz`` (Hz), epoch length T (s), carrier
+        frequency (Hz; kept when None), then :meth:`init` with the Doppler and its rate (Hz/s)."""
         self.doppler_hz = float(doppler_hz)
         self.T = float(T)
         if carrier_hz is not None:
@@ -39,9 +41,12 @@ class PythonLoop(CarrierLoop):
         self.init(float(doppler_hz), float(rate_hz_s))
 
     def init(self, doppler_hz, rate_hz_s):          # pragma: no cover - interface
+        """Set the loop's state from the Doppler (Hz) and Doppler rate (Hz/s) at handover (subclasses)."""
         raise NotImplementedError
 
     def update(self, epoch):
+        """One epoch from a kernel output row (prompt I/Q, its two halves, the integration length unless
+        ``epoch_s`` is set): :meth:`step`'s (Doppler for the next epoch Hz, phase step cycles)."""
         T = self.epoch_s if self.epoch_s else float(epoch[K.O_INT_MS]) * 1e-3
         p1 = complex(epoch[K.O_P1I], epoch[K.O_P1Q])
         p2 = complex(epoch[K.O_P2I], epoch[K.O_P2Q])
@@ -72,6 +77,8 @@ class NWPR:
         self.mu = None
 
     def update(self, p1, p2, T):
+        """Add one epoch's half-epoch prompts p1, p2 (complex; epoch length T s); returns C/N0 (linear, Hz).
+        Without halves or with zero power the previous estimate is returned unchanged."""
         if p1 is None or p2 is None:
             return self.cn0
         wbp = abs(p1) ** 2 + abs(p2) ** 2

@@ -119,7 +119,8 @@ def _nwpr(lp, ls, p1i, p1q, p2i, p2q, T):
     """NWPR C/N0 (common.NWPR.update)."""
     # |p|^2 rounded as the Python NWPR's abs(p) ** 2: hypot, then libm pow(x, 2.0) (not always x * x: glibc's
     # pow is not correctly rounded).  The exponent comes from lp so that LLVM cannot rewrite pow(x, 2.0) as
-    # x * x; a last-bit difference here would be amplified by chaotic runs (tests/unit/tracking/test_corrsim_compiled.py).
+    # x * x; a last-bit difference here would be amplified by chaotic runs
+    # (tests/unit/tracking/test_corrsim_compiled.py).
     two = lp[P_TWO]
     wbp = math.hypot(p1i, p1q) ** two + math.hypot(p2i, p2q) ** two
     if wbp <= 0:

@@ -17,6 +17,8 @@ from .common import PythonLoop
 
 
 class CPLL(PythonLoop):
+    """Costas PLL (``cpll_atan``) with the ATAN discriminator and a 2nd- or 3rd-order loop filter of noise
+    bandwidth ``bn_hz`` (Hz); the arguments override ``tracking.carrier``."""
     name = "cpll_atan"
 
     def __init__(self, cfg, bn_hz=None, order=None):
@@ -25,11 +27,14 @@ class CPLL(PythonLoop):
         self.order = int(order if order is not None else self.car.order)
 
     def init(self, doppler_hz, rate_hz_s):
+        """Set the loop filter's frequency (Hz) and, for the 3rd order, its rate (Hz/s) at handover."""
         self.freq = doppler_hz
         self.rate = rate_hz_s if self.order == 3 else 0.0
         self.last_err = 0.0
 
     def step(self, ip, qp, T, p1=None, p2=None):
+        """One epoch: ATAN phase error (cycles) through the loop filter; returns (frequency for the next epoch Hz,
+        phase step cycles), the phase continuing the NCO (no phase step)."""
         e = math.atan(qp / ip) / (2.0 * math.pi) if ip != 0.0 else 0.0
         self.last_err = e
         if self.order == 3:

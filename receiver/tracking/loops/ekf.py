@@ -130,6 +130,8 @@ def ekf_step(s, P, phi, Q, h0, h1, e0, e1, sig2, post):
 
 
 class EKF(PythonLoop):
+    """EKF carrier loop (``ekf``) on the prompt I/Q with the 4-state Taylor model (rad units; see the module
+    docstring); the arguments override ``tracking.carrier.ekf`` and the clock h0 / h_-2 of the configuration."""
     name = "ekf"
     use_pli = False
 
@@ -149,6 +151,7 @@ class EKF(PythonLoop):
         self._mats = {}
 
     def matrices(self, T):
+        """(Phi, Q) of the 4-state model for epoch length T (s), rad units, cached per T (ns resolution)."""
         key = int(T * 1e9 + 0.5)            # ns (round(T, 9) is slow per epoch)
         m = self._mats.get(key)
         if m is None:
@@ -159,6 +162,8 @@ class EKF(PythonLoop):
         return m
 
     def init(self, doppler_hz, rate_hz_s):
+        """Initial state (prediction for the first epoch's midpoint) and covariance from the Doppler (Hz) and rate
+        (Hz/s) at handover; resets the power, C/N0 and PLI estimators."""
         T = self.T
         # prediction for the midpoint of the first epoch (NCO starts at phase 0 with the given Doppler)
         self.s = np.array([TWO_PI * doppler_hz * T / 2.0, TWO_PI * doppler_hz, TWO_PI * rate_hz_s, 0.0])
@@ -191,6 +196,8 @@ class EKF(PythonLoop):
         return math.sqrt(A2), sig2
 
     def step(self, ip, qp, T, p1=None, p2=None):
+        """One epoch: EKF update with the prompt I/Q (data wiped off; PLI-weighted for ``pli_ekf``), prediction to
+        the next midpoint; returns (Doppler for the next epoch Hz, phase step cycles)."""
         phi, Q = self.matrices(T)
         A, sig2 = self._amplitude(ip, qp, T, p1, p2)
         nco_mid = TWO_PI * (self.nco_phase + self.nco_freq * T / 2.0)
@@ -227,5 +234,6 @@ class EKF(PythonLoop):
 
 
 class PLIEKF(EKF):
+    """PLI-EKF (``pli_ekf``): the EKF with the observation weighted by the phase lock indicator (module docstring)."""
     name = "pli_ekf"
     use_pli = True

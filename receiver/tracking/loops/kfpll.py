@@ -37,6 +37,8 @@ from .common import NWPR, PythonLoop, atan_variance_cycles2, clock_q
 
 
 def kf_matrices(T, fc, h0, h_2, jerk_psd):
+    """(Phi, H, Q) of the 3-state KF-PLL (cycles, Hz, Hz/s) for epoch length T (s) at carrier fc (Hz): oscillator
+    h0, h_-2 plus a line-of-sight jerk of PSD jerk_psd ((m/s^3)^2/Hz); see the module docstring."""
     phi = np.array([[1.0, T, T * T / 2.0], [0.0, 1.0, T], [0.0, 0.0, 1.0]])
     H = np.array([1.0, T / 2.0, T * T / 6.0])
     q = jerk_psd * (fc / C_LIGHT) ** 2
@@ -137,6 +139,8 @@ def kf_step(s, P, phi, H, Q, d, R, lam, first):
 
 
 class KFPLL(PythonLoop):
+    """Kalman-filter PLL (``kf``) with R at the design C/N0 (see the module docstring); the arguments override
+    ``tracking.carrier.kf`` and the clock h0 / h_-2 of the configuration."""
     name = "kf"
     adaptive = False
 
@@ -152,6 +156,7 @@ class KFPLL(PythonLoop):
         self._mats = {}
 
     def matrices(self, T):
+        """(Phi, H, Q) for epoch length T (s), cached per T (ns resolution)."""
         key = int(T * 1e9 + 0.5)            # ns (round(T, 9) is slow per epoch)
         m = self._mats.get(key)
         if m is None:
@@ -159,6 +164,7 @@ class KFPLL(PythonLoop):
         return m
 
     def init(self, doppler_hz, rate_hz_s):
+        """Initial state [NCO phase cycles, Doppler Hz, rate Hz/s] and covariance at handover."""
         # s: state at the start of the next epoch (prediction), P: posterior of the previous epoch
         self.s = np.array([self.nco_phase, doppler_hz, rate_hz_s])
         self.P = np.diag([0.05 ** 2, 3.0 ** 2, 20.0 ** 2])
@@ -170,11 +176,14 @@ class KFPLL(PythonLoop):
         self.last_err = 0.0
 
     def step(self, ip, qp, T, p1=None, p2=None):
+        """One epoch: ATAN phase error of the prompt, KF update (adaptive: R from the NWPR C/N0, Q scaled by
+        lambda), prediction to the next epoch; returns (Doppler for the next epoch Hz, phase step cycles)."""
         phi, H, Q = self.matrices(T)
         e = math.atan(qp / ip) / (2.0 * math.pi) if ip != 0.0 else 0.0
         self.last_err = e
         z = e + self.nco_phase + self.nco_freq * T / 2.0
-        d = z - float(H @ self.s)
+        s = self.s
+        d = z - (H[0] * s[0] + H[1] * s[1] + H[2] * s[2])     # (BLAS's ddot may sum in another order)
         if self.adaptive:
             self.cn0 = self.nwpr.update(p1, p2, T)
             R = atan_variance_cycles2(self.cn0, T)
@@ -199,5 +208,7 @@ class KFPLL(PythonLoop):
 
 
 class AdaptiveKFPLL(KFPLL):
+    """Adaptive KF-PLL (``adaptive_kf``): R from the NWPR C/N0 estimate, Q scaled by the innovation-matched
+    lambda >= 1 (see the module docstring)."""
     name = "adaptive_kf"
     adaptive = True

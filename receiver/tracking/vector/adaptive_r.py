@@ -16,6 +16,8 @@ from .kalman import FORMS
 
 
 class AdaptiveR(FixedR):
+    """The fixed_r VLL (``adaptive_r``) with each diagonal element of R re-estimated every epoch from the last
+    ``vector.adaptive_r.window`` innovations or residuals (see the module docstring)."""
     name = "adaptive_r"
 
     def __init__(self, vcfg, T):
@@ -23,5 +25,6 @@ class AdaptiveR(FixedR):
         self.adaptive_form = FORMS[vcfg.adaptive_r.form]
 
     def describe(self):
+        """One line for the log: the adaptive-R form and window, Q and the oscillator class."""
         return (f"adaptive_r VLL: {self.vcfg.adaptive_r.form} form, window {self.window}, "
                 f"{self.q_text()}, clock {self.vcfg.clock_class}")

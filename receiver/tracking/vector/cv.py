@@ -15,10 +15,14 @@ from .base import KinematicFilter
 
 
 class CV(KinematicFilter):
+    """Constant-velocity VDFLL baseline (``cv``): the fixed_r state and transition with the paper's diagonal Q
+    (see the module docstring)."""
     name = "cv"
     motion = "cv"
 
     def process_noise(self):
+        """Diagonal Q of position (m^2), velocity ((m/s)^2), clock bias and drift (+ delta), per epoch (times T when
+        ``vector.cv.psd``)."""
         c = self.vcfg.cv
         q = [c.q_position] * 3 + [c.q_velocity] * 3 + [c.q_bias, c.q_drift]
         if c.psd:
@@ -28,5 +32,6 @@ class CV(KinematicFilter):
         return np.diag(np.asarray(q, dtype=float))
 
     def describe(self):
+        """One line for the log: the velocity variance and the R model."""
         r = ", R from each channel's C/N0" if self.vcfg.r_model == "cn0" else ""
         return f"cv VDFLL: sigma_v^2 {self.vcfg.cv.q_velocity:g} (m/s)^2 per epoch{r}"

@@ -12,9 +12,12 @@ from .base import KinematicFilter
 
 
 class FixedR(KinematicFilter):
+    """Error-state EKF VLL (``fixed_r``) with a fixed R, or R from each channel's C/N0 with ``vector.r_model: cn0``
+    (see the module docstring)."""
     name = "fixed_r"
 
     def describe(self):
+        """One line for the log: the R model, Q and the oscillator class."""
         r = ("R from each channel's C/N0" if self.vcfg.r_model == "cn0" else
              f"R code {self.r_code:g} m^2, carrier {self.r_carr:g} (m/s)^2")
         return (f"fixed_r VLL: {r}, "

@@ -119,24 +119,34 @@ def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e, ig):
 
 
 @njit(cache=True)
-def run_chunk(blocks, block_start, prm, grid_next, max_epochs,
-              ST, CF, CODE, HIST, REC, NREC, CA, POLY, TAU_A, ATM, ACTIVE, SIG,
-              x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS, LOG, LX, LPD, LR):
+def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, filt, out):
     """Run vector epochs while every channel's next correlation epoch fits in the block.
 
-    blocks (n_signals, n): the chunk's samples of each signal's input stream (the same sample span); SIG
-    (m, N_SIG): each channel's signal constants (see the module docstring).
+    blocks (n_signals, n): the chunk's samples of each signal's input stream (the same sample span).
+    The arrays come in four tuples (numba unpacks them without copying):
 
-    Returns (epochs run, next grid point).  REC (m, cap, N_OUT) / NREC receive the channels' correlation
-    records; LOG / LX / LPD / LR (per epoch: log columns, state, covariance diagonal, channel R) the
-    filter history.  ACTIVE (m,) 0 freezes a channel (not stepped, not commanded).
+    * chans = (ST, CF, CODE, HIST, CA, ACTIVE, SIG): the channels' tracking state, configuration, codes,
+      histories, code-aiding state, ACTIVE (m,) (0 freezes a channel: not stepped, not commanded) and SIG
+      (m, N_SIG) the channel's signal constants (see the module docstring);
+    * geometry = (POLY, TAU_A, ATM): the satellite polynomials over the block, their time origin, the
+      atmospheric delays;
+    * filt = (x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS): the filter's state, covariance, transition,
+      process noise, layout, measurement noise and adaptive windows;
+    * out = (REC, NREC, LOG, LX, LPD, LR): REC (m, cap, N_OUT) / NREC receive the channels' correlation
+      records; LOG / LX / LPD / LR (per epoch: log columns, state, covariance diagonal, channel R) the
+      filter history.
+
+    Returns (epochs run, next grid point).
     """
+    ST, CF, CODE, HIST, CA, ACTIVE, SIG = chans
+    POLY, TAU_A, ATM = geometry
+    x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS = filt
+    REC, NREC, LOG, LX, LPD, LR = out
     fs = prm[P_FS]
     nblk = blocks.shape[1]
     m = ST.shape[0]
     n = x.shape[0]
     step = prm[P_GRID]
-    T = step / fs
     s_ref = prm[P_SREF]
     G = np.zeros(m, np.int64)
     for j in range(m):

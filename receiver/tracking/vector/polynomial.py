@@ -74,6 +74,8 @@ def _diff_basis(K: int) -> np.ndarray:
 
 
 class PolynomialFilter(VectorFilter):
+    """VDFLL navigation filter of polynomial predictive filters (``vector.filter: polynomial``; see the module
+    docstring); runs in the backward-difference basis."""
     name = "polynomial"
 
     def __init__(self, vcfg, T):
@@ -92,13 +94,16 @@ class PolynomialFilter(VectorFilter):
     # ------------------------------------------------------------------ layout (both bases)
     @property
     def n(self) -> int:
+        """State dimension: 3 K_p position and 3 K_v velocity states, the clock bias, K_d drift states (+ delta)."""
         return 3 * self.kp + 3 * self.kv + 1 + self.kd + (1 if self.has_delta else 0)
 
     @property
     def ib(self) -> int:
+        """Index of the clock bias b (m) in the state vector (after the position and velocity states)."""
         return 3 * self.kp + 3 * self.kv
 
     def layout(self):
+        """int64 [ip, iv, ib, id, idel]: where x(n), v(n), b, d and delta sit (idel -1 without the delta state)."""
         ib = self.ib
         return np.array([0, 3 * self.kp, ib, ib + 1, ib + 1 + self.kd if self.has_delta else -1], np.int64)
 
@@ -167,6 +172,7 @@ class PolynomialFilter(VectorFilter):
         return M @ self.manoeuvre_noise() @ M.T
 
     def paper_process_noise(self):
+        """Q in the paper's lag basis: zero except the code-minus-carrier drift (q_code_carrier_drift T)."""
         q = np.zeros(self.n)
         if self.has_delta:
             q[-1] = float(self.vcfg.q_code_carrier_drift) * self.T
@@ -174,12 +180,15 @@ class PolynomialFilter(VectorFilter):
 
     # ------------------------------------------------------------------ conversions
     def to_paper(self, x):
+        """A state vector of the difference basis in the paper's lag basis (x_lag = M y)."""
         return self._M @ x
 
     def from_paper(self, x_paper):
+        """A state vector of the paper's lag basis in the difference basis (y = M^-1 x_lag)."""
         return self._Minv @ x_paper
 
     def matrices(self):
+        """(F, Q, QB) for one epoch of T seconds, in the difference basis the filter runs in (F = M^-1 F_lag M)."""
         Mi, M = self._Minv, self._M
         F = Mi @ self.paper_transition() @ M
         F[np.abs(F) < 1e-12] = 0.0
@@ -217,5 +226,6 @@ class PolynomialFilter(VectorFilter):
         return x, np.diag(var)
 
     def describe(self):
+        """One line for the log: the PPF coefficients and the chi-square threshold."""
         return (f"polynomial VDFLL: h_pos {self.hp.tolist()}, h_vel {self.hv.tolist()}, chi2 threshold "
                 f"{self.chi2_threshold:g}")

@@ -15,7 +15,7 @@ Chunk by chunk (``process(block, start)``):
      coasting filter's 3D position sigma passes vector.reinit_sigma_m, ``reinit_needed`` is set and the
      pipeline falls back to scalar tracking (receiver.tracking.vector.Handover.fall_back).
 
-Navigation interface used (receiver.nav.engine.NavigationEngine): ``week()``, ``ephemerides(t)``,
+Navigation interface used (receiver.navigation.engine.NavigationEngine): ``week()``, ``ephemerides(t)``,
 ``iono()``, ``iono_params()``, ``channels[prn].has_time / tx_offset / bit_offset`` (satellite memory),
 ``set_noncoherent``, ``resume``.
 
@@ -34,6 +34,9 @@ run over several signals the channels are keyed like the navigation engine's (re
 state per system after the reference one, in the navigation solution's order and grouping (clock group =
 the signal's system letter: QZSS shares GPS's clock, as in receiver.navigation.pvt), started from the
 handover fix's ``isb_m``.
+
+The tracker's Python bookkeeping (channels joining and leaving, geometry, diagnostics, fixes) is one class;
+the compiled epoch loop is receiver.tracking.vector.loop.
 """
 from __future__ import annotations
 
@@ -54,7 +57,7 @@ from .kalman import FORM_NONE
 from .noise import channel_r
 
 NEVER_LOST_MS = 1e15
-MODE_VECTOR = 1               # FIX_DTYPE mode values (receiver.output)
+MODE_VECTOR = 1               # FIX_DTYPE mode values (receiver.runfile.record)
 MODE_COAST = 2
 EPH_JUMP_M = 30.0             # a replacement ephemeris moving a locked satellite's range more than this is
                               # not used (_refresh_ephemerides)
@@ -97,6 +100,8 @@ class RunChannels(MutableMapping):
 
 
 class VectorTracker:
+    """The vector tracking stage after the scalar-to-vector handover (see the module docstring):
+    :meth:`process` runs a chunk's vector channels under the navigation filter ``filt``."""
     # (class defaults: GPS L1 C/A alone, one clock; __init__ sets them from its arguments)
     signals = [(GPS_L1CA, 0.0)]
     block_of = {"G": 0}
@@ -455,40 +460,15 @@ class VectorTracker:
         # one 2-D array for the compiled loop (a view without copying for one signal)
         B = block[None, :] if len(blocks) == 1 else np.ascontiguousarray(np.stack(blocks))
         fs = self.fs
-        recs = {}
         tau_now = (self.grid_next - self.s_ref) / fs
         self._refresh_ephemerides(self._gps_time(tau_now))
         # channels the pipeline dropped
         for prn in [p for p in self.prns if p not in self.channels]:
             self._remove(prn, False)
-        # scalar (pending) channels: track scalar, promote when locked
-        for prn, ch in list(self.channels.items()):
-            if prn in self.prns:
-                continue
-            recs[prn] = ch.process(blocks[self.block_of[ch.signal.system]], start)
-            if ch.lost:
-                continue
-            locked = ch.st[K.S_LOCK] > 0
-            if locked:
-                t0 = self.pending_since.setdefault(prn, start / fs)
-                if start / fs - t0 >= PROMOTE_LOCKED_S and self._eligible(prn, ch):
-                    self._promote(prn, ch)
-                    self.log(f"vector: {self.label(prn)} joined the vector loop")
-            else:
-                self.pending_since.pop(prn, None)
+        recs = self._step_pending(blocks, start)
         # geometry of all satellites with ephemeris (elevations), predicted channels, setting satellites
         r, v, b, d, dl = self.filt.nav_state(self.x)
-        if self.v.add_predicted and len(self.channels) < self.cfg.tracking.max_channels:
-            cand = [p for p in sorted(self.ephs) if p not in self.channels]
-            if cand:
-                _, _, el = satellite_polys([self.ephs[p] for p in cand], self.t_ref, tau_now, 0.1, b,
-                                           d + dl, r, self.nav.iono(), self.cfg.navigation)
-                order = np.argsort(-el)
-                for i in order:
-                    if len(self.channels) >= self.cfg.tracking.max_channels:
-                        break
-                    if np.degrees(el[i]) >= self.cfg.navigation.elevation_mask_deg:
-                        self._open_predicted(cand[i], max(self.grid_next - self.step, float(start)))
+        self._open_predicted_channels(start, tau_now, r, b, d + dl)
         if self._arrays_dirty:
             self._build_arrays()
         m = len(self.prns)
@@ -511,40 +491,17 @@ class VectorTracker:
         LX = np.zeros((max_ep, n))
         LPD = np.zeros((max_ep, n))
         LR = np.zeros((max_ep, m, 2))
-        prm = np.zeros(L.N_PRM)
-        prm[L.P_FS] = fs
-        prm[L.P_IF] = self.if_hz
-        prm[L.P_GRID] = self.step
-        prm[L.P_SREF] = self.s_ref
-        prm[L.P_MARGIN] = (self.T_ms + 1.0) * 1e-3 * fs
-        prm[L.P_CHI2] = self.filt.chi2_threshold
-        prm[L.P_CN0_MASK] = -1e9 if self.v.cn0_mask_dbhz is None else float(self.v.cn0_mask_dbhz)
-        if self.v.r_model == "cn0":         # below min_cn0_dbhz a channel has no weight to give
-            prm[L.P_CN0_MASK] = max(prm[L.P_CN0_MASK], float(self.v.r_cn0.min_cn0_dbhz))
-        prm[L.P_LOCK_CN0] = float(self.v.lock_cn0_dbhz)
-        prm[L.P_FORM] = self.filt.adaptive_form
-        prm[L.P_FLOOR_C] = self.filt.floor_code
-        prm[L.P_FLOOR_F] = self.filt.floor_carr
-        prm[L.P_MIN_FILL] = min(self.filt.window, 100)
-        prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
-        prm[L.P_COAST_MASK] = 1.0 if self.v.coast_mask else 0.0
+        prm = self._chunk_params()
         if m and self.v.r_model == "cn0":
             self._cn0_r()
         if m:
-            nep, self.grid_next = L.run_chunk(
-                B, start, prm, self.grid_next, max_ep, self.ST, self.CF, self.CODE, self.HIST, REC,
-                NREC, self.CA, POLY, TAU_A, ATM, self.ACTIVE, self.SIG, self.x, self.P, self.F, self.Q, self.QB,
-                self.lay, self.RC, self.RF, self.W, self.WI, self.WN, self.WS, LOG, LX, LPD, LR)
+            chans = (self.ST, self.CF, self.CODE, self.HIST, self.CA, self.ACTIVE, self.SIG)
+            filt = (self.x, self.P, self.F, self.Q, self.QB, self.lay, self.RC, self.RF, self.W, self.WI, self.WN,
+                    self.WS)
+            nep, self.grid_next = L.run_chunk(B, start, prm, self.grid_next, max_ep, chans, (POLY, TAU_A, ATM),
+                                              filt, (REC, NREC, LOG, LX, LPD, LR))
         else:                                   # nothing to track: coast the filter over the block
-            nep = 0
-            while self.grid_next + prm[L.P_MARGIN] <= blk_end and nep < max_ep:
-                from .kalman import kf_predict
-                kf_predict(self.x, self.P, self.F, self.Q)
-                LOG[nep, L.L_TAU] = (self.grid_next - self.s_ref) / fs
-                LX[nep] = self.x
-                LPD[nep] = np.diag(self.P)
-                self.grid_next += self.step
-                nep += 1
+            nep = self._coast(prm, blk_end, max_ep, LOG, LX, LPD)
         if nep:
             self.tau_state = float(LOG[nep - 1, L.L_TAU])
             # an outage longer than the filter can bridge: coasting and the position sigma past the limit
@@ -571,6 +528,77 @@ class VectorTracker:
                 self.log(f"vector: {self.label(prn)} set below {self.v.drop_elevation_deg:g} deg, channel closed")
                 self._remove(prn, True)
         return recs, fixes
+
+    def _step_pending(self, blocks, start) -> dict:
+        """The scalar (pending) channels track the chunk and join the vector loop once locked long enough;
+        returns their records by channel key."""
+        fs, recs = self.fs, {}
+        for prn, ch in list(self.channels.items()):
+            if prn in self.prns:
+                continue
+            recs[prn] = ch.process(blocks[self.block_of[ch.signal.system]], start)
+            if ch.lost:
+                continue
+            locked = ch.st[K.S_LOCK] > 0
+            if locked:
+                t0 = self.pending_since.setdefault(prn, start / fs)
+                if start / fs - t0 >= PROMOTE_LOCKED_S and self._eligible(prn, ch):
+                    self._promote(prn, ch)
+                    self.log(f"vector: {self.label(prn)} joined the vector loop")
+            else:
+                self.pending_since.pop(prn, None)
+        return recs
+
+    def _open_predicted_channels(self, start, tau_now, r, b, drift):
+        """Channels opened from the prediction for satellites with ephemeris above the elevation mask
+        (vector.add_predicted), highest first, while channels are free."""
+        if not (self.v.add_predicted and len(self.channels) < self.cfg.tracking.max_channels):
+            return
+        cand = [p for p in sorted(self.ephs) if p not in self.channels]
+        if not cand:
+            return
+        _, _, el = satellite_polys([self.ephs[p] for p in cand], self.t_ref, tau_now, 0.1, b,
+                                   drift, r, self.nav.iono(), self.cfg.navigation)
+        order = np.argsort(-el)
+        for i in order:
+            if len(self.channels) >= self.cfg.tracking.max_channels:
+                break
+            if np.degrees(el[i]) >= self.cfg.navigation.elevation_mask_deg:
+                self._open_predicted(cand[i], max(self.grid_next - self.step, float(start)))
+
+    def _chunk_params(self) -> np.ndarray:
+        """The compiled loop's scalar parameters (receiver.tracking.vector.loop P_* slots)."""
+        prm = np.zeros(L.N_PRM)
+        prm[L.P_FS] = self.fs
+        prm[L.P_IF] = self.if_hz
+        prm[L.P_GRID] = self.step
+        prm[L.P_SREF] = self.s_ref
+        prm[L.P_MARGIN] = (self.T_ms + 1.0) * 1e-3 * self.fs
+        prm[L.P_CHI2] = self.filt.chi2_threshold
+        prm[L.P_CN0_MASK] = -1e9 if self.v.cn0_mask_dbhz is None else float(self.v.cn0_mask_dbhz)
+        if self.v.r_model == "cn0":         # below min_cn0_dbhz a channel has no weight to give
+            prm[L.P_CN0_MASK] = max(prm[L.P_CN0_MASK], float(self.v.r_cn0.min_cn0_dbhz))
+        prm[L.P_LOCK_CN0] = float(self.v.lock_cn0_dbhz)
+        prm[L.P_FORM] = self.filt.adaptive_form
+        prm[L.P_FLOOR_C] = self.filt.floor_code
+        prm[L.P_FLOOR_F] = self.filt.floor_carr
+        prm[L.P_MIN_FILL] = min(self.filt.window, 100)
+        prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
+        prm[L.P_COAST_MASK] = 1.0 if self.v.coast_mask else 0.0
+        return prm
+
+    def _coast(self, prm, blk_end, max_ep, LOG, LX, LPD) -> int:
+        """Nothing to track: predict the filter over the block's epochs; returns the epoch count."""
+        from .kalman import kf_predict
+        nep = 0
+        while self.grid_next + prm[L.P_MARGIN] <= blk_end and nep < max_ep:
+            kf_predict(self.x, self.P, self.F, self.Q)
+            LOG[nep, L.L_TAU] = (self.grid_next - self.s_ref) / self.fs
+            LX[nep] = self.x
+            LPD[nep] = np.diag(self.P)
+            self.grid_next += self.step
+            nep += 1
+        return nep
 
     # ================================================================== diagnostics
     def _diagnostics(self, LOG, LPD, LR, first_epoch, LX=None):

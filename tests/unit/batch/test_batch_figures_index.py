@@ -1,11 +1,10 @@
-"""scripts/figures_index.py: figures/index.md from the figure directories and their claims.json."""
+"""scripts/figures/figures_index.py: figures/index.md from the figure directories and their claims.json."""
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 from repo_paths import SCRIPTS
-SCRIPT = SCRIPTS / "figures_index.py"
+SCRIPT = SCRIPTS / "figures" / "figures_index.py"
 
 
 def test_index_lists_claims_figures_and_tables(tmp_path):

@@ -1,12 +1,11 @@
-"""scripts/outage_table.py: acceptance verdicts of issue 14 from batch summary rows."""
+"""scripts/tools/outage_table.py: acceptance verdicts of issue 14 from batch summary rows."""
 import importlib.util
 import math
-from pathlib import Path
 
 import pytest
 
 from repo_paths import SCRIPTS
-SCRIPT = SCRIPTS / "outage_table.py"
+SCRIPT = SCRIPTS / "tools" / "outage_table.py"
 spec = importlib.util.spec_from_file_location("outage_table", SCRIPT)
 ot = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(ot)

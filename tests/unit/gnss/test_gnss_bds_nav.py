@@ -159,7 +159,7 @@ def test_meo_state_is_consistent(nominal):
 
 def test_rinex3_beidou_records_round_trip(nominal, tmp_path):
     """Our BeiDou RINEX 3 records read back as the same ephemerides (RTKLIB reads the same files:
-    scripts/bds_acceptance.py), and a mixed file keeps GPS and BeiDou apart."""
+    scripts/bench/accuracy_bds.py), and a mixed file keeps GPS and BeiDou apart."""
     from receiver.gnss.rinex import read_rinex_nav, write_rinex_nav
     from receiver.sim.bds_constellation import bds_rinex_ephemerides
     from receiver.sim.constellation import nominal_ephemerides

@@ -1,7 +1,6 @@
 """Broadcast ephemeris: RINEX reading/writing and satellite state computation."""
 import math
 from dataclasses import fields, replace
-from pathlib import Path
 
 import numpy as np
 import pytest

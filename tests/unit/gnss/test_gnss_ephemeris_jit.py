@@ -1,7 +1,6 @@
 """The compiled satellite states of the navigation solver (receiver.gnss.ephemeris_jit) against the numpy
 reference (receiver.gnss.ephemeris.sat_state): the same values to float rounding."""
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest

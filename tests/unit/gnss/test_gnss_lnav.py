@@ -1,7 +1,6 @@
 """LNAV parity, frame encoder and decoder (IS-GPS-200)."""
 import itertools
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest

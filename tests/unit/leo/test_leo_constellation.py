@@ -137,9 +137,9 @@ def test_tle_writer_round_trip_and_script_reproduces_data_file(tmp_path):
     assert np.isclose(s.ecco, t.eccentricity)
     assert np.isclose(s.bstar, t.bstar, rtol=1e-4)
     assert np.isclose(s.no_kozai * 1440 / (2 * np.pi), t.mean_motion_rev_day, rtol=1e-9)
-    # the shipped file is exactly what scripts/make_leo_tles.py writes
+    # the shipped file is exactly what scripts/tools/make_leo_tles.py writes
     import importlib.util
-    spec = importlib.util.spec_from_file_location("mk", os.path.join(ROOT, "scripts",
+    spec = importlib.util.spec_from_file_location("mk", os.path.join(ROOT, "scripts", "tools",
                                                                      "make_leo_tles.py"))
     mk = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mk)

@@ -1,11 +1,10 @@
 """Bit detection in the navigation engine: coherent (phase-locked) and differential (frequency-locked,
 vector channels) assembly of LNAV bits from prompt correlator records."""
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from receiver.navigation.engine import BIT_MS, ChannelNav
+from receiver.navigation.channel import BIT_MS, ChannelNav
 from receiver.gnss.lnav import EphemerisEvent, encode_frames
 from receiver.runfile.record import EPOCH_DTYPE, STATE_BIT_SYNC
 from receiver.sim.constellation import nominal_ephemerides, quantize_ephemeris, quantize_iono

@@ -2,7 +2,6 @@
 fallback set while no broadcast set is known, the broadcast set from the moment a channel decodes subframe 4
 page 18.  Measurements: synthetic pseudoranges from the real broadcast orbits of brdc0010.22n, delayed by an
 ionosphere that is NOT the fallback set's (the nominal constellation's Klobuchar set, another day's)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -157,7 +156,7 @@ def _replay(run_h5, start_s, end_s, *overrides):
 
 
 def test_reference_recording_started_late_uses_the_fallback_until_page18(tokyo_run):
-    """The reference recording from 9.7 s on (scripts/derived_recordings.py late_9.7): fixes from 33.7 s,
+    """The reference recording from 9.7 s on (scripts/tools/derived_recordings.py late_9.7): fixes from 33.7 s,
     page 18 decoded at 39.7 s.  With the fallback set the fixes before page 18 are as good as after it
     (the recording's ionosphere is the fallback set's day); without it they carry the whole delay (6-7 m)."""
     f, e = _replay(tokyo_run, 9.7, 41.0)

@@ -1,6 +1,5 @@
 """Navigation solution on synthetic measurements built from real broadcast orbits."""
 from dataclasses import replace
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np

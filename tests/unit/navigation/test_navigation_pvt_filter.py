@@ -6,7 +6,6 @@ clock are fed to NavSolver.fix, and the WLS fixes to the filters.  The last test
 (navigation.filter: ckf) on the first 20 s of the third-party reference recording (skipped when ../shared
 is absent).
 """
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np

@@ -77,7 +77,7 @@ def test_week_alignment_and_out_of_span(tmp_path):
     truth = tmp_path / "t.truth.h5"
     ref, v = _truth(truth, t0=604790.0, n=2001)
     # fixes in the next week (tow wrapped) and one outside the truth span
-    tow = np.array([604795.0, 2.0, 5.0, 50.0]) 
+    tow = np.array([604795.0, 2.0, 5.0, 50.0])
     week = np.array([2300, 2301, 2301, 2301])
     t_abs = np.array([604795.0, 604802.0, 604805.0, 604850.0])
     true_pos = ref + (t_abs - 604790.0)[:, None] * v

@@ -1,7 +1,6 @@
 """The decimating / resampling input stage (receiver/source/decimate.py): exact time tags, block-wise
 reads equal to one pass, the factor `auto` picks, and a 16.368 MS/s real-IF 2-bit recording received
 through it (C/N0 and Doppler against the simulated values and against full-rate processing)."""
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np

@@ -1,7 +1,6 @@
 """Input formats: fixed byte vectors for every packed format / bit order / encoding, offset binary,
 header bytes, aliases, streaming writer = one-shot writer, and the simulator writing a packed format the
 receiver acquires."""
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -1,7 +1,6 @@
 """SigMF metadata beside a recording: written by the simulator, read by the receiver; a run with no input
 keys equals the run with the explicit input section; disagreeing explicit keys are one-line errors."""
 import json
-import sys
 from pathlib import Path
 
 import pytest
@@ -37,8 +36,7 @@ def test_sigmf_run_equals_explicit_config(tmp_path):
     b = load_receiver_config(paths["yaml"], [("output.path", str(tmp_path / "b.h5"))] + common)
     run(a, quiet=True, log=lambda *x: None)
     run(b, quiet=True, log=lambda *x: None)
-    sys.path.insert(0, str(ROOT / "scripts"))
-    from compare_runs import compare_h5
+    from receiver.runfile.compare import compare_h5
     diffs = []
     compare_h5(tmp_path / "a.h5", tmp_path / "b.h5", diffs)
     # the stored configs hold the same input section (metadata filled in = the explicit fragment)

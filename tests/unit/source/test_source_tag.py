@@ -2,7 +2,6 @@
 the simulator writing one, a run with no input keys equal to the explicit one, and INT8X2's opposite Q
 sign undone by iq_swap (the satellites are found at their Doppler)."""
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -69,8 +68,7 @@ def test_simulator_writes_the_tag_and_run_equals_explicit(rec):
     run(a, quiet=True, log=lambda *x: None)
     run(b, quiet=True, log=lambda *x: None)
     assert a.input.if_hz == 2.5e5 and a.input.format == "int8_iq"
-    sys.path.insert(0, str(ROOT / "scripts"))
-    from compare_runs import compare_h5
+    from receiver.runfile.compare import compare_h5
     diffs = []
     compare_h5(d / "a.h5", d / "b.h5", diffs)
     assert [x for x in diffs if not x.startswith("/@config")] == [], diffs[:5]

@@ -1,6 +1,6 @@
 """The correlator-level simulator's compiled driver (receiver.evaluate.corrloop.run: every epoch in one
 numba function with the loops' compiled twins) against its numpy + Python-loop reference path, for every
-loop variant and setting the paper figures use (scripts/figures_carrier.py).
+loop variant and setting the paper figures use (scripts/figures/figures_carrier.py).
 
 Runs are short (3-4 s) on purpose: the two paths do the same arithmetic in the same order (on this machine
 the records are bit-identical), but a closed tracking loop under strong scintillation, and the paper's
@@ -20,7 +20,7 @@ from receiver.sim.corrsim import OUT_KEYS, CorrScenario, make_truth, run
 from receiver.tracking.carrier import make_carrier_loop
 
 from repo_paths import SCRIPTS
-sys.path.insert(0, str(SCRIPTS))
+sys.path.insert(0, str(SCRIPTS / "figures"))
 import figures_carrier as FC  # noqa: E402
 
 

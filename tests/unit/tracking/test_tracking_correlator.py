@@ -65,7 +65,8 @@ def test_carrier_wipe_off_stays_coherent_over_a_20_ms_epoch():
 
 def test_signed_index_block_sums_equal_the_unsigned_fast_path():
     """The block sums with unsigned code indices (the fast path) and with signed ones (the fallback for a
-    code phase outside the extended code; the same function compiled for int64) are the same arithmetic: equal to the last bit."""
+    code phase outside the extended code; the same function compiled for int64) are the same arithmetic:
+    equal to the last bit."""
     from receiver.tracking.correlator import _block_sums
     rng = np.random.default_rng(5)
     m = 512
