@@ -156,3 +156,19 @@ def test_gnssrx_plugins_lists_an_installed_plugin(tmp_path):
               "--set", "tracking.carrier.variant=cpll_again", "--set", "tracking.carrier.cpll_again.order=5"],
              env_path=tmp_path / "site")
     assert r.returncode == 2 and "tracking.carrier.cpll_again.order' must be one of 2, 3" in r.stderr
+
+
+def test_a_vector_filter_plugin_takes_its_parameters(plugin_path):
+    from receiver.errors import UserError
+    from receiver.schema import load_receiver_config, used_plugins
+    from receiver.tracking.vector import make_filter
+    cfg = load_receiver_config(None, ["vector.enabled=true", "vector.variant=vector_again:ScaledR",
+                                      "vector.scaled_r.r_scale=4"])
+    f = make_filter(cfg.vector.variant, cfg.vector)
+    assert (f.r_code, f.r_carr) == (4 * cfg.vector.r_code_m2, 4 * cfg.vector.r_carrier_m2s2)
+    assert [(u["name"], u["version"], u["params"]) for u in used_plugins(cfg)] == \
+        [("vector_again:ScaledR", "2.0", {"r_scale": 4.0})]
+    with pytest.raises(UserError, match="vector.scaled_r.r_scale' must be <= 1000.0"):
+        load_receiver_config(None, ["vector.variant=vector_again:ScaledR", "vector.scaled_r.r_scale=1e4"])
+    with pytest.raises(UserError, match="vector filter plugin 'vector_again:NoModel': missing method matrices"):
+        load_receiver_config(None, ["vector.variant=vector_again:NoModel"])
