@@ -49,11 +49,7 @@ def _run(rec, out, *sets):
 
 @pytest.mark.slow
 def test_builtin_loop_as_a_plugin_gives_the_same_run_file(recording, plugin_path, tmp_path):
-    sys.path.insert(0, str(ROOT / "scripts"))
-    try:
-        from compare_runs import compare_h5
-    finally:
-        sys.path.remove(str(ROOT / "scripts"))
+    from receiver.runfile.compare import compare_h5
     a = _run(recording, tmp_path / "builtin.h5", "tracking.carrier.variant=cpll_atan")
     b = _run(recording, tmp_path / "plugin.h5", "tracking.carrier.variant=cpll_again:CpllAgain")
     c = _run(recording, tmp_path / "pll.h5")
