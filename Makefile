@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test test-fast lint docs docs-serve bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages clean
+.PHONY: venv demo test test-fast lint docs docs-serve bench figures figures-leo figures-vector figures-carrier figures-check figures-compare batch-full batch-outages validate clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -73,6 +73,13 @@ figures-compare: venv
 # not part of `make test`); FIGCHECK_ARGS='--set tracking.carrier.ekf.bn_hz=12' shows it failing
 figures-check: venv
 	$(PY) scripts/figures/figures_check.py -j $(FIGJOBS) $(FIGCHECK_ARGS)
+
+# outside-simulator validation matrix (GPS-SDR-SIM recordings; configs/validate/matrix.yaml): cached under
+# out/validate/, table printed and written to docs/validation.md.  VALJOBS recordings at a time; VALIDATE_ARGS
+# e.g. --only static_2048 (no doc update).
+VALJOBS ?= 2
+validate: venv
+	$(PY) -m receiver.cli validate -j $(VALJOBS) $(VALIDATE_ARGS)
 
 batch-full: venv
 	$(VENV)/bin/gnssrx batch configs/batch/full.yaml

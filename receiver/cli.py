@@ -64,6 +64,12 @@ class _Group(click.Group):
             except ValueError:          # not the main thread
                 pass
 
+    def parse_args(self, ctx, args):
+        if not args:                 # bare ``gnssrx``: the help, and success (click's default exits 2)
+            click.echo(ctx.get_help())
+            ctx.exit(0)
+        return super().parse_args(ctx, args)
+
     def invoke(self, ctx):
         try:
             result = super().invoke(ctx)
@@ -184,11 +190,15 @@ def run(config, input_path, output, sets, quiet, n_threads, timings):
     with stage("config"):
         cfg = _load(config, input_path, sets, output)
     log = logging.getLogger("receiver.pipeline").info
+    from .probe.hints import explain_no_fix, warn_format
+    warn_format(cfg)                             # the file's bytes against input.format (1 MiB read)
     summary = run_pipeline(cfg, quiet=quiet, log=log, reads=[config])
     with stage("export"):
         from .export import export_all      # standard outputs (output.rinex, nmea, ...) from the closed run file
         export_all(summary.output, cfg.output, log=None if quiet else log)
     click.echo(summary.text())                   # --quiet silences the progress bar only
+    for line in explain_no_fix(cfg, summary):    # what was acquired / tracked, what to check
+        click.echo(line)
     if timings:
         import time
         wall, _ = _since_process_start()
@@ -234,7 +244,9 @@ def acquire(config, input_path, sets):
     """Acquire all configured PRNs and print a table."""
     from .acquisition.stage import acquire as do_acquire
     from .pipeline import open_input
+    from .probe.hints import no_satellite_lines, warn_format
     cfg = _load(config, input_path, sets)
+    warn_format(cfg)
     reader = open_input(cfg)
     start = reader.first + int(round(cfg.acquisition.start_s * reader.fs))
     notes = []
@@ -247,6 +259,9 @@ def acquire(config, input_path, sets):
     click.echo(f"detected: {' '.join(str(r.prn) for r in res if r.detected) or 'none'}")
     for line in (reader.summary_lines() if hasattr(reader, "summary_lines") else []) + notes:
         click.echo(line)
+    if not any(r.detected for r in res):
+        for line in no_satellite_lines(cfg, reader):
+            click.echo(line)
 
 
 @main.command("plugins")
@@ -285,6 +300,8 @@ LAZY_COMMANDS = {
     "leo": ("receiver.leo.cli", "leo"), "export": ("receiver.export.cli", "export"),
     "report": ("receiver.export.cli", "report"), "info": ("receiver.export.cli", "info"),
     "batch": ("receiver.batch.cli", "batch"), "compare": ("receiver.batch.cli", "compare"),
+    "probe": ("receiver.probe.cli", "probe"),
+    "validate": ("receiver.validate.cli", "validate"),
 }
 
 

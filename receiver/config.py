@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 
 from .errors import UserError
+from .suggest import did_you_mean, refuse_binary
 
 #: YAML dumper of Section.to_yaml: the safe dumper, through libyaml when PyYAML was built with it
 _SAFE_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
@@ -128,7 +129,7 @@ def _check(key: str, spec: P, value):
         raise UserError(f"config key '{key}' must be of type {k}, got {value!r}") from None
     if spec.choices is not None and value not in spec.choices:
         raise UserError(f"config key '{key}' must be one of {', '.join(map(str, spec.choices))}; "
-                        f"got {value!r}")
+                        f"got {value!r}" + did_you_mean(value, spec.choices))
     for v in (value if isinstance(value, list) and k.startswith("list_") else [value]):
         if spec.lo is not None and v < spec.lo:
             raise UserError(f"config key '{key}' must be >= {spec.lo}, got {v!r}")
@@ -142,7 +143,7 @@ def _merge(schema: dict, user: dict, prefix: str) -> dict:
         raise UserError(f"config section '{prefix.rstrip('.') or '<top>'}' must be a mapping")
     unknown = [k for k in user if k not in schema]
     if unknown:
-        raise UserError(f"unknown config key '{prefix}{unknown[0]}'")
+        raise UserError(f"unknown config key '{prefix}{unknown[0]}'" + did_you_mean(unknown[0], schema, prefix))
     out = {}
     for name, spec in schema.items():
         key = prefix + name
@@ -207,6 +208,7 @@ def read_utf8(path, what: str = "file") -> str:
     """The text of a UTF-8 file; another encoding (or binary data) is a one-line UserError naming the
     first bad byte and its line."""
     path = os.fspath(path)
+    refuse_binary(path, what)                   # a recording given as the config: say so
     try:
         with open(path, "rb") as fh:
             data = fh.read()

@@ -173,6 +173,7 @@ def validate_receiver(cfg: Section) -> Section:
     input_config.check(cfg.input)
     acquisition_config.check_prns(cfg.acquisition)
     sigs = run_signals(cfg)
+    acquisition_config.check_signals(cfg, sigs)
     vector_config.check(cfg.vector, sigs)
     acquisition_config.check(cfg.acquisition, sigs)
     input_config.check_signal_files(cfg.input, sigs)

@@ -1,4 +1,7 @@
-"""Shared fixtures.
+"""Shared fixtures, and the test-suite conventions.
+
+Every test under ``tests/system/`` (end-to-end runs on recordings) is marked ``slow``, as are the unit tests
+that take seconds (``@pytest.mark.slow``): ``make test-fast`` runs the rest (``-m "not slow"``).
 
 ``tokyo_run``: the path of the run file of the third-party reference recording
 (``../shared/data/gpssim_static_tokyo.bin``, GPS-SDR-SIM, static antenna in Tokyo) processed once per test
@@ -81,3 +84,11 @@ def tokyo_exports(tokyo_run, tmp_path_factory):
                          truth=str(TOKYO_META))
     written["h5"] = str(h5)
     return written
+
+
+def pytest_collection_modifyitems(config, items):
+    """The system tests are slow by convention (their folder), besides the unit tests marked one by one."""
+    system = ROOT / "tests" / "system"
+    for item in items:
+        if system in Path(str(item.fspath)).parents:
+            item.add_marker(pytest.mark.slow)

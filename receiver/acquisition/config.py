@@ -7,13 +7,17 @@ from ..config import P, Section
 from ..errors import UserError, warn
 from ..gnss.registry import SIGNAL_NAMES, get_signal
 
+#: signals defined in receiver.gnss (codes, messages) that the receiver stages do not process yet
+UNTRACKED_SIGNALS = ("gal_e1",)
+
 #: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns)
 SIGNAL_PRNS = {name: tuple(get_signal(name).prns) for name in SIGNAL_NAMES}
 
 #: the top-level keys naming the run's signals (choices: receiver.gnss.registry)
 SIGNALS_SCHEMA = {
     "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
-                                   "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages)",
+                                   "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages); gal_e1 (Galileo E1 OS) "
+                                   "is defined (codes, I/NAV) but not yet acquired or tracked",
                 choices=SIGNAL_NAMES),
     "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
                              "every signal is acquired and tracked from the same input (input.if_hz is the IF "
@@ -94,13 +98,22 @@ def signal_prns(cfg: Section, name: str) -> list:
 
 
 def _prn_text(name: str) -> str:
-    return "1-32 (GPS) and 193-202 (QZSS)" if name == "gps_l1ca" else "1-63"
+    return {"gps_l1ca": "1-32 (GPS) and 193-202 (QZSS)", "gal_e1": "1-50"}.get(name, "1-63")
 
 
 def check_prns(a: Section):
     """acquisition.prns is not empty."""
     if not a.prns:
         raise UserError("config key 'acquisition.prns' is empty: no PRN to search")
+
+
+def check_signals(cfg: Section, sigs: list):
+    """The run's signals are ones the receiver stages process."""
+    for s in sigs:
+        if s in UNTRACKED_SIGNALS:
+            key = "signals" if cfg.signals else "signal"
+            raise UserError(f"config key '{key}': {s} is not acquired or tracked yet (its codes and navigation "
+                            f"message are defined in receiver/gnss; docs/galileo.md)")
 
 
 def check(a: Section, sigs: list):

@@ -29,7 +29,9 @@ from ..errors import UserError
 @click.option("--dry-run", is_flag=True, help="list the runs and whether they are cached; run nothing")
 @click.option("--quiet", "-q", is_flag=True, help="no progress bar or summary")
 def batch(batch_file, jobs, scheduler, out_dir, sets, force, retry_failed, dry_run, quiet):
-    """Run a matrix of receiver configs x inputs x seeds (see receiver/batch/config.py)."""
+    """Run a matrix of receiver configs x inputs x seeds from a BATCH_FILE (YAML: variants with config and
+    set / sweep keys, inputs as scenarios or recordings, seeds, output_dir; README "Batch comparisons"); cached runs are
+    reused."""
     from .config import load_batch
     from .cache import _cached_result
     from .plan import make_plan

@@ -46,6 +46,7 @@ from typing import Any
 
 from ..config import P, Section, build, find_file, parse_override, read_yaml, search_bases
 from ..errors import UserError
+from ..suggest import did_you_mean
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -100,6 +101,8 @@ class Variant:
 
 @dataclass
 class InputSpec:
+    """One input of a batch: a scenario (simulated per seed, with its ``set`` overrides and ``assisted``) or a
+    recording (its receiver ``config``, ``truth`` or ``reference_llh``); paths resolved to absolute ones."""
     name: str
     kind: str                       # "scenario" | "recording"
     scenario: Any = None            # path (absolute) or mapping
@@ -115,6 +118,8 @@ class InputSpec:
 
 @dataclass
 class Batch:
+    """A loaded batch file (:func:`load_batch`): the validated config, resolved paths and directories, the
+    variants expanded over their sweep points and the inputs."""
     cfg: Section
     path: str | None                # the batch file (None: built from a mapping)
     name: str
@@ -200,7 +205,7 @@ def _variants(raw_variants, global_sweep: dict, base_dir: str) -> tuple[list, li
             raise UserError(f"config key '{key}' must be a mapping {{name, config, set, sweep}}")
         unknown = sorted(set(v) - _VARIANT_KEYS)
         if unknown:
-            raise UserError(f"unknown config key '{key}.{unknown[0]}'")
+            raise UserError(f"unknown config key '{key}.{unknown[0]}'" + did_you_mean(unknown[0], _VARIANT_KEYS))
         name = v.get("name")
         if not isinstance(name, str) or not name:
             raise UserError(f"config key '{key}.name' is required (a non-empty string)")
@@ -239,7 +244,7 @@ def _inputs(raw_inputs, base_dir: str) -> list:
             raise UserError(f"config key '{key}' must be a mapping with 'scenario' or 'recording'")
         unknown = sorted(set(item) - _INPUT_KEYS)
         if unknown:
-            raise UserError(f"unknown config key '{key}.{unknown[0]}'")
+            raise UserError(f"unknown config key '{key}.{unknown[0]}'" + did_you_mean(unknown[0], _INPUT_KEYS))
         has_sc, has_rec = item.get("scenario") is not None, item.get("recording") is not None
         if has_sc == has_rec:
             raise UserError(f"config key '{key}' needs exactly one of 'scenario' or 'recording'")

@@ -6,7 +6,6 @@ with exit code 2 by the main CLI.
 from __future__ import annotations
 
 import json
-import os
 
 import click
 
@@ -47,11 +46,8 @@ def report(run_h5, truth, output):
     run = load_run(run_h5)
     tr = load_truth(truth) if truth else None
     out = output or output_paths(run_h5)["report"]
-    d = os.path.dirname(os.path.abspath(out))
-    if not os.path.isdir(d):
-        raise UserError(f"output directory does not exist: {d}")
     from ..safeio import check_output
-    check_output(out, reads=[run_h5, truth], what="report", suffixes=(), make_dirs=False)
+    check_output(out, reads=[run_h5, truth], what="report", suffixes=())   # makes missing directories
     try:
         write_report(run, out, truth=tr)
     except OSError as exc:

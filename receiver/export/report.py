@@ -1,9 +1,10 @@
 """One-page PNG report of a run (matplotlib, Agg backend).
 
-Panels: C/N0 per channel, sky plot, Doppler per channel, horizontal scatter, lock status per channel
-(tracking state, PLL lock, satellite used in the fix), a summary table, position and velocity in the local
-East/North/Up frame (errors against a truth file when one is given, else deviations from the mean position /
-the velocity itself), satellites used and DOP, and the receiver clock.  Periods in vector-tracking mode
+Panels: C/N0 per channel, sky plot (labels placed clear of each other), Doppler per channel (with a legend),
+horizontal scatter, lock status per channel (tracking state, PLL lock, satellite used in the fix), a summary
+table, position and velocity over the span of the fixes (not the whole file) in the local East/North/Up frame
+(errors against a truth file when one is given, else deviations from the mean position / the velocity
+itself), satellites used and DOP, and the receiver clock.  Periods in vector-tracking mode
 (``/navigation/mode`` = 1) are shaded in the time panels.
 
 Channel records are reduced to at most ``MAX_POINTS`` time bins per channel (mean C/N0 and Doppler, the
@@ -139,6 +140,11 @@ def _shade_vector(ax, t, mode, label=True):
 
 # -------------------------------------------------------------------------------------------------- stats
 def summary_stats(run: RunData, truth=None) -> dict:
+    """Summary numbers of a run for the report's table: ``n_fixes``, ``duration_s`` and ``t0_s`` (the span
+    read, s), and over the fixes with a finite position: ``ttff_s`` (first fix after the span start, s),
+    ``mean_llh`` (deg, deg, m), ``scatter_enu_m`` (1-sigma about the mean), ``n_vector``, ``n_sats_mean``,
+    ``pdop_mean``.  With a truth (:func:`load_truth`'s dict) also the errors in ENU at the truth:
+    ``truth_n``, ``err_3d_rms_m``, ``err_h_rms_m``, ``err_v_rms_m``, ``err_mean_enu_m``, ``vel_3d_rms_mps``."""
     fx = run.fixes
     fs = float(run.attrs.get("sample_rate_hz", np.nan))
     first = float(run.attrs.get("first_sample", 0)) / fs if np.isfinite(fs) else 0.0
@@ -179,6 +185,9 @@ def summary_stats(run: RunData, truth=None) -> dict:
 
 # -------------------------------------------------------------------------------------------------- figure
 def make_figure(run: RunData, truth=None, channels=None):
+    """The report as a matplotlib Figure (the panels of the module docstring), not saved.  ``truth``:
+    :func:`load_truth`'s dict or None; ``channels``: :func:`read_channels` of the run (read from the run
+    file when None).  Fills the missing azimuth/elevation of ``run.obs`` in place (:meth:`RunData.fill_azel`)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -204,9 +213,9 @@ def make_figure(run: RunData, truth=None, channels=None):
     ax_hz = fig.add_subplot(gs[1, 2])
     ax_lock = fig.add_subplot(gs[2, :2], sharex=ax_cn0)
     ax_txt = fig.add_subplot(gs[2, 2])
-    ax_pos = fig.add_subplot(gs[3, :2], sharex=ax_cn0)
+    ax_pos = fig.add_subplot(gs[3, :2])             # over the fixes' span, not the file's (set below)
     ax_sat = fig.add_subplot(gs[3, 2])
-    ax_vel = fig.add_subplot(gs[4, :2], sharex=ax_cn0)
+    ax_vel = fig.add_subplot(gs[4, :2], sharex=ax_pos)
     ax_clk = fig.add_subplot(gs[4, 2])
 
     name = os.path.basename(run.path)
@@ -237,6 +246,8 @@ def make_figure(run: RunData, truth=None, channels=None):
     ax_dop.set_ylabel("Doppler (kHz)")
     ax_dop.set_title("carrier Doppler (NCO) per channel")
     ax_dop.grid(alpha=0.3)
+    if channels:
+        ax_dop.legend(ncol=min(len(channels), 6), fontsize=8, loc="best", framealpha=0.85)
     if t_end:
         ax_cn0.set_xlim(stats["t0_s"], t_end)
 
@@ -247,6 +258,7 @@ def make_figure(run: RunData, truth=None, channels=None):
     ax_sky.set_rticks([0, 15, 30, 45, 60, 75])
     ax_sky.set_yticklabels(["0", "15", "30", "45", "60", "75"], fontsize=7)
     ax_sky.set_title("sky plot (from the fixes)", pad=18)
+    ends = []
     for p in sorted({int(x) for x in obs["prn"]}):
         sel = (obs["prn"] == p) & np.isfinite(obs["elevation_deg"]) & np.isfinite(obs["azimuth_deg"])
         if not sel.any():
@@ -257,8 +269,8 @@ def make_figure(run: RunData, truth=None, channels=None):
         ax_sky.plot(az, el, "-", color=colors.get(p, "k"), lw=2.5)
         ax_sky.plot(az[-1], el[-1], "o", ms=9, color=colors.get(p, "k"),
                     mfc=colors.get(p, "k") if used[-1] else "white", mew=1.8)
-        ax_sky.annotate(sat_label(p, run.system), (az[-1], el[-1]), textcoords="offset points", xytext=(6, 5),
-                        fontsize=9)
+        ends.append((p, az[-1], el[-1]))
+    _sky_labels(ax_sky, ends, lambda p: sat_label(p, run.system), colors)
     ax_sky.plot([], [], "o", color="gray", label="used")
     ax_sky.plot([], [], "o", color="gray", mfc="white", label="not used")
     ax_sky.legend(loc="lower left", bbox_to_anchor=(-0.12, -0.12), fontsize=8, framealpha=0.85)
@@ -331,9 +343,12 @@ def make_figure(run: RunData, truth=None, channels=None):
         _shade_vector(ax_vel, t, mode)
         what = "error vs truth" if truth is not None else "deviation from the mean position"
         ax_pos.set_title(f"position {what} (ENU)")
+        pad = max(0.02 * (t[-1] - t[0]), 0.05)
+        ax_pos.set_xlim(t[0] - pad, t[-1] + pad)
         ax_vel.set_title("velocity error vs truth (ENU)" if truth is not None else "velocity (ENU)")
         note = (f"{stats.get('n_vector', 0)} of {len(f)} fixes in vector mode" if stats.get("n_vector")
                 else "all fixes in scalar mode")
+        note += f"; fixes from {t[0]:.1f} to {t[-1]:.1f} s (the panels below span them)"
         ax_pos.text(0.005, 0.96, note, transform=ax_pos.transAxes, fontsize=8, va="top",
                     bbox=dict(facecolor="white", alpha=0.8, lw=0))
 
@@ -397,6 +412,8 @@ def make_figure(run: RunData, truth=None, channels=None):
     ax_pos.set_ylabel("m")
     ax_vel.set_ylabel("m/s")
     ax_vel.set_xlabel("time since the first sample of the file (s)")
+    if not len(f) and t_end:
+        ax_pos.set_xlim(stats["t0_s"], t_end)
     for ax in (ax_pos, ax_vel):
         ax.grid(alpha=0.3)
         if len(f):
@@ -441,6 +458,54 @@ def make_figure(run: RunData, truth=None, channels=None):
     ax_txt.text(0.0, 1.0, _summary_text(run, stats, channels), transform=ax_txt.transAxes, va="top",
                 family="monospace", fontsize=9)
     return fig
+
+
+def _sky_labels(ax, ends, label, colors):
+    """Satellite labels beside their sky-plot markers where they overlap neither another label, a marker
+    nor the azimuth labels outside the horizon: for each satellite (highest first) the first free one of a
+    ring of offsets, pointing inwards near the horizon; a thin leader line when the label sits away."""
+    fig = ax.figure
+    fig.canvas.draw()                     # the polar transform and the text extents
+    renderer = fig.canvas.get_renderer()
+    px = fig.dpi / 72.0
+    centre = ax.transData.transform((0.0, 90.0))
+    marks = [ax.transData.transform((az, el)) for _, az, el in ends]
+    taken = [(m[0] - 6 * px, m[1] - 6 * px, m[0] + 6 * px, m[1] + 6 * px) for m in marks]
+    taken += [_box(t.get_window_extent(renderer)) for t in ax.get_xticklabels() if t.get_text()]
+    ring = [(8, 6), (8, -14), (-8, 6), (-8, -14), (0, 11), (0, -19), (12, -4), (-12, -4),
+            (16, 14), (-16, 14), (16, -22), (-16, -22), (0, 24), (0, -30)]
+    for (p, az, el), m in sorted(zip(ends, marks), key=lambda e: -e[0][2]):
+        txt = label(p)
+        w = 0.62 * 9 * px * len(txt) + 2 * px
+        h = 11 * px
+        inward = np.asarray(centre) - np.asarray(m)
+        order = sorted(ring, key=lambda o: -np.dot(o, inward)) if el < 20 else ring
+        best = None
+        for ox, oy in order:
+            x0 = m[0] + ox * px - (w if ox < 0 else (w / 2 if ox == 0 else 0))
+            y0 = m[1] + oy * px
+            box = (x0, y0, x0 + w, y0 + h)
+            if not any(_overlap(box, b) for b in taken):
+                best = (ox, oy, box)
+                break
+        if best is None:
+            ox, oy = ring[0]
+            x0, y0 = m[0] + ox * px, m[1] + oy * px
+            best = (ox, oy, (x0, y0, x0 + w, y0 + h))
+        ox, oy, box = best
+        taken.append(box)
+        ha = "right" if ox < 0 else ("center" if ox == 0 else "left")
+        far = abs(ox) > 10 or oy > 12 or oy < -20
+        ax.annotate(txt, (az, el), textcoords="offset points", xytext=(ox, oy), fontsize=9, ha=ha, va="bottom",
+                    color="black", arrowprops=dict(arrowstyle="-", lw=0.6, color=colors.get(p, "k")) if far else None)
+
+
+def _box(bb):
+    return (bb.x0, bb.y0, bb.x1, bb.y1)
+
+
+def _overlap(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
 def _cn0_ylim(ax, channels):

@@ -99,11 +99,12 @@ def _clock(p, t):
     return bias, drift
 
 
-def _orbit(p, t):
-    """Keplerian orbit at GPS time t (s of week). Returns pos, vel (ECEF at t), E, Edot."""
+def _orbit(p, t, mu=MU_GPS):
+    """Keplerian orbit at GPS time t (s of week). Returns pos, vel (ECEF at t), E, Edot.  ``mu``: the
+    gravitational constant of the system's ICD (GPS by default; Galileo's differs)."""
     a = p["sqrt_a"] ** 2
     e = p["e"]
-    n0 = np.sqrt(MU_GPS / a ** 3)
+    n0 = np.sqrt(mu / a ** 3)
     n = n0 + p["delta_n"]
     tk = wrap_week_seconds(t - p["toe"])
     mk = p["m0"] + n * tk
@@ -167,19 +168,25 @@ def sat_state(eph, t_tx):
     bds = _bds_split(eph)
     if bds is not None:                   # BeiDou ephemerides: their class's state (bds_ephemeris.py)
         return _mixed_state(eph, t_tx, bds)
-    p = _params(eph)
+    return kepler_state(_params(eph), t_tx, MU_GPS, F_REL)
+
+
+def kepler_state(p, t_tx, mu, f_rel):
+    """:func:`sat_state` of the parameters ``p`` (:func:`_params`) with the gravitational constant ``mu`` and
+    relativistic constant ``f_rel`` of a system whose orbit and clock model are GPS's (Galileo: its own mu
+    and F, the same Earth rotation rate)."""
     t_sv = np.asarray(t_tx, dtype=float)
     t = t_sv
     rel = 0.0
     for _ in range(3):
         bias_poly, _ = _clock(p, t)
         t = t_sv - (bias_poly - p["tgd"] + rel)
-        pos, vel, ek, e_dot = _orbit(p, t)
-        rel = F_REL * p["e"] * p["sqrt_a"] * np.sin(ek)
+        pos, vel, ek, e_dot = _orbit(p, t, mu)
+        rel = f_rel * p["e"] * p["sqrt_a"] * np.sin(ek)
     bias_poly, drift_poly = _clock(p, t)
-    pos, vel, ek, e_dot = _orbit(p, t)
-    rel = F_REL * p["e"] * p["sqrt_a"] * np.sin(ek)
-    rel_dot = F_REL * p["e"] * p["sqrt_a"] * np.cos(ek) * e_dot
+    pos, vel, ek, e_dot = _orbit(p, t, mu)
+    rel = f_rel * p["e"] * p["sqrt_a"] * np.sin(ek)
+    rel_dot = f_rel * p["e"] * p["sqrt_a"] * np.cos(ek) * e_dot
     clk_bias = bias_poly + rel - p["tgd"]
     clk_drift = drift_poly + rel_dot
     return pos, vel, clk_bias, clk_drift

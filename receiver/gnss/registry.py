@@ -7,8 +7,9 @@ from __future__ import annotations
 
 from .signals import GPS_L1CA, SignalDef
 from .signals_bds import BDS_B1I
+from .signals_gal import GAL_E1
 
-SIGNALS: dict[str, SignalDef] = {"gps_l1ca": GPS_L1CA, "bds_b1i": BDS_B1I}
+SIGNALS: dict[str, SignalDef] = {"gps_l1ca": GPS_L1CA, "bds_b1i": BDS_B1I, "gal_e1": GAL_E1}
 SIGNAL_NAMES = tuple(SIGNALS)
 
 

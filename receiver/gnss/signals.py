@@ -96,6 +96,7 @@ class SignalDef:
     carrier_hz = L1_HZ
     chip_rate = CA_CHIP_RATE
     code_len = CA_CODE_LEN
+    code_period_s = CA_PERIOD_S  # primary-code period (1 ms here and for B1I; Galileo E1: 4 ms)
     prns = L1CA_PRNS             # GPS 1..32 and QZSS 193..202 (same signal, same LNAV message)
 
     def code(self, prn: int) -> np.ndarray:
@@ -103,6 +104,7 @@ class SignalDef:
         return ca_code(prn)
 
     def bit_ms(self, prn: int) -> int:
+        """Data-bit length in ms (20 for LNAV)."""
         return round(LNAV_BIT_S * 1e3)
 
     def secondary(self, prn: int):

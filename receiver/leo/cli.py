@@ -23,9 +23,9 @@ def _fail(exc: UserError):
 
 
 def _check_output(path):
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise UserError(f"output directory does not exist: {d}")
+    """Missing directories are made, as for every command's outputs (receiver/safeio.py check_output)."""
+    from ..safeio import check_output
+    check_output(path, suffixes=())
 
 
 @click.group("leo")
@@ -45,8 +45,8 @@ def simulate_cmd(scenario, output, overrides):
     from .doppler import save_measurements, simulate
     try:
         cfg = load_scenario(scenario, overrides)
-        _check_output(output)
         data = simulate(cfg)
+        _check_output(output)            # after the input checks: bad input leaves no directory behind
         save_measurements(output, data)
     except UserError as exc:
         _fail(exc)
@@ -115,9 +115,9 @@ def fix_cmd(config, measurements, solver, output, overrides):
     overrides = list(overrides) + ([f"leo.solver={solver}"] if solver else [])
     try:
         cfg = load_fix_config(config, overrides)
-        if output:
-            _check_output(output)
         data = load_measurements(measurements)
+        if output:
+            _check_output(output)        # after the input checks: bad input leaves no directory behind
         data, res, x0, grid, settings = run_fix(cfg, data)
         if output:
             _write_fix(output, cfg, data, res, x0, grid, settings)

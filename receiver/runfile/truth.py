@@ -32,6 +32,7 @@ class TruthFile(H5Input):
         return int(self.f.attrs.get("gps_week", 0))
 
     def has(self, path: str) -> bool:
+        """True when the file holds the group or dataset ``path`` (e.g. ``receiver``, ``satellites``)."""
         return path in self.f
 
     def receiver(self, names=("gps_tow", "ecef", "velocity_ecef")) -> dict:
@@ -45,9 +46,11 @@ class TruthFile(H5Input):
         return out
 
     def satellite_names(self) -> list[str]:
+        """Names (``Gnn``) of the satellite groups under ``/satellites`` ([] when the file has none)."""
         return list(self.f["satellites"].keys()) if "satellites" in self.f else []
 
     def satellite(self, name: str, names=None) -> dict:
+        """Columns of satellite ``name`` (``Gnn``): those present of ``names`` (None: all), as arrays."""
         g = self.f["satellites"][name]
         names = list(g.keys()) if names is None else [k for k in names if k in g]
         return {k: g[k][:] for k in names}

@@ -7,7 +7,6 @@ length of the recording.
 from __future__ import annotations
 
 import math
-import os
 import time
 import zlib
 
@@ -286,6 +285,9 @@ class ChannelStats:
         self._last_bucket = None
 
     def add(self, r: np.ndarray):
+        """Count a chunk of the channel's epoch records (EPOCH_DTYPE, in time order, every epoch, before
+        thinning): epochs, locked epochs, lock losses (also across chunks), C/N0 of the locked epochs, the lost
+        state and the first / last ``time_s``."""
         lock = (r["pll_lock"] > 0).astype(np.int8)
         self.epochs += len(r)
         self.locked += int(lock.sum())
@@ -309,12 +311,19 @@ class ChannelStats:
         return r[keep]
 
     def attrs(self) -> dict:
+        """The statistics as /channels/Gnn attributes (names in the class docstring; C/N0 in dB-Hz, times in s
+        since the first sample of the file)."""
         return {"epochs": self.epochs, "epochs_locked": self.locked, "lock_losses": self.losses,
                 "cn0_locked_mean_dbhz": self.cn0_sum / self.cn0_n if self.cn0_n else math.nan,
                 "dropped": self.dropped, "first_time_s": self.first, "last_time_s": self.last}
 
 
 class RunWriter:
+    """The writer of one run file (HDF5): acquisition results, per-channel epoch records, navigation tables
+    (fixes, observables, vector log), ephemerides, iono/UTC parameters and attributes.  Channels are keyed
+    by the signal's PRN (a satellite key in a run over several signals, system ``M``).  The file is written
+    under a temporary name and renamed into place by :meth:`close`."""
+
     def __init__(self, path, config_yaml: str, attrs: dict | None = None, reads=(), compression: str = "none",
                  channel_rate_hz: float | None = None, round_columns: bool = True, chunk_rows: int | None = None):
         """Checks the output path first (safeio.check_output: directory, name length, not one of `reads`,
@@ -354,6 +363,10 @@ class RunWriter:
 
     # ------------------------------------------------------------------ acquisition
     def write_acquisition(self, results, attrs: dict | None = None):
+        """Append acquisition results (AcqResult: prn, doppler_hz, code_phase_chips, metric, detected,
+        cn0_dbhz_est, reason, verified) to /acquisition, one dataset per column, at once (not buffered);
+        ``time_s`` is the result's file sample index divided by ``attrs['fs']`` (Hz; without it the index
+        itself).  ``attrs`` become attributes of the group, with ``reason_codes`` (code -> reason)."""
         g = self.f.require_group("acquisition")
         rows = {
             "prn": np.array([r.prn for r in results], np.int32),
@@ -512,12 +525,17 @@ class RunWriter:
         self._out.check()
 
     def append_fixes(self, fixes: np.ndarray):
+        """Append fix rows (FIX_DTYPE) to /navigation, one dataset per field (buffered: written in whole chunks
+        and at :meth:`close`)."""
         self._append_table("navigation", fixes)             # FIX_DTYPE
 
     def append_vector_log(self, rows: np.ndarray):
+        """Append vector-tracking diagnostics rows (VECTOR_LOG_DTYPE) to /vector (buffered like
+        :meth:`append_fixes`)."""
         self._append_table("vector", rows)                  # VECTOR_LOG_DTYPE
 
     def append_observables(self, obs: np.ndarray):
+        """Append observable rows (OBS_DTYPE) to /observables (buffered like :meth:`append_fixes`)."""
         self._append_table("observables", obs)              # OBS_DTYPE
 
     def write_ephemerides(self, ephs: dict):
@@ -561,6 +579,7 @@ class RunWriter:
         g.attrs["source"] = source
 
     def set_attrs(self, group: str, attrs: dict):
+        """Set attributes of the group ``group`` (created when absent; ``"/"``: the file's root), at once."""
         g = self.f.require_group(group) if group != "/" else self.f
         _set_attrs(g, attrs)
 

@@ -26,6 +26,7 @@ import numpy as np
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from ..errors import UserError
+from ..suggest import did_you_mean
 
 # step / sigma minimising the MSE of a uniform quantiser with 2^b levels on a Gaussian input (Max 1960)
 _STEP_SIGMA = {2: 0.9957, 3: 0.5860, 4: 0.3352, 5: 0.1881, 6: 0.1041, 7: 0.0569, 8: 0.0308}
@@ -39,7 +40,8 @@ def _tones(items):
             raise UserError(f"config key '{key}' must be a mapping with freq_hz and power_db")
         unknown = set(t) - {"freq_hz", "power_db", "phase_deg"}
         if unknown:
-            raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'")
+            raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'"
+                            + did_you_mean(sorted(unknown)[0], ("freq_hz", "power_db", "phase_deg")))
         try:
             out.append((float(t["freq_hz"]), float(t["power_db"]), float(t.get("phase_deg", 0.0))))
         except (TypeError, ValueError):
@@ -48,6 +50,11 @@ def _tones(items):
 
 
 class Impairments:
+    """The front-end impairments of one simulated stream (the module docstring), built from the scenario's
+    ``impairments`` section for sample rate ``fs`` and IF ``if_hz`` (Hz), noise ``sigma`` per component and a
+    complex or real format; a tone outside the sampled band, a bad dc_offset or filter band is a UserError.
+    ``active`` is False when nothing is configured (:meth:`apply` then returns the block unchanged)."""
+
     def __init__(self, cfg, fs: float, if_hz: float, sigma: float, complex_fmt: bool):
         self.fs, self.if_hz, self.sigma, self.cplx = fs, if_hz, sigma, complex_fmt
         self.tones = _tones(cfg.tones)

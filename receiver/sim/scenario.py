@@ -23,8 +23,10 @@ SCENARIO_SCHEMA = {
     "signal": P("gps_l1ca", "str", "signal generated: gps_l1ca, or bds_b1i (BeiDou B1I codes, carrier, NH/D1 "
                                    "and D2 symbols; with constellation.source bds_nominal BeiDou orbits and "
                                    "genuine D1/D2 messages, otherwise pseudo-random message bits on the orbits "
-                                   "of the same PRN numbers of the constellation source)",
-                choices=("gps_l1ca", "bds_b1i")),
+                                   "of the same PRN numbers of the constellation source), or gal_e1 (Galileo "
+                                   "E1-B with genuine I/NAV pages + E1-C with CS25, BOC(1,1), the orbits of "
+                                   "constellation.gal_file; docs/galileo.md)",
+                choices=("gps_l1ca", "bds_b1i", "gal_e1")),
     "signals": P([], "list", "several signals in one recording: [gps_l1ca, bds_b1i] puts the GPS satellites of "
                              "constellation.source (embedded or rinex) and the nominal BeiDou constellation "
                              "(constellation.bds_file, D1/D2 messages) in one file; frontend.if_hz is the IF "
@@ -48,6 +50,7 @@ SCENARIO_SCHEMA = {
                     choices=("embedded", "rinex", "bds_nominal", "bds_rinex")),
         "bds_file": P("data/bds_nominal_constellation.yaml", "str", "nominal BeiDou orbits (source: "
                                                                      "bds_nominal)"),
+        "gal_file": P("data/gal_nominal_constellation.yaml", "str", "nominal Galileo orbits (signal: gal_e1)"),
         "rinex": P(None, "str", "RINEX 2/3 GPS navigation file (source: rinex; RINEX 3 BeiDou records: "
                                 "source bds_rinex); per PRN the healthy set whose toe is nearest to the "
                                 "middle of the run", nullable=True),
@@ -265,6 +268,8 @@ def clock_h(sc: Section):
 
 
 def noise_sigma(sc: Section) -> float:
+    """Noise standard deviation per component in the recording's units: frontend.noise_sigma, else the
+    default of the output format."""
     fe = sc.frontend
     return fe.noise_sigma if fe.noise_sigma is not None else DEFAULT_NOISE_SIGMA[fe.format]
 

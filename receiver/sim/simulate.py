@@ -44,6 +44,7 @@ import yaml
 from .. import __version__
 from .. import interrupt
 from ..errors import UserError
+from ..suggest import did_you_mean
 from ..estimation.interpolation import hermite
 from ..safeio import TMP_SUFFIX, GuardedFile, OutputLock, check_output, write_error_message
 from ..gnss.geodesy import ecef2lla
@@ -148,6 +149,25 @@ class _NavBits:
         return out
 
 
+class _GalNav:
+    """Galileo E1 symbols of one satellite per 4-ms code period of satellite time: the E1-B I/NAV symbols
+    (receiver.gnss.gal_inav.InavStream) and the E1-C CS25 chips."""
+
+    def __init__(self, content, gps_week, enabled):
+        from ..gnss.gal_codes import cs25_signs
+        from ..gnss.gal_inav import GST_WEEK_OFFSET, InavStream
+        self.stream = InavStream(content, gps_week - GST_WEEK_OFFSET)     # GGTO zero: GST = GPS time
+        self.enabled = enabled
+        self.cs25 = cs25_signs()
+
+    def signs(self, period0, count):
+        """(E1-B symbols, E1-C secondary chips), +/-1 float32, for code periods period0 .. +count-1 of the
+        week (4-ms periods since the start of the GPS week of the scenario)."""
+        k = np.int64(period0) + np.arange(count, dtype=np.int64)
+        sym = self.stream.signs(period0, count) if self.enabled else np.ones(count, np.float32)
+        return sym, self.cs25[k % 25]
+
+
 class _Cn0:
     """Nominal C/N0 (dB-Hz) per satellite and grid point."""
 
@@ -165,7 +185,8 @@ class _Cn0:
                 raise UserError(f"config key '{key}' must be a mapping with t_s and dbhz lists")
             unknown = set(item) - {"prns", "t_s", "dbhz"}
             if unknown:
-                raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'")
+                raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'"
+                                + did_you_mean(sorted(unknown)[0], ("prns", "t_s", "dbhz")))
             try:
                 t = np.asarray(item["t_s"], dtype=float).ravel()
                 v = np.asarray(item["dbhz"], dtype=float).ravel()
@@ -212,6 +233,7 @@ class SatelliteTrack:
         self.pos, self.vel, self.clk, self.drift = pos, vel, clk, drift
 
     def covers(self, t_lo, t_hi):
+        """True when the interpolation nodes span the true times [t_lo, t_hi] (s)."""
         return self.t_lo <= t_lo and t_hi <= self.t_hi
 
     def __call__(self, t, rates=True):
@@ -400,12 +422,11 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     if len(set(map(os.path.abspath, paths.values()))) < len(paths):
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
-    for kind, p in paths.items():
+    sim = _Simulator(sc)                 # input errors surface here, before any file or directory is made
+    for kind, p in paths.items():        # missing directories are made (as for every command's outputs)
         check_output(p, reads, what={"if": "output", "truth": "truth file",
                                      "yaml": "receiver-input fragment", "sigmf": "SigMF metadata",
-                                     "tag": "PocketSDR tag"}[kind],
-                     make_dirs=False)
-    sim = _Simulator(sc)                 # input errors surface here, before any file is touched
+                                     "tag": "PocketSDR tag"}[kind])
     lock = OutputLock(paths["if"]).acquire()
     tmp = {k: v + TMP_SUFFIX for k, v in paths.items()}
     try:
@@ -459,6 +480,8 @@ class _Simulator:
         t0_true = t_ref - self.b0
         self.m_ref = int(math.floor(t_ref * 1000.0 + 1e-6))
         self.r_ref = t_ref - self.m_ref * 1e-3                    # t_ref = m_ref ms + r_ref
+        self.m_ref_gal = int(math.floor(t_ref / 4e-3 + 1e-6))     # Galileo: 4-ms code periods
+        self.r_ref_gal = t_ref - self.m_ref_gal * 4e-3
         self.rng = np.random.default_rng(np.random.SeedSequence([tm.seed, 1]))
 
         self.traj = traj = make_trajectory(sc.receiver, lambda p: resolve_path(p, "trajectory CSV"), t0_true)
@@ -473,13 +496,25 @@ class _Simulator:
             raise UserError("config key 'signals': a recording of several signals is [gps_l1ca, bds_b1i] (either "
                             "order) with constellation.source embedded or rinex (GPS; BeiDou: "
                             "constellation.bds_file)")
-        if not self.multi and names[0] not in ("gps_l1ca", "bds_b1i"):
+        if not self.multi and names[0] not in ("gps_l1ca", "bds_b1i", "gal_e1"):
             raise UserError(f"config key 'signals': unknown signal {names[0]!r}")
         self.signals = [get_signal(n) for n in names]
         bds_src = con.source in ("bds_nominal", "bds_rinex")
         if bds_src and names[0] != "bds_b1i":
             raise UserError(f"constellation.source '{con.source}' needs signal: bds_b1i")
-        if bds_src:                             # BeiDou orbits + D1/D2 messages (sim/bds_constellation.py)
+        self.gal = names[0] == "gal_e1" and not self.multi
+        if self.gal and (con.source != "embedded" or atm.ionosphere != "none"):
+            raise UserError("signal gal_e1: the Galileo orbits come from constellation.gal_file (leave "
+                            "constellation.source at embedded) and the ionosphere must be none (Galileo "
+                            "broadcasts NeQuick-G, not the simulator's Klobuchar model): set atmosphere.ionosphere: "
+                            "none")
+        if self.gal:                            # Galileo orbits + I/NAV content (sim/gal_constellation.py)
+            from .gal_constellation import gal_nominal_content, source_name as gal_source_name
+            path = resolve_path(con.gal_file, "constellation file")
+            self.gal_content = gal_nominal_content(path, week, t_ref)
+            b_ephs, b_iono = {p: c.eph for p, c in self.gal_content.items()}, None
+            cons = None
+        elif bds_src:                           # BeiDou orbits + D1/D2 messages (sim/bds_constellation.py)
             from .bds_constellation import bds_nominal_ephemerides, bds_rinex_ephemerides, source_name
             if con.source == "bds_nominal":
                 path = resolve_path(con.bds_file, "constellation file")
@@ -497,7 +532,8 @@ class _Simulator:
                                       resolve_path(con.qzss_file, "constellation file") if con.qzss else None)
         if cons is None:
             from types import SimpleNamespace
-            cons = SimpleNamespace(source=source_name(path, con.source), ephemerides=b_ephs,
+            cons = SimpleNamespace(source=gal_source_name(path) if self.gal else source_name(path, con.source),
+                                   ephemerides=b_ephs,
                                    iono_utc=quantize_iono(b_iono) if b_iono is not None else None)
         self.source = cons.source
         iono_b = cons.iono_utc
@@ -546,7 +582,8 @@ class _Simulator:
         self.sat_sig = {}
         for p in self.prns:
             letter, q = split_key(p) if self.multi else (first.system, p)
-            sig = next(g for g in self.signals if g.system == ("C" if letter == "C" else "G"))
+            sig = next(g for g in self.signals if g.system == ("C" if letter == "C" else "G")) if self.multi \
+                else first
             self.sat_sig[p] = (sig, q, self.if_hz + (sig.carrier_hz - first.carrier_hz))
         for sig in self.signals[1:]:
             f_if = self.if_hz + (sig.carrier_hz - first.carrier_hz)
@@ -561,7 +598,9 @@ class _Simulator:
         self.nav = {}
         for p in self.prns:
             sig, q, _ = self.sat_sig[p]
-            if bds_src or (self.multi and sig.system == "C"):
+            if self.gal:
+                self.nav[p] = _GalNav(self.gal_content[p], week, sc.navigation.data)
+            elif bds_src or (self.multi and sig.system == "C"):
                 from ..gnss.bds_nav import BdsNavBits
                 from ..gnss.signals_bds import is_geo
                 self.nav[p] = BdsNavBits(self.ephs[p], iono_b, week, is_geo(q), sc.navigation.data)
@@ -569,6 +608,10 @@ class _Simulator:
                 self.nav[p] = _NavBits(self.ephs[p], iono_b, week, sc.navigation.page18_every_frame,
                                        sc.navigation.data)
         self.codes = {p: self.sat_sig[p][0].code(self.sat_sig[p][1]) for p in self.prns}
+        if self.gal:                            # E1-B and E1-C rows: BOC(1,1) half-chips, each half the power
+            from ..gnss.gal_codes import boc11, e1b_code, e1c_code
+            k = np.float32(1.0 / math.sqrt(2.0))
+            self.gal_codes = {p: (k * boc11(e1b_code(p)), -k * boc11(e1c_code(p))) for p in self.prns}
         self.amp_k = (2.0 if self.cplx else 4.0) * self.sigma ** 2 / self.fs     # A^2 = amp_k * C/N0
         self.node_step = math.gcd(NODE_STEPS, self.decim)   # geometry nodes (grid steps), on truth rows
         self._tracks = {}
@@ -748,7 +791,18 @@ class _Simulator:
             cn0_db = self.cn0(p, t_rel, el_deg[i])
             amp = np.sqrt(self.amp_k * 10.0 ** (cn0_db / 10.0)) * s_amp * visible[i]
             carr = -f_carr * d_carr + s_ph / (2.0 * np.pi)
-            if n_samp > 0 and np.any(amp > 0):
+            if self.gal:                                     # chips since a 4-ms period boundary
+                chips_total = (self.r_ref_gal + t_rel - d_code) * sig_p.chip_rate
+            if n_samp > 0 and np.any(amp > 0) and self.gal:
+                per0 = int(math.floor(chips_total[0] / CODE_N))
+                chips_blk = 2.0 * (chips_total - per0 * CODE_N)          # BOC(1,1) half-chips
+                count = int(chips_blk[-1] // (2 * CODE_N)) + 2
+                sym_b, sec_c = self.nav[p].signs(self.m_ref_gal + per0, count)
+                ph = if_p * t_rel + carr
+                a32 = amp.astype(np.float32)
+                sig.append((p, chips_blk, ph, a32, sym_b, self.gal_codes[p][0]))
+                sig.append((p, chips_blk, ph, a32, sec_c, self.gal_codes[p][1]))
+            elif n_samp > 0 and np.any(amp > 0):
                 ms0 = int(math.floor(chips_total[0] / CODE_N))
                 chips_blk = chips_total - ms0 * CODE_N
                 if sig_p.name == "bds_b1i" and not self.multi and con_src not in ("bds_nominal", "bds_rinex"):
@@ -756,7 +810,7 @@ class _Simulator:
                                        self.sc.time.seed, self.sc.navigation.data)
                 else:
                     dsign = self.nav[p].signs(self.m_ref + ms0, int(chips_blk[-1] // CODE_N) + 2)
-                sig.append((p, chips_blk, if_p * t_rel + carr, amp.astype(np.float32), dsign))
+                sig.append((p, chips_blk, if_p * t_rel + carr, amp.astype(np.float32), dsign, self.codes[p]))
             if rows.size:
                 r = rows
                 gr = nodes[r]                                # grid indices of the truth rows
@@ -773,15 +827,15 @@ class _Simulator:
 
         if n_samp > 0:
             out = np.zeros(n_samp, np.complex64)
-            for code_len in sorted({self.codes[r[0]].size for r in sig}):    # (one call per code length)
-                grp = [r for r in sig if self.codes[r[0]].size == code_len]
+            for code_len in sorted({r[5].size for r in sig}):               # (one call per code length)
+                grp = [r for r in sig if r[5].size == code_len]
                 n_ms = max(r[4].size for r in grp)
                 dsign = np.ones((len(grp), n_ms), np.float32)
                 for k, r in enumerate(grp):
                     dsign[k, :r[4].size] = r[4]
                 phase = np.stack([r[2] for r in grp])
                 synth_block(out, seg_start, seg_x0, 1.0 / self.spg,
-                            np.stack([self.codes[r[0]] for r in grp]), np.stack([r[1] for r in grp]),
+                            np.stack([r[5] for r in grp]), np.stack([r[1] for r in grp]),
                             np.mod(phase, 1.0), np.diff(phase, axis=1), np.stack([r[3] for r in grp]), dsign)
             if self.noise:
                 view = out.view(np.float32)

@@ -23,6 +23,7 @@ import os
 import numpy as np
 
 from ..errors import UserError
+from ..suggest import did_you_mean
 from ..gnss.geodesy import enu_matrix, lla2ecef
 
 TRAJECTORY_KINDS = ("static", "constant_velocity", "segments", "figure8", "csv")
@@ -33,9 +34,12 @@ class Trajectory:
     kind = "base"
 
     def state(self, t):
+        """(pos, vel, acc) at times ``t`` (s since the first sample, scalar or array): ECEF arrays of shape
+        (len(t), 3) in m, m/s, m/s^2."""
         raise NotImplementedError
 
     def position(self, t):
+        """ECEF position (m), shape (len(t), 3), at times ``t`` (s since the first sample)."""
         return self.state(t)[0]
 
 
@@ -56,6 +60,7 @@ class _TangentPlane(Trajectory):
 
 
 class Static(_TangentPlane):
+    """Fixed at lat/lon/height: velocity and acceleration zero."""
     kind = "static"
 
     def _enu_state(self, t):
@@ -64,6 +69,8 @@ class Static(_TangentPlane):
 
 
 class ConstantVelocity(_TangentPlane):
+    """Straight line in ECEF from lat/lon/height at a constant velocity given in ENU (m/s) at the start
+    point; acceleration zero."""
     kind = "constant_velocity"
 
     def __init__(self, lat_deg, lon_deg, h_m, velocity_enu):
@@ -155,6 +162,8 @@ class CsvTrajectory(Trajectory):
         self.d2 = self.spline.derivative(2)
 
     def state(self, t):
+        """(pos, vel, acc) of the spline and its first two derivatives at ``t`` (s): ECEF, m, m/s, m/s^2;
+        outside the CSV's time span the end polynomials are extrapolated."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         return self.spline(t), self.d1(t), self.d2(t)
 
@@ -213,7 +222,8 @@ def _segments(raw):
                             "jerk_enu_mps3")
         unknown = set(seg) - {"duration_s", "accel_enu_mps2", "jerk_enu_mps3"}
         if unknown:
-            raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'")
+            raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'"
+                            + did_you_mean(sorted(unknown)[0], ("duration_s", "accel_enu_mps2", "jerk_enu_mps3")))
         d = seg.get("duration_s")
         if isinstance(d, bool) or not isinstance(d, (int, float)) or not d > 0:
             raise UserError(f"config key '{key}.duration_s' must be a positive number")

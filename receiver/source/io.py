@@ -48,6 +48,8 @@ from ..errors import UserError
 
 @dataclass(frozen=True)
 class Format:
+    """A sample format (an entry of :data:`FORMATS`): storage kind, component dtype, components per sample
+    (2: I, Q; 1: real) and, for packed formats, bits per field."""
     name: str
     kind: str            # "int" (signed integers), "float", "uint" (offset binary), "packed"
     dtype: type          # numpy dtype of one stored component (uint8 for packed)
@@ -57,6 +59,7 @@ class Format:
 
     @property
     def complex(self) -> bool:
+        """True for I/Q formats (two components per sample), False for real samples at an IF."""
         return self.ncomp == 2
 
 
@@ -107,6 +110,8 @@ def resolve_format(name: str) -> Format:
 
 
 def bits_per_sample(fmt) -> int:
+    """Bits per sample, all components together (16 for int8_iq, 2 for packed2_real); ``fmt`` a format or
+    alias name, or a :class:`Format`."""
     f = resolve_format(fmt) if isinstance(fmt, str) else fmt
     return f.bits * f.ncomp if f.kind == "packed" else 8 * np.dtype(f.dtype).itemsize * f.ncomp
 
@@ -118,6 +123,7 @@ def bytes_per_sample(fmt) -> float:
 
 
 def is_complex(fmt: str) -> bool:
+    """True when the format (name or alias) stores I/Q samples, False for real ones (UserError when unknown)."""
     return resolve_format(fmt).complex
 
 
@@ -239,10 +245,12 @@ class SampleReader:
 
     @property
     def n_samples(self) -> int:
+        """Number of samples in the span (``end - first``)."""
         return self.end - self.first
 
     @property
     def duration_s(self) -> float:
+        """Length of the span (s)."""
         return self.n_samples / self.fs
 
     def read(self, start: int, n: int) -> np.ndarray:
@@ -392,6 +400,8 @@ class Encoder:
         self._pending = np.zeros(0, np.complex128)
 
     def encode(self, block: np.ndarray) -> bytes:
+        """Quantise the next block of the stream (times ``scale``) -> the bytes to append to the file.  Packed
+        formats return whole bytes only: the samples that do not fill one are held back and lead the next block."""
         f = self.format
         if f.kind != "packed":
             return quantize(block, self.fmt, self.scale).tobytes()
@@ -402,6 +412,8 @@ class Encoder:
         return quantize(x[:n], self.fmt, self.scale, self.bit_order, self.encoding).tobytes()
 
     def flush(self) -> bytes:
+        """The held-back samples of a packed format as a last byte padded with code-0 fields (b"" when none or
+        for other formats); call once at the end of the stream."""
         f = self.format
         if f.kind != "packed" or self._pending.size == 0:
             return b""
@@ -422,9 +434,12 @@ class SampleWriter:
         self._fh = open(path, "wb")
 
     def write(self, block: np.ndarray):
+        """Quantise a block and append its bytes to the file (packed formats: the samples that do not fill a
+        byte wait for the next block or :meth:`close`)."""
         self._fh.write(self._enc.encode(block))
 
     def close(self):
+        """Write the held-back samples (:meth:`Encoder.flush`) and close the file."""
         self._fh.write(self._enc.flush())
         self._fh.close()
 

@@ -21,17 +21,27 @@ from repo_paths import ROOT
 def _build_wheel(dest: Path) -> Path:
     try:
         import setuptools
-        new_setuptools = tuple(int(x) for x in setuptools.__version__.split(".")[:2]) >= (70, 1)
+        st_version = tuple(int(x) for x in setuptools.__version__.split(".")[:2])
     except ImportError:
-        new_setuptools = False
+        st_version = (0, 0)
+    new_setuptools = st_version >= (70, 1)
+    env = dict(os.environ)
+    if st_version < (77, 0):        # pyproject's SPDX `license = "MIT"` (PEP 639) needs setuptools >= 77
+        tools = dest / "buildtools"
+        r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(tools),
+                            "setuptools>=77"], capture_output=True, text=True)
+        if r.returncode:
+            pytest.skip("pyproject.toml's SPDX licence string needs setuptools >= 77 and it could not be "
+                        "fetched: " + r.stderr.strip()[-200:])
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tools), env.get("PYTHONPATH")]))
+        new_setuptools = True
     try:
         import wheel  # noqa: F401   (older setuptools build wheels through it)
         have_wheel = True
     except ImportError:
         have_wheel = False
-    env = dict(os.environ)
     if not (new_setuptools or have_wheel):      # fetch 'wheel' beside the build (not into this environment)
-        tools = dest / "buildtools"
+        tools = dest / "buildtools_wheel"
         r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(tools),
                             "wheel"], capture_output=True, text=True)
         if r.returncode:

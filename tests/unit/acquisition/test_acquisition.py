@@ -32,6 +32,7 @@ def test_real_if_input():
     assert not r[1].detected
 
 
+@pytest.mark.slow
 def test_false_alarm_rate_on_noise():
     """pfa=1e-2 per PRN search grid: over 32 noise-only searches expect ~0.3 detections."""
     x = make_signal([], FS, 0.05, seed=11)
@@ -121,6 +122,7 @@ def test_acquire_cli_on_a_10ms_file(tmp_path):
     assert out.exit_code == 2 and "too short" in out.output
 
 
+@pytest.mark.slow
 def test_lo_offset_widens_the_search_and_warns(tmp_path):
     """A front end whose LO is 20 kHz off puts every satellite outside +/-10 kHz: fewer than 4 found, the
     search widens to +/-25 kHz, finds them and the common offset is reported."""
@@ -145,6 +147,7 @@ def test_lo_offset_widens_the_search_and_warns(tmp_path):
     assert all(r.detected and abs(r.doppler_hz - dops[r.prn]) < 30 for r in later)
 
 
+@pytest.mark.slow
 def test_channel_opened_on_a_false_detection_is_released_quickly():
     """Integrity end to end: a channel opened on noise (a false detection that got through) never reports
     lock and is released (lost) within 1.5 s -- pull-in, then tracking.lost_ms of failed lock tests."""
@@ -186,6 +189,7 @@ def _b1i_block(sats, fs, duration_s, seed):
     return x.astype(np.complex64)
 
 
+@pytest.mark.slow
 def test_b1i_fine_doppler_within_a_few_hz():
     """B1I symbols (NH x D1 every 1 ms, D2 every 2 ms) limit the fine Doppler to 1-ms blocks, whose lines lie
     ~100 Hz apart on a 1-kHz-wide lobe: 40-130 Hz errors at 45 dB-Hz were measured on the Tokyo scenario,
@@ -228,6 +232,7 @@ def test_b1i_hot_search_doppler_free_of_symbol_sign_changes():
             assert abs(r.doppler_hz - s["doppler_hz"]) < tol, (seed, s["prn"], r.doppler_hz - s["doppler_hz"])
 
 
+@pytest.mark.slow
 def test_b1i_fine_doppler_of_weaker_nh_satellites():
     """At 37-40 dB-Hz the squared 1-ms blocks of an NH satellite need every block to hold one symbol: blocks
     straddling the code period boundary lose amplitude whenever the NH code flips, and the squared stage then

@@ -30,6 +30,7 @@ def _refine_fft(samples, fs, prn, code_phase_chips, coarse_hz, bin_hz, block_ms=
     return coarse_hz + freqs[i] + d * fs / nfft
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("true_hz, coarse_hz", [(1234.5, 1250.0), (-3377.0, -3375.0), (61.0, 0.0),
                                                 (-150.0, 0.0)])
 def test_fine_doppler_equals_the_fft_estimate(true_hz, coarse_hz):
@@ -41,6 +42,7 @@ def test_fine_doppler_equals_the_fft_estimate(true_hz, coarse_hz):
     assert abs(got - true_hz) < 5.0
 
 
+@pytest.mark.slow
 def test_cold_search_window_after_a_fix_covers_the_tracked_satellites(tokyo_run):
     """At every fix of the reference run, the Doppler of every tracked satellite lies inside the cold-search
     window computed from that fix (clock drift, velocity), and the window is narrower than the grid."""
@@ -129,6 +131,7 @@ def test_segmented_line_powers_equal_the_direct_dft(fs, block_ms, n_blocks, bin_
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * ref.max())
 
 
+@pytest.mark.slow
 def test_high_sensitivity_block_powers_equal_the_numpy_formulation():
     """acquisition.high_sensitivity._BlockSpectra.powers (compiled gather / shifted power sum) gives bit for bit the
     block sums of the numpy formulation it replaced (fancy-index gather, square, take_along_axis, add)."""

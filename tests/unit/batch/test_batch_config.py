@@ -133,6 +133,7 @@ def test_bad_batches(tmp_path, mutate, message):
     assert message in str(exc.value)
 
 
+@pytest.mark.slow
 def test_failing_run_is_recorded_and_others_continue(tmp_path):
     """A recording too short for acquisition fails; the other run completes; failures are cached unless
     retry_failed."""
@@ -161,6 +162,7 @@ def _cli(*args, cwd=None):
                           cwd=cwd or ROOT)
 
 
+@pytest.mark.slow
 def test_cli_errors_and_dry_run(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump({"inputs": [{"scenario": SCENARIO}], "variants": [{"name": "v", "set": {

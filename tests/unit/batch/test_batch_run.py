@@ -48,6 +48,7 @@ def _metrics(rows):
     return {r["run_id"]: {k: v(r[k]) for k in METRIC_KEYS if k not in TIMING_KEYS} for r in rows}
 
 
+@pytest.mark.slow
 def test_ci_small_summary(pool_run, dirs):
     res = pool_run
     assert (res.n_runs, res.executed, res.cached, res.failed, res.simulated) == (4, 4, 0, 0, 2)
@@ -84,6 +85,7 @@ def test_rerun_is_cached(pool_run, dirs):
     assert _metrics(again.rows) == _metrics(pool_run.rows)
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_identical_metrics(pool_run, dirs):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
@@ -94,6 +96,7 @@ def test_dask_local_cluster_gives_identical_metrics(pool_run, dirs):
     assert _metrics(res.rows) == _metrics(pool_run.rows)
 
 
+@pytest.mark.slow
 def test_compare_by_config_key(pool_run, tmp_path):
     png = tmp_path / "cmp.png"
     table, groups, path = compare(pool_run.summary_h5, ["tracking.pll_bw_hz"], plot=str(png))
@@ -106,6 +109,7 @@ def test_compare_by_config_key(pool_run, tmp_path):
     assert len(rows) == 4
 
 
+@pytest.mark.slow
 def test_resume_runs_only_the_missing(pool_run, dirs):
     """An interrupted batch (simulated: two runs' results removed, one stale partial file) completes only
     those two; with keep_recordings off the IF files are deleted afterwards."""

@@ -14,14 +14,14 @@ import ast
 from pathlib import Path
 
 from repo_paths import ROOT
+import pytest
 PKG = ROOT / "receiver"
 
 #: bottom -> top; a module's layer is that of the longest prefix listed here (``receiver`` itself: the
 #: package's __init__ only).  A new top-level module must be placed here (and in the README) explicitly.
 LAYERS: list[tuple[str, ...]] = [
     ("receiver", "receiver.errors", "receiver.config", "receiver.plugins", "receiver.logs", "receiver.safeio",
-     "receiver.threads",
-     "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start"),
+     "receiver.threads", "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start", "receiver.suggest"),
     ("receiver.gnss",),
     ("receiver.estimation",),
     ("receiver.runfile",),
@@ -30,7 +30,8 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.tracking",),
     ("receiver.navigation",),
     ("receiver.pipeline", "receiver.schema"),
-    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate"),
+    ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.probe",
+     "receiver.validate"),
     ("receiver.cli", "receiver.api"),
 ]
 
@@ -107,6 +108,7 @@ def test_every_module_has_a_layer():
         layer_of(m)
 
 
+@pytest.mark.slow
 def test_imports_go_down_the_layers():
     modules, graph = _graph()
     bad = []
@@ -127,6 +129,7 @@ PRINT_ALLOWED_SUFFIX = ".cli"
 PRINT_EXCEPTIONS: set[str] = set()
 
 
+@pytest.mark.slow
 def test_library_code_does_not_print():
     """Library code reports through logging (receiver.logs); only the CLI modules print."""
     bad = []
@@ -176,6 +179,7 @@ def strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
+@pytest.mark.slow
 def test_no_import_cycles():
     _, graph = _graph()
     edges = {m: {d for d, _ in deps if d != m} for m, deps in graph.items()}

@@ -83,6 +83,7 @@ def small_recording(tmp_path_factory):
     return d, p, cfg
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,message", [
     (["--set", "tracking.pll_bw=3"], "unknown config key 'tracking.pll_bw'"),
     (["--set", "tracking.pll_bw_hz=abc"], "must be of type float"),
@@ -104,6 +105,7 @@ def test_cli_errors_are_one_line_exit_2_no_output(small_recording, args, message
     assert not out.exists() and not (d / "out.h5.partial").exists()
 
 
+@pytest.mark.slow
 def test_cli_missing_config_and_bad_yaml(tmp_path):
     res = _gnssrx("run", "nope.yaml", cwd=tmp_path)
     assert res.returncode == 2 and "config file not found" in res.stderr
@@ -112,6 +114,7 @@ def test_cli_missing_config_and_bad_yaml(tmp_path):
     assert res.returncode == 2 and "not valid YAML" in res.stderr and len(res.stderr.splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_cli_run_and_acquire(small_recording):
     d, p, cfg = small_recording
     res = _gnssrx("acquire", str(cfg), cwd=d)

@@ -6,6 +6,7 @@ from scipy.special import gammainccinv, gammaincinv
 from receiver.estimation.stats import gamma_isf, gamma_median
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k", [1, 2, 3, 4, 5, 10, 20, 40, 63, 100, 250, 1000, 4096])
 def test_integer_shapes_match_scipy(k):
     # the receiver's tail probabilities: pfa / cells (1e-3 / ~4e5 ... 1e-12) and the median

@@ -34,6 +34,7 @@ def test_output_config_keys_default_off_and_validate():
         load_receiver_config(None, [("output.kml", "yes")])
 
 
+@pytest.mark.slow
 def test_export_command_writes_the_requested_files_only(linked):
     res = CliRunner().invoke(main, ["export", str(linked), "--kml", "--gpx"])
     assert res.exit_code == 0, res.output
@@ -59,6 +60,7 @@ def test_cli_errors_are_one_line(linked, args, message):
     assert message in res.output and len(res.output.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_report_command(linked, tmp_path):
     out = tmp_path / "r.png"
     res = CliRunner().invoke(main, ["report", str(linked), "--truth", str(TOKYO_META), "-o", str(out)])
@@ -92,6 +94,7 @@ def test_info_command(linked):
     assert d["iono_utc"]["beta"][0] == pytest.approx(0.1167e6)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not TOKYO_REC.exists(), reason="../shared/data reference recording absent")
 def test_run_writes_enabled_outputs_beside_the_hdf5(tmp_path):
     """``gnssrx run`` calls export_all after closing the file: 2 s of the recording give channels but no

@@ -35,6 +35,7 @@ def sentences(tokyo_exports):
     return raw.decode("ascii").split("\r\n")[:-1]
 
 
+@pytest.mark.slow
 def test_every_sentence_has_a_valid_checksum(sentences):
     assert len(sentences) > 1000
     for s in sentences:

@@ -32,6 +32,7 @@ def test_report_of_the_reference_run_with_truth(tokyo_exports):
     assert s["vel_3d_rms_mps"] < 0.5
 
 
+@pytest.mark.slow
 def test_figure_panels_and_vector_mode_shading(tokyo_run, tmp_path):
     run = load_run(tokyo_run)
     run.fixes["mode"][len(run.fixes) // 2:] = 1            # pretend the second half ran in vector mode
@@ -87,6 +88,7 @@ def test_channel_reduction_keeps_gaps_and_lock_states(tmp_path):
     assert np.all(ch["unlocked"][ch["time_s"] > 21.0] == 0.0)
 
 
+@pytest.mark.slow
 def test_report_of_a_run_without_fixes(tokyo_run, tmp_path):
     run = load_run(tokyo_run)
     run.fixes, run.obs = run.fixes[:0], run.obs[:0]
@@ -95,6 +97,7 @@ def test_report_of_a_run_without_fixes(tokyo_run, tmp_path):
     assert _png_size(out) == (1700, 2100)
 
 
+@pytest.mark.slow
 def test_vector_panels_from_the_vector_log(tokyo_run, tmp_path):
     """A run with /vector gets a sixth row: each channel's carrier R and the filter sigmas."""
     import shutil

@@ -67,6 +67,7 @@ def _header(path):
     return lines
 
 
+@pytest.mark.slow
 def test_obs_header_is_rinex_304(tokyo_exports):
     h = _header(tokyo_exports["obs"])
     assert h[0][:9].strip() == "3.04" and h[0][20] == "O" and h[0][40] == "G"
@@ -80,6 +81,7 @@ def test_obs_header_is_rinex_304(tokyo_exports):
     assert types_line[:60].split() == ["G", "4", "C1C", "L1C", "D1C", "S1C"]
 
 
+@pytest.mark.slow
 def test_georinex_reads_back_the_same_values(tokyo_exports):
     gr = pytest.importorskip("georinex", reason="georinex not installed (pip install '.[test]')")
     run = load_run(tokyo_exports["h5"])
@@ -260,6 +262,7 @@ def _solve_with_rtklib_weights(run, nav_path, mask_deg):
     return np.array(out)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("rnx2rtkp") is None, reason="RTKLIB rnx2rtkp not installed (apt-get install rtklib)")
 def test_rnx2rtkp_single_point_agrees_with_gnssrx(tokyo_exports, tmp_path):
     run = load_run(tokyo_exports["h5"])

@@ -38,6 +38,7 @@ def _check(ephs, t):
     np.testing.assert_allclose(got[3], ref[3], rtol=0, atol=1e-21)      # s/s
 
 
+@pytest.mark.slow
 def test_synthetic_matches_numpy():
     rng = np.random.default_rng(7)
     ephs = _synthetic(14, rng)

@@ -187,6 +187,7 @@ def _assert_eph_close(dec: Ephemeris, ref: Ephemeris):
         assert getattr(dec, name) == getattr(ref, name), name
 
 
+@pytest.mark.slow
 def test_round_trip_all_rinex_ephemerides():
     ephs, iono = _need_brdc()
     n = 0
@@ -334,6 +335,7 @@ def test_decoder_gap_in_bit_indices():
 
 # ------------------------------------------------------------------ low C/N0: correction, assembly
 
+@pytest.mark.slow
 def test_single_bit_errors_corrected_double_errors_never_miscorrected():
     rng = np.random.default_rng(11)
     for _ in range(3):

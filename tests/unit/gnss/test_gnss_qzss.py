@@ -106,6 +106,7 @@ def qzss_run(tmp_path_factory):
     return summary, d / "qz.h5", d / "qz.truth.h5"
 
 
+@pytest.mark.slow
 def test_qzss_satellites_acquired_and_tracked_as_jnn(qzss_run):
     summary, run_h5, truth_h5 = qzss_run
     assert summary.tracked == [7, 193, 199]          # J04 (196) is not simulated: not detected

@@ -56,7 +56,7 @@ def test_user_errors_exit_2_with_one_line_and_no_output(meas, tmp_path):
         ["simulate", SCEN, "-o", str(out), "--set", f"constellation.tle_file={SCEN}"],
         ["simulate", SCEN, "-o", str(out), "--set", "time.step_s=0"],
         ["simulate", str(tmp_path / "nope.yaml"), "-o", str(out)],
-        ["simulate", SCEN, "-o", str(tmp_path / "no_dir" / "x.h5")],
+        ["simulate", str(tmp_path / "nope.yaml"), "-o", str(tmp_path / "no_dir" / "x.h5")],
     ]
     for args in cases:
         res = runner.invoke(leo, args)
@@ -64,6 +64,10 @@ def test_user_errors_exit_2_with_one_line_and_no_output(meas, tmp_path):
         lines = [ln for ln in res.output.splitlines() if ln.strip()]
         assert len(lines) == 1 and lines[0].startswith("gnssrx: error: "), (args, res.output)
         assert not out.exists() and not os.path.exists(str(out) + ".part")
+    assert not (tmp_path / "no_dir").exists()            # bad input: no directory made either
+    # a missing output directory is made (every command's rule)
+    res = runner.invoke(leo, ["simulate", SCEN, "-o", str(tmp_path / "no_dir" / "x.h5")])
+    assert res.exit_code == 0 and (tmp_path / "no_dir" / "x.h5").is_file(), res.output
 
 
 def test_user_tle_file_and_earth_centre_start(tmp_path):

@@ -65,6 +65,7 @@ def _pendulum(dt=0.05, g=9.81):
     return f, h
 
 
+@pytest.mark.slow
 def test_sqrt_ckf_equals_ckf_over_1000_steps():
     rng = np.random.default_rng(2)
     f, h = _pendulum()

@@ -167,6 +167,7 @@ def test_engine_predicts_the_clock_and_height_from_unaided_fixes(rx):
     assert off._aiding(10.5) is None
 
 
+@pytest.mark.slow
 def test_aided_pdop_limit_refuses_the_weak_triples_only(brdc, rx):
     """3 satellites with noisy ranges and noisy clock / height predictions: the aided fix's error grows with
     its PDOP (constraints included).  Aiding.max_pdop (navigation.aiding.max_pdop) refuses exactly the fixes

@@ -155,6 +155,7 @@ def _replay(run_h5, start_s, end_s, *overrides):
     return f, np.linalg.norm(f["ecef"] - TOKYO_TRUTH, axis=1)
 
 
+@pytest.mark.slow
 def test_reference_recording_started_late_uses_the_fallback_until_page18(tokyo_run):
     """The reference recording from 9.7 s on (scripts/tools/derived_recordings.py late_9.7): fixes from 33.7 s,
     page 18 decoded at 39.7 s.  With the fallback set the fixes before page 18 are as good as after it

@@ -105,6 +105,7 @@ def test_exact_measurements_recover_truth(brdc, rx):
     assert lat == pytest.approx(RX_LLA[0], abs=1e-7) and h == pytest.approx(RX_LLA[2], abs=0.05)
 
 
+@pytest.mark.slow
 def test_noisy_wls_accuracy(brdc, rx):
     ephs, iono = brdc
     errs = []
@@ -130,6 +131,7 @@ def test_models_matter(brdc, rx):
     assert np.linalg.norm(f.ecef - rx) < 0.05
 
 
+@pytest.mark.slow
 def test_residual_check_drops_faulty_satellite(brdc, rx):
     ephs, iono = brdc
     rx_tow, obs = simulate(ephs, iono, rx, sigma_m=1.0, seed=3)
@@ -144,6 +146,7 @@ def test_residual_check_drops_faulty_satellite(brdc, rx):
     assert bad in g.prns and np.linalg.norm(g.ecef - rx) > np.linalg.norm(f.ecef - rx)
 
 
+@pytest.mark.slow
 def test_velocity_and_drift_from_doppler(brdc, rx):
     ephs, iono = brdc
     v_true = np.array([12.0, -7.5, 3.0])

@@ -189,6 +189,7 @@ def test_ekf_and_ckf_agree(ephs, averaged):
     assert rms(ekf, truth) < 0.5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("traj", [static, constant_velocity])
 def test_filters_beat_single_epoch_wls(ephs, traj):
     fixes, truth, vtruth = scene(ephs, traj, n_epochs=150, sigma_m=3.0, sigma_mps=0.05, seed=2)
@@ -206,6 +207,7 @@ def test_filters_beat_single_epoch_wls(ephs, traj):
         assert f.gps_tow == pytest.approx(f.rx_tow - f.clock_bias_m / C_LIGHT, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_delta_range_model_removes_the_acceleration_lag(ephs):
     """Rates averaged over the interval lag a T / 2 (0.2 m/s on a 4 m/s^2 circle); taken as instantaneous
     they bias the position along track, the delta-range (clone) model does not."""
@@ -230,6 +232,7 @@ def test_delta_range_model_removes_the_acceleration_lag(ephs):
         assert rms(out, truth) < 0.25 * pos_wls
 
 
+@pytest.mark.slow
 def test_code_carrier_drift_state(ephs):
     """Carrier drift 150 m/s with a constant code clock (the reference recording's front end)."""
     fixes, truth, _ = scene(ephs, static, n_epochs=120, sigma_m=3.0, averaged=True, code_carrier=-150.0,
@@ -242,6 +245,7 @@ def test_code_carrier_drift_state(ephs):
     assert rms(bad, truth, skip=20) > 2.0 * rms(out, truth, skip=20)
 
 
+@pytest.mark.slow
 def test_rates_are_corrected_for_the_atmosphere_change(ephs):
     """The troposphere delays code and carrier alike: its change (1 m/min on a 7 deg satellite) must come
     out of the carrier delta ranges, else the carrier-propagated position walks away from the code (seen

@@ -48,6 +48,7 @@ def written(tmp_path_factory):
     return out, recs, fixes
 
 
+@pytest.mark.slow
 def test_rounded_columns_within_one_step(written):
     out, recs, fixes = written
     with h5py.File(out["rounded"]) as f, h5py.File(out["exact"]) as g:

@@ -64,6 +64,7 @@ def test_total_outage_removes_every_signal(tmp_path):
     assert list(b["prn"][~tot]) == [11]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [3, 4, 5])
 def test_random_blockage_urban_canyon(tmp_path, seed):
     sc = _scenario(12.0, {"random": {"enabled": True, "start_s": 1.0}}, seed=seed)

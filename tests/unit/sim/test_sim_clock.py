@@ -17,6 +17,7 @@ def _bias(h, seconds, seed, freq_error=0.0, chunk=100000, corner=None):
     return np.concatenate([b for b, _ in parts]), np.concatenate([y for _, y in parts])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,h,corner", [
     ("tcxo", CLOCK_PRESETS["tcxo"], None),
     ("tcxo band-limited", CLOCK_PRESETS["tcxo"], 1.0),

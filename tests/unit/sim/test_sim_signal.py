@@ -37,6 +37,7 @@ def clean(tmp_path_factory):
     f.close()
 
 
+@pytest.mark.slow
 def test_noise_free_correlation_peak_at_truth(clean):
     paths, f = clean
     g = f[f"satellites/G{PRN:02d}"]
@@ -152,6 +153,7 @@ def _independent_pseudoranges(f, prn, rows):
         yield pr, g["pseudorange_m"][k], math.degrees(el), g["elevation_deg"][k]
 
 
+@pytest.mark.slow
 def test_pseudorange_independent_geometry(clean):
     _, f = clean
     for pr, truth, el, el_truth in _independent_pseudoranges(f, PRN, (0, 130, 290)):
@@ -200,6 +202,7 @@ def test_cn0_models_in_truth(tmp_path):
         assert np.allclose(f[f"satellites/G{PRN:02d}"]["cn0_dbhz"][:], 37.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt,if_hz", [("int8_iq", 0.0), ("int16_real", 650e3)])
 def test_cn0_with_noise(tmp_path, fmt, if_hz):
     prns = [PRN, 24]
@@ -228,6 +231,7 @@ def test_cn0_with_noise(tmp_path, fmt, if_hz):
             assert abs(est - cn0[prn]) < 0.5, (prn, est)
 
 
+@pytest.mark.slow
 def test_nav_bits_decode_to_the_broadcast_ephemeris(tmp_path):
     """Subframes 1-4 decoded from the IF samples: ephemeris and iono/UTC as broadcast, TOW aligned."""
     tow0 = 345600.0 - 0.3                     # a frame starts 0.3 s (+ travel time) after the first sample

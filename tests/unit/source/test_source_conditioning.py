@@ -48,6 +48,7 @@ def test_detector_power_and_frequency_of_strong_tones():
         assert d.noise_power == pytest.approx(1.0, rel=0.05)
 
 
+@pytest.mark.slow
 def test_detector_white_noise_false_alarms():
     """Pfa (default 1e-3) bounds the probability of any detection over the whole spectrum: 20 white-noise
     spectra of 100 ms (63 segments) and 20 of 10 ms (6 segments) give none (expected: 0.04)."""

@@ -54,6 +54,7 @@ def test_plan_auto_and_explicit():
     assert phase_grid(16.368e6 / 4, 1.023e6) == 4 and phase_grid(4e6, 1.023e6) == 4000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("lm,real", [((250, 1023), True), ((1, 4), True), ((250, 1023), False)])
 def test_tones_arrive_with_exact_time_tags(lm, real):
     """Tones at IF + f (real samples, or complex ones) come out at f with the phase they have at
@@ -114,6 +115,7 @@ def _run(d, paths, name, decimate):
     return res
 
 
+@pytest.mark.slow
 def test_highrate_file_through_the_stage(highrate):
     """16.368 MS/s 2-bit real IF -> 4 MS/s complex: the simulated satellites and no other, their C/N0
     (45 dB-Hz minus the 2-bit loss ~0.55 dB and the stage's ~0.5 dB, README), the simulated Doppler, and
@@ -182,6 +184,7 @@ def test_fused_packed_path_equals_the_generic_one(tmp_path, fmt, swap):
         T.set_threads(None)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["packed2_real", "packed4_real", "packed1_real"])
 def test_unpack_kernel_gives_the_table_values_at_any_field_and_offset(fmt):
     """The compiled unpacking of whole bytes (a four-copy path for 2-bit fields) writes exactly the byte

@@ -43,6 +43,7 @@ VECTORS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt,order,enc,data,expect", VECTORS)
 def test_fixed_byte_vectors(tmp_path, fmt, order, enc, data, expect):
     p = tmp_path / "v.bin"
@@ -110,6 +111,7 @@ def test_aliases_and_errors(tmp_path):
         SampleReader(p, "sc12", 1e6)
 
 
+@pytest.mark.slow
 def test_simulated_packed2_real_if_is_acquired(tmp_path):
     """A 2-bit real-IF recording (MAX2769-like: 4.092 MHz IF at 16.368 MS/s, LSB-first two's complement)
     written by the simulator: the receiver's reader and acquisition find every simulated PRN at the true

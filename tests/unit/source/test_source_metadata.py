@@ -15,6 +15,7 @@ from repo_paths import ROOT
 SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"
 
 
+@pytest.mark.slow
 def test_sigmf_run_equals_explicit_config(tmp_path):
     paths = simulate(SCENARIO, tmp_path / "x.sigmf-data",
                      [("time.duration_s", 1.5), ("constellation.prns", [1, 6, 9]),

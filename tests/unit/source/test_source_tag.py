@@ -51,6 +51,7 @@ def rec(tmp_path_factory):
     return d, paths
 
 
+@pytest.mark.slow
 def test_simulator_writes_the_tag_and_run_equals_explicit(rec):
     import h5py
     d, paths = rec

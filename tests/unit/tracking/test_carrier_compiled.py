@@ -39,6 +39,7 @@ def test_every_variant_has_a_compiled_twin():
     assert set(VARIANTS) == set(LC.KINDS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_compiled_loop_equals_the_python_stepped_loop(samples, variant):
     for prn, dop, cp in SATS:

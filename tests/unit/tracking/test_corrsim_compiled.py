@@ -48,6 +48,7 @@ def scint_truth():
     return sc, make_truth(sc)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", FC.SCINT_LOOPS)
 def test_scintillation_loops_compiled_equals_python(scint_truth, name):
     sc, truth = scint_truth

@@ -21,6 +21,7 @@ def _track(x, prn, doppler, code_phase, overrides=(), chunk_s=0.5):
     return ch, np.concatenate(recs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cn0", [35.0, 45.0])
 def test_lock_doppler_cn0_and_bits(cn0):
     rng = np.random.default_rng(int(cn0))
@@ -54,6 +55,7 @@ def test_lock_doppler_cn0_and_bits(cn0):
     assert agree in (pytest.approx(1.0), pytest.approx(0.0))
 
 
+@pytest.mark.slow
 def test_longer_integration_after_bit_sync():
     bits = np.random.default_rng(1).choice([-1, 1], size=200)
     sat = dict(prn=3, doppler_hz=-800.0, code_phase_chips=10.0, cn0_dbhz=42.0, bits=bits, bit_start_ms=3)
@@ -67,6 +69,7 @@ def test_longer_integration_after_bit_sync():
     assert ten["pll_lock"][-20:].all()
 
 
+@pytest.mark.slow
 def test_loss_of_lock_when_signal_disappears():
     sat = dict(prn=21, doppler_hz=500.0, code_phase_chips=5.0, cn0_dbhz=45.0)
     x = make_signal([sat], FS, 3.0, seed=7)
@@ -76,6 +79,7 @@ def test_loss_of_lock_when_signal_disappears():
     assert r["time_s"][-1] < 2.6
 
 
+@pytest.mark.slow
 def test_presence_test_sees_a_vanished_signal_within_tens_of_ms():
     """tracking.presence: the prompt power over 20-ms windows against its level while present.  A 45 dB-Hz
     signal that vanishes loses the lock flag within 50 ms and the channel declares the loss within 70 ms;
@@ -97,6 +101,7 @@ def test_presence_test_sees_a_vanished_signal_within_tens_of_ms():
     assert ch_off.lost and r_off["time_s"][-1] - gone > 0.15
 
 
+@pytest.mark.slow
 def test_presence_test_keeps_a_weak_signal():
     """A 31 dB-Hz signal (just above presence.min_cn0_dbhz) is tracked for 3.5 s without a false loss, and the
     presence test never fired: the lock flags equal those of a run without it."""
@@ -134,6 +139,7 @@ def test_external_nco_commands():
     assert abs(r["doppler_hz"][-1] + 2000.0) < 2.0
 
 
+@pytest.mark.slow
 def test_weak_channel_leaves_a_half_bit_rate_false_lock():
     """A weak channel (20-ms Costas integration) pushed 25 Hz = 1/(2T) off after bit sync holds there without
     the false-lock test (the phase turns half a cycle per bit: read as data flips; the prompt 3.9 dB down,

@@ -117,6 +117,7 @@ def run_synthetic(filt, traj, n_epochs, sig_c, sig_f, R0=(None, None), seed=0, b
     return {k: np.array(v) for k, v in out.items()}
 
 
+@pytest.mark.slow
 def test_chi2_detector_quiet_on_constant_acceleration_fires_on_step():
     sig_c, sig_f = 5.0, 2.0
     cfg = vcfg(r_code_m2=sig_c ** 2, r_carrier_m2s2=sig_f ** 2,
@@ -198,6 +199,7 @@ def _correlate(code_offset_chips, freq_hz, fs=2.6e6, prn=7, n_ms=1, spacing=0.5)
     return abs(e), abs(l), p1, p2, n / fs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tau", [-0.15, -0.05, 0.0, 0.08, 0.2])
 def test_code_discriminator_metres(tau):
     e, l, _, _, _ = _correlate(tau, 0.0)
@@ -214,6 +216,7 @@ def test_frequency_discriminator_half_interval_factor(df):
     assert z == pytest.approx(-df * C_LIGHT / L1_HZ, rel=0.03, abs=0.5)
 
 
+@pytest.mark.slow
 def test_innovation_gate_rejects_blocked_channel_noise():
     """Two channels without signal, fixed R: a 3-sigma gate keeps most of their noise out."""
     cfg = vcfg(q_accel=1.0, r_code_m2=400.0, r_carrier_m2s2=100.0)
@@ -293,6 +296,7 @@ def test_vertical_scale_shapes_q_in_the_local_level():
     assert np.allclose(iso.matrices()[1][3:6, 3:6], 10.0 * iso.T * np.eye(3))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pair", [(0, 1), (2, 3), (0, 6)])
 def test_constant_acceleration_model_carries_a_turn_through_two_satellites(pair):
     """50 m/s on a 600 m circle (4.2 m/s^2): 6 s with 8 satellites, then 2 s with two.  The cv model's

@@ -28,6 +28,7 @@ def _numpy_tag(P, E, z, R, valid, kind):
     return float(z[idx] @ np.linalg.solve(S, z[idx]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", [0, 1])
 def test_chi2_tag_equals_the_numpy_quadratic_form(kind):
     rng, P, E = _filter(1)

@@ -1,0 +1,161 @@
+"""Galileo E1 tracking channel (``gal_e1``): PLL on the E1-C pilot with CS25 wiped off, carrier-aided DLL on
+the pilot's BOC(1,1) replica, E1-B prompt for the I/NAV symbols; one epoch per 4-ms code period.
+
+This is a channel of its own, not a variant of the 1-ms tracking kernel (receiver/tracking/kernel.py), which
+is built around 1-ms code periods and 20-ms bit synchronisation: it is what the Galileo-only acceptance run
+(scripts/bench/accuracy_galileo.py) uses until the scalar tracking framework handles 4-ms codes.
+
+Start (:func:`receiver.acquisition.galileo.refine_pilot`): the acquisition's code phase, the Doppler refined over
+100 ms of pilot periods and the CS25 phase (which of the 25 chips the first period carries) found at the same
+time; the secondary code is then known for every later period, so the pilot is a pure carrier and the PLL uses
+the four-quadrant arctangent (no data, no 180-degree ambiguity beyond the pilot's own sign).
+
+Per epoch: early / prompt / late correlations of E1-C (spacing ``dll_spacing`` chips early-to-late) and the
+E1-B prompt, the carrier wiped by the NCO.  BOC(1,1) near the peak: R(tau) = 1 - 3|tau| (chips), so with
+early-minus-late spacing d the envelope discriminator (|E| - |L|) / (|E| + |L|) x (2 - 3d) / 6 is the code
+error in chips while |tau| < d / 2 (the side peaks at +/-1/2 chip are outside; acquisition made sure of the
+main peak).  Numba correlates the samples; the loop filters run per epoch.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..gnss.gal_codes import (E1_CHIP_RATE, E1_CODE_LEN, E1_HZ, boc11, cs25_signs, e1b_code, e1c_code)
+
+
+@njit(cache=True, nogil=True)
+def _correlate(x, start, n, code_phase, code_step, carr_phase, carr_step, rep_c, rep_b, half_d):
+    """E, P, L of the E1-C replica and P of the E1-B replica over samples start .. start+n-1 of the
+    interleaved I/Q array x (int8 / int16 / float32 I, Q, I, Q, ...: a memmap of the recording): the carrier
+    NCO starts at carr_phase (cycles) and advances carr_step cycles per sample, the code at code_phase
+    (chips) by code_step chips per sample; replicas are BOC(1,1) half-chips (8184)."""
+    er = ei = pr = pi = lr = li = br = bi = 0.0
+    nrep = rep_c.size
+    two_pi = 2.0 * math.pi
+    for k in range(n):
+        xr = float(x[2 * (start + k)])
+        xi = float(x[2 * (start + k) + 1])
+        ph = two_pi * (carr_phase + k * carr_step)
+        c, sn = math.cos(ph), math.sin(ph)
+        # (xr + j xi) exp(-j ph)
+        yr = xr * c + xi * sn
+        yi = xi * c - xr * sn
+        cp = code_phase + k * code_step
+        ip = int(math.floor(2.0 * cp)) % nrep
+        ie = int(math.floor(2.0 * (cp + half_d))) % nrep
+        il = int(math.floor(2.0 * (cp - half_d))) % nrep
+        vc = rep_c[ip]
+        pr += yr * vc
+        pi += yi * vc
+        ve = rep_c[ie]
+        er += yr * ve
+        ei += yi * ve
+        vl = rep_c[il]
+        lr += yr * vl
+        li += yi * vl
+        vb = rep_b[ip]
+        br += yr * vb
+        bi += yi * vb
+    return complex(er, ei), complex(pr, pi), complex(lr, li), complex(br, bi)
+
+
+@dataclass
+class GalEpochs:
+    """Per 4-ms epoch of one channel: first sample, replica code phase there (chips, ~0: epochs start at code
+    period boundaries), period count since the channel start (the first epoch is period ``first_period`` of
+    the acquisition block), E1-B and E1-C prompts, carrier NCO frequency (Hz, IF included), C/N0 estimate of
+    the pilot (the prompt's in-phase over quadrature power: biased low by the PLL phase jitter, ~3 dB with a
+    TCXO at 15 Hz), accumulated carrier phase (for carrier smoothing)."""
+    sample: np.ndarray
+    code_phase: np.ndarray
+    period: np.ndarray
+    prompt_b: np.ndarray
+    prompt_c: np.ndarray
+    carr_hz: np.ndarray
+    cn0_dbhz: np.ndarray
+    carr_cycles: np.ndarray      # accumulated carrier NCO phase at the epoch start (cycles, IF included)
+
+
+class GalChannel:
+    """One Galileo E1 channel.  ``run(x, n_epochs)`` tracks n epochs of the interleaved I/Q samples ``x``
+    (e.g. an int8 memmap of the whole recording; sample indices count complex samples) and returns
+    :class:`GalEpochs`."""
+
+    def __init__(self, prn: int, fs: float, if_hz: float, sample: int, code_phase_chips: float, doppler_hz: float,
+                 cs25_offset: int, pll_bw_hz: float = 15.0, dll_bw_hz: float = 8.0, dll_spacing: float = 0.2):
+        self.prn = int(prn)
+        self.fs, self.if_hz = float(fs), float(if_hz)
+        self.rep_c = boc11(e1c_code(prn)).astype(np.float32)
+        self.rep_b = boc11(e1b_code(prn)).astype(np.float32)
+        self.cs25 = cs25_signs()
+        self.d = float(dll_spacing)
+        self.k_dll = 4.0 * dll_bw_hz
+        wn = pll_bw_hz / 0.53                               # 2nd order, zeta = 0.707 (Bn = 0.53 wn)
+        self.pll_a, self.pll_b = 2.0 * 0.707 * wn, wn * wn
+        # the first epoch starts at the next code period boundary after `sample`
+        rate = E1_CHIP_RATE * (1.0 + doppler_hz / E1_HZ)
+        step = rate / fs
+        n_to = math.ceil((E1_CODE_LEN - code_phase_chips) / step - 1e-9)
+        self.next_sample = int(sample + n_to)
+        self.code_phase = code_phase_chips + n_to * step - E1_CODE_LEN
+        self.dll_rate = 0.0
+        self.freq_int = self.if_hz + doppler_hz             # PLL integrator (Hz)
+        self.carr_hz = self.freq_int
+        self.carr_phase = 0.0
+        self.carr_cycles = 0.0                              # accumulated NCO phase (cycles)
+        self.period = 1                                     # periods after the acquisition block's first
+        self.cs25_offset = int(cs25_offset)
+        self._nb = 0.0
+        self._ns = 0.0
+
+    def run(self, x, n_epochs: int) -> GalEpochs:
+        """Track ``n_epochs`` 4-ms epochs of the samples ``x`` from the channel's current state; returns the
+        epochs' records (sample index, code phase, code period, E1-B and E1-C prompts, Doppler, C/N0)."""
+        out = {k: [] for k in ("sample", "code_phase", "period", "pb", "pc", "f", "cn0", "cyc")}
+        fs = self.fs
+        for _ in range(n_epochs):
+            rate = E1_CHIP_RATE * (1.0 + (self.carr_hz - self.if_hz) / E1_HZ) + self.dll_rate
+            step = rate / fs
+            n = int(math.ceil((E1_CODE_LEN - self.code_phase) / step - 1e-9))
+            if 2 * (self.next_sample + n) > len(x):
+                break
+            e, p, l, b = _correlate(x, self.next_sample, n, self.code_phase, step, self.carr_phase,
+                                    self.carr_hz / fs, self.rep_c, self.rep_b, 0.5 * self.d)
+            s = self.cs25[(self.period + self.cs25_offset) % 25]
+            p, e, l = p * s, e * s, l * s
+            T = n / fs
+            # PLL (the pilot: four-quadrant arctangent)
+            err = math.atan2(p.imag, p.real) / (2.0 * math.pi)            # cycles
+            self.freq_int += self.pll_b * T * err
+            new_hz = self.freq_int + self.pll_a * err
+            # carrier phase at the next epoch start (the NCO ran at carr_hz over this epoch)
+            self.carr_phase = (self.carr_phase + self.carr_hz * T) % 1.0
+            # DLL (envelope discriminator on the pilot)
+            ae, al = abs(e), abs(l)
+            tau = (ae - al) / max(ae + al, 1e-30) * (2.0 - 3.0 * self.d) / 6.0
+            self.dll_rate = self.k_dll * tau
+            # C/N0 by the narrow-band / wide-band power ratio of the prompt (per epoch, low-passed)
+            self._nb = 0.95 * self._nb + 0.05 * p.real ** 2
+            self._ns = 0.95 * self._ns + 0.05 * p.imag ** 2
+            snr = self._nb / max(self._ns, 1e-30) - 1.0
+            out["sample"].append(self.next_sample)
+            out["code_phase"].append(self.code_phase)
+            out["period"].append(self.period)
+            out["pb"].append(b)
+            out["pc"].append(p)
+            out["f"].append(self.carr_hz)
+            out["cn0"].append(10.0 * math.log10(max(snr, 1e-3) / (2.0 * T)))
+            out["cyc"].append(self.carr_cycles)
+            self.carr_cycles += self.carr_hz * T
+            self.code_phase = self.code_phase + n * step - E1_CODE_LEN
+            self.next_sample += n
+            self.period += 1
+            self.carr_hz = new_hz
+        return GalEpochs(np.array(out["sample"], np.int64), np.array(out["code_phase"]),
+                         np.array(out["period"], np.int64), np.array(out["pb"], np.complex128),
+                         np.array(out["pc"], np.complex128), np.array(out["f"]), np.array(out["cn0"]),
+                         np.array(out["cyc"]))

@@ -1,0 +1,48 @@
+"""``gnssrx validate`` (``make validate``; from a checkout ``python -m receiver.cli validate``): run the outside-simulator matrix.
+
+    gnssrx validate [MATRIX.yaml] [-j N] [--cache DIR] [--only SUBSTR,...] [--no-doc] [--rescore] [--dry-run]
+
+Prints the table and, for a full run of the default matrix, writes it into docs/validation.md's
+generated section.  No GPS-SDR-SIM / C compiler / ../shared: one line on stderr, exit 2.
+"""
+from __future__ import annotations
+
+import click
+
+from ..errors import UserError
+
+
+@click.command("validate")
+@click.argument("matrix", required=False, default=None)
+@click.option("--jobs", "-j", type=click.IntRange(1), default=2, help="recordings in parallel (1 receiver thread each)")
+@click.option("--cache", default=None, help="cache / work directory (default out/validate)")
+@click.option("--only", default="", help="comma-separated substrings of the row names to run")
+@click.option("--no-doc", is_flag=True, help="print the table only")
+@click.option("--rescore", is_flag=True, help="recompute the cached rows' metrics from their kept run files")
+@click.option("--dry-run", is_flag=True, help="run nothing: the table of what is cached")
+def validate(matrix, jobs, cache, only, no_doc, rescore, dry_run):
+    """Run the GPS-SDR-SIM validation matrix (configs/validate/matrix.yaml; docs/validation.md)."""
+    import yaml
+
+    from .gpssdrsim import DEFAULT_CACHE, NAV_FILE, SimulatorUnavailable
+    from .matrix import DOC, MATRIX, doc_header, load_matrix, run_matrix, table, write_doc
+    from ..logs import setup_cli
+    setup_cli()
+    if not NAV_FILE.is_file():
+        raise UserError(f"validate: {NAV_FILE} not found (../shared or $GNSSRX_SHARED needed)")
+    path = matrix or str(MATRIX)
+    try:
+        rows = load_matrix(path)
+    except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError) as e:
+        raise UserError(f"validate: bad matrix {path}: {e}") from None
+    cache = cache or str(DEFAULT_CACHE)
+    sel = [s for s in only.split(",") if s]
+    try:
+        res = run_matrix(rows, jobs, cache, sel, rescore=rescore, dry_run=dry_run)
+    except SimulatorUnavailable as e:
+        raise UserError(f"validate: {e}") from None
+    tab = table(rows, res)
+    click.echo(tab)
+    if not no_doc and not sel and matrix is None:
+        write_doc(tab, header=doc_header(cache))
+        click.echo(f"validate: table written to {DOC}")
