@@ -504,8 +504,10 @@ class _ChunkLoop:
         else:
             # the channels run in parallel (compiled epoch loop without the GIL; receiver/threads.py)
             with stage("tracking"):
+                # (a channel behind the chunk start was offered the end of the input already: the last
+                # chunk of a file that ends just past a chunk boundary)
                 items = [(part.key(prn), ch, blk) for part, blk in zip(self.parts, blocks)
-                         for prn, ch in part.manager.channels.items()]
+                         for prn, ch in part.manager.channels.items() if ch.next_sample >= start]
                 job = threads.submit_ordered(lambda it, s0=start: it[1].process(it[2], s0), items)
             if pending is not None:             # the previous chunk's epochs, while the pool tracks
                 self.finish_chunk(pending)

@@ -328,7 +328,10 @@ def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: 
     """Verification dwell: search ``res`` again in an independent block ``samples`` (first sample =
     file index ``start_index``) over 3 Doppler bins around its Doppler and +/- ``window_chips`` around its
     code phase carried forward at the code rate.  Passes when the largest cell of that small window,
-    over its row's noise floor, exceeds the Pfa threshold for the window's cell count."""
+    over its row's noise floor, exceeds the Pfa threshold for the window's cell count -- or when the largest
+    cell of the three rows at any code phase exceeds the Pfa threshold for all their cells: a front end
+    that drops samples (a USB buffer overrun) moves every code phase between the two blocks, the
+    satellite's Doppler stays; the second test has the same false-alarm probability as the first."""
     sig = signal if signal is not None else GPS_L1CA
     n1 = int(round(fs * 1e-3))
     step = doppler_step_hz or 1.0 / (2.0 * coherent_ms * 1e-3)
@@ -337,7 +340,9 @@ def verify(samples: np.ndarray, start_index: int, fs: float, if_hz: float, res: 
     pn = power / _row_floor(power, noncoherent)[:, None]
     cols = verify_columns(res, start_index, fs, sig, window_chips)
     thr = _threshold(pfa, 3 * cols.size, noncoherent)
-    return bool(pn[:, cols].max() >= thr * threshold)
+    if pn[:, cols].max() >= thr * threshold:
+        return True
+    return bool(pn.max() >= _threshold(pfa, pn.size, noncoherent) * threshold)
 
 
 def verify_columns(res, start_index: int, fs: float, sig, window_chips: float) -> np.ndarray:

@@ -16,6 +16,20 @@ from ..source.io import SampleReader
 from .code_search import _has_energy, reject_cross_correlations, search, verify
 
 
+def fit_dwell(coherent_ms: int, noncoherent: int, available_ms: float, verify: bool = True):
+    """(coherent_ms, noncoherent, verified) of a search that fits ``available_ms`` of input: the search
+    and, when ``verify``, its independent verification dwell of the same length.  Fewer non-coherent sums
+    first, then a shorter coherent block (whole ms); without room for the dwell (under 2 ms) the search
+    alone.  (0, 0, False): not even 1 ms."""
+    for room, ver in ((available_ms / 2.0, True), (available_ms, False)) if verify else \
+            ((available_ms, False),):
+        if room >= coherent_ms:
+            return coherent_ms, int(min(noncoherent, room // coherent_ms)), ver
+        if room >= 1.0:
+            return int(room), 1, ver
+    return 0, 0, False
+
+
 def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, notes=None,
             sensitive: bool = False, known_hz=(), doppler_window=None, signal=None) -> list:
     """Search ``prns`` from file index ``start``: search, verification dwell on the next independent block
@@ -33,11 +47,22 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     notes = [] if notes is None else notes
     # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
     # uses up to 200 ms (20 blocks of 10 ms) where the file has them
-    dwell = int(round(a.coherent_ms * a.noncoherent * 1e-3 * fs))
+    m, k, pfa = a.coherent_ms, a.noncoherent, a.pfa
+    dwell = int(round(m * k * 1e-3 * fs))
     block = reader.read(start, max(2 * dwell, int(0.2 * fs)))
-    if len(block) < dwell:
-        raise UserError("input too short for acquisition "
-                        f"({len(block) / fs * 1e3:.0f} ms available, {dwell / fs * 1e3:.0f} needed)")
+    if len(block) < 2 * dwell:
+        # a short file (or its end): the search and its verification dwell fitted into what there is
+        m, k, verified = fit_dwell(m, k, len(block) / fs * 1e3, a.verify)
+        if m == 0:
+            raise UserError("input too short for acquisition "
+                            f"({len(block) / fs * 1e3:.1f} ms available, at least 1 needed)")
+        if not verified:
+            pfa = a.pfa / max(len(prns), 1)     # no second look: the Pfa holds for all PRNs together
+        if (m, k) != (a.coherent_ms, a.noncoherent) and widen:
+            notes.append(f"acquisition     {len(block) / fs * 1e3:.0f} ms of input: searched {m} ms x {k}"
+                         + (" with a verification dwell of as many" if verified else
+                            f" without verification dwell (Pfa {pfa:.1e} per PRN)"))
+        dwell = int(round(m * k * 1e-3 * fs))
 
     centre = getattr(reader, "doppler_centre_hz", 0.0)     # set below once a common LO offset is seen
 
@@ -45,13 +70,13 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
         c_ = centre if dmax == a.doppler_max_hz else 0.0
         if doppler_window is not None and dmax == a.doppler_max_hz:
             c_, dmax = doppler_window
-        res_ = search(block, start, fs, if_hz, prns_, a.coherent_ms, a.noncoherent, dmax,
-                      a.doppler_step_hz, a.pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
+        res_ = search(block, start, fs, if_hz, prns_, m, k, dmax,
+                      a.doppler_step_hz, pfa, a.threshold, signal=sig, width_ratio=a.width_ratio,
                       doppler_center_hz=c_)
         todo = [r for r in res_ if r.detected and a.verify and len(block) >= 2 * dwell]
         # the dwells are independent: on the thread pool (the same result per detection)
         oks = threads.map_ordered(lambda r: verify(block[dwell:2 * dwell], start + dwell, fs, if_hz, r,
-                                                   a.coherent_ms, a.noncoherent, a.doppler_step_hz, a.pfa,
+                                                   m, k, a.doppler_step_hz, pfa,
                                                    a.threshold, signal=sig), todo)
         for r, ok in zip(todo, oks):
             r.verified = int(ok)
@@ -60,13 +85,13 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
         return res_
 
     res = _search(prns, a.doppler_max_hz)
-    reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
+    reject_cross_correlations(res, m, fs=fs, signal=sig)
     found = sum(r.detected for r in res)
     if widen and found < 4 and a.lo_search_hz > a.doppler_max_hz:
         missing = [r.prn for r in res if not r.detected]
         wide = {r.prn: r for r in _search(missing, a.lo_search_hz)}
         res = [wide.get(r.prn, r) for r in res]
-        reject_cross_correlations(res, a.coherent_ms, fs=fs, signal=sig)
+        reject_cross_correlations(res, m, fs=fs, signal=sig)
         notes.append(f"acquisition     {found} satellite(s) within +/-{a.doppler_max_hz / 1e3:g} kHz: searched "
                      f"again over +/-{a.lo_search_hz / 1e3:g} kHz (front-end LO offset?), "
                      f"{sum(r.detected for r in res)} found")

@@ -83,6 +83,14 @@ SCHEMA = {
         "bit_sync_ms": P(1000, "int", "bit sync by the energy of 20-ms prompt sums per edge hypothesis "
                                       "after this many ms when the sign-change histogram has not decided "
                                       "(0: off)", lo=0),
+        "dll_hold_ms": P(2000, "int", "a weak channel's DLL keeps tracking.dll_bw_pull_in_hz this long "
+                                      "after its pull-in (the pull-in's code error converges at the "
+                                      "normal rate; its rate integrator at dll_bw_hz throughout), then "
+                                      "narrows to dll_bw_hz", lo=0),
+        "exit_cn0_dbhz": P(35.0, "float", "a weak channel whose C/N0 estimates reach this in 3 windows in a "
+                                          "row (tracking.cn0_window_ms each) while locked is handed over to "
+                                          "the normal loops (the acquisition's estimate reads up to ~3 dB "
+                                          "low; 0: weak until lost)", lo=0.0, hi=60.0),
     },
     "reacquisition": {
         "doppler_hz": P(40.0, "float", "Doppler half-window of the hot search right after a loss (error of "

@@ -63,7 +63,8 @@ S_FL_RE = 99           # false-lock test: sum of P2 conj(P1) (second against fir
 S_FL_IM = 100
 S_FL_MS = 101          # ms summed in the current false-lock window
 S_FL_COUNT = 102       # false locks corrected so far
-N_STATE = 103
+S_STRONG_WIN = 103     # consecutive C/N0 windows of a weak channel at or above C_WEAK_EXIT_CN0 (hand-over)
+N_STATE = 104
 
 #: false-lock test window (ms of bit-aligned epochs >= 10 ms): 0.5 s leaves ~2 Hz of noise at 27 dB-Hz
 FL_WINDOW_MS = 500.0
@@ -109,7 +110,10 @@ C_WEAK_DLL_BW = 36     # DLL noise bandwidth of a weak channel after pull-in
 C_WEAK_FLL_BW = 37     # FLL noise bandwidth of a weak channel's pull-in (0: none, the PLL alone)
 C_WEAK_GRACE_MS = 38   # lost-grace time of a weak channel (it needs longer to reach phase lock)
 C_EL_SPACING_WIDE = 39  # > 0: E-L spacing (chips) during pull-in and on weak channels (whole samples)
-N_CONFIG = 40
+C_WEAK_DLL_HOLD_MS = 40  # a weak channel's DLL keeps C_DLL_BW this long after its pull-in, then C_WEAK_DLL_BW
+C_WEAK_EXIT_CN0 = 41   # > 0: a weak channel whose C/N0 reaches this for WEAK_EXIT_WINDOWS windows is handed
+                       # over to the normal loops (tracking.weak.exit_cn0_dbhz)
+N_CONFIG = 42
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -119,6 +123,8 @@ N_OUT = 22
 
 #: a channel is classed weak (tracking.weak) from its C/N0 estimates over this long after its pull-in
 WEAK_DECIDE_MS = 1000.0
+#: consecutive C/N0 windows at or above C_WEAK_EXIT_CN0 before a weak channel is handed over to the normal loops
+WEAK_EXIT_WINDOWS = 3
 
 MODE_PULL_IN = 0
 MODE_TRACK = 1
@@ -284,6 +290,25 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
                 if pn > 0 and pd > 0:
                     cn0 = pd / (pn * T)
             st[S_CN0] = 10.0 * math.log10(cn0) if cn0 > 1.0 else 0.0
+            # hand-over: a weak channel whose signal the normal loops hold (C/N0 at or above C_WEAK_EXIT_CN0,
+            # above the weak threshold by a hysteresis) leaves the weak mode: its 10-Hz PLL at 20 ms and its
+            # 0.5-Hz DLL are never worse than the normal loops' for a signal they track.  The acquisition's
+            # C/N0 reads low by up to ~3 dB (code straddle at 2 samples per chip, Doppler bin), so channels
+            # are opened weak that need not be.  The next epoch starts at a bit edge (20-ms epochs are
+            # bit-aligned), where the integration drops to the normal one.
+            # (scalar channels only: a channel the vector loop steers keeps the integration it was given)
+            if st[S_WEAK] > 0 and cfg[C_WEAK_EXIT_CN0] > 0 and st[S_MODE] != MODE_PULL_IN and \
+                    st[S_LOCK] > 0 and cfg[C_CODE_EXTERNAL] == 0:
+                if st[S_CN0] >= cfg[C_WEAK_EXIT_CN0]:
+                    st[S_STRONG_WIN] += 1.0
+                else:
+                    st[S_STRONG_WIN] = 0.0
+                if st[S_STRONG_WIN] >= WEAK_EXIT_WINDOWS:
+                    st[S_WEAK] = 0.0
+                    st[S_WEAK_DONE] = 1.0
+                    st[S_STRONG_WIN] = 0.0
+                    if st[S_INT_MS] > cfg[C_MAX_INT_MS]:
+                        st[S_INT_MS] = cfg[C_MAX_INT_MS]
             # only a channel that starts weak becomes weak: one decision, WEAK_DECIDE_MS after the pull-in,
             # on the largest estimate since (a strong channel not yet in phase lock reads low for a while);
             # a strong one whose signal fades or vanishes later (an outage) keeps the strong lock
@@ -484,15 +509,22 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
             st[S_CARR_FREQ] = cfg[C_IF] + nco
         if cfg[C_CODE_EXTERNAL] == 0:
             bw = cfg[C_DLL_BW_PULL] if st[S_MODE] == MODE_PULL_IN else cfg[C_DLL_BW]
+            # a weak channel's DLL narrows C_WEAK_DLL_HOLD_MS after the pull-in: the code error the pull-in
+            # leaves (up to ~0.3 chip at low C/N0, whose 1-ms discriminator gain is low) converges at the
+            # normal rate first -- at 0.5 Hz it took 3-5 s, measurements being used after 1 s
             if st[S_WEAK] > 0 and cfg[C_WEAK_DLL_BW] > 0 and st[S_MODE] != MODE_PULL_IN:
-                bw = cfg[C_WEAK_DLL_BW]
+                bw = cfg[C_WEAK_DLL_BW] if st[S_MODE_MS] >= cfg[C_WEAK_DLL_HOLD_MS] else cfg[C_DLL_BW_PULL]
             doppler = st[S_CARR_FREQ] - cfg[C_IF]
             aid = cfg[C_CHIP_RATE] * (1.0 + doppler / cfg[C_CARRIER_HZ])
             if cfg[C_DLL_ORDER] == 2:
                 # 2nd order: the integrator absorbs a code/carrier rate mismatch (oscillator error on
                 # the carrier only, ionospheric divergence) that would bias a 1st-order loop
                 w0 = bw / 0.53
-                st[S_DLL_RATE] += T * w0 * w0 * code_err
+                # a weak channel's rate integrator at its own (narrow) bandwidth from the start: at 1-ms
+                # integration and low C/N0 the wide pull-in / hold loop's integrator random-walks to
+                # ~0.2 chip/s, which the narrow loop then takes seconds to remove (code errors of 0.3 chip)
+                w0i = cfg[C_WEAK_DLL_BW] / 0.53 if (st[S_WEAK] > 0 and 0 < cfg[C_WEAK_DLL_BW] < bw) else w0
+                st[S_DLL_RATE] += T * w0i * w0i * code_err
                 st[S_CODE_RATE] = aid + st[S_DLL_RATE] + 1.414 * w0 * code_err
             else:
                 st[S_CODE_RATE] = aid + 4.0 * bw * code_err

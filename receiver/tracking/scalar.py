@@ -112,6 +112,8 @@ class Channel:
             c[K.C_WEAK_DLL_BW] = min(wk.dll_bw_hz, trk_cfg.dll_bw_hz)
             c[K.C_WEAK_FLL_BW] = min(wk.fll_bw_hz, trk_cfg.fll_bw_hz)
             c[K.C_WEAK_GRACE_MS] = wk.lost_grace_ms
+            c[K.C_WEAK_DLL_HOLD_MS] = wk.dll_hold_ms
+            c[K.C_WEAK_EXIT_CN0] = max(wk.exit_cn0_dbhz, wk.cn0_dbhz) if wk.exit_cn0_dbhz > 0 else 0.0
         self.cfg = c
         self.vector_carrier = self.vector_code = False
         self.set_external(False, False)

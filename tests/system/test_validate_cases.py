@@ -88,9 +88,6 @@ def test_weak_static_2048_38_pathloss_osc_2ppm(sim, tmp_path):
     assert check(m, EXPECT) == [], m
 
 
-@pytest.mark.xfail(strict=True, reason="issue 31 (fixw): 33 dB-Hz (every satellite), 8 m/s on a 20-m circle, "
-                   "assisted: fixes from 1.3 s but 3D RMS 51.5 m scalar / 46.6 m vector (matrix row circle_33, "
-                   "seed 0)")
 def test_weak_circle_33(sim, tmp_path):
     """Matrix row circle_33, one seed (not the matrix's), assisted, scalar."""
     m = _run(tmp_path, {"dynamics": "circle", "place": "tokyo", "start": "02:00:00", "duration_s": 12},
@@ -109,8 +106,6 @@ def test_late_cw(sim, tmp_path):
     assert check(m, EXPECT) == [], m
 
 
-@pytest.mark.xfail(strict=True, reason="a file that is not a whole number of milliseconds long (12 s + 6 "
-                   "samples) ends the run with a traceback: 'channel is behind the block start'")
 def test_file_not_whole_milliseconds(sim, tmp_path):
     m = _run(tmp_path, {"dynamics": "static", "place": "tokyo", "start": "05:17:00", "duration_s": 10},
              {"sample_rate_hz": 2.6e6, "cn0_dbhz": 45, "osc_ppm": 0.2, "whole_ms": False, "seed": 6})

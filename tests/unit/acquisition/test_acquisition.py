@@ -101,8 +101,8 @@ def _write_int8(path, x):
 
 
 def test_acquire_cli_on_a_10ms_file(tmp_path):
-    """`gnssrx acquire` on a 10 ms file with coherent_ms 1, noncoherent 10: the dwell is all it needs
-    (no verification block, fine Doppler from the 10 ms available)."""
+    """`gnssrx acquire` on a 10 ms file with coherent_ms 1, noncoherent 10: searched 1 ms x 5 with a
+    verification dwell of as many (fitted to the file), fine Doppler from the 10 ms available."""
     from click.testing import CliRunner
     from receiver.cli import main
     sat = dict(prn=12, doppler_hz=-2480.0, code_phase_chips=211.0, cn0_dbhz=48.0)
@@ -116,8 +116,12 @@ def test_acquire_cli_on_a_10ms_file(tmp_path):
             if line.strip()[:1].isdigit()}
     assert rows[12][1] == "yes" and abs(float(rows[12][2]) + 2480.0) < 60.0
     assert rows[3][1] == "no" and rows[19][1] == "no"
-    # shorter than the dwell: one line, exit 2
+    # shorter than the dwell: the search and its verification dwell fitted to the file (1 ms x 4 each)
     _write_int8(tmp_path / "short.bin", make_signal([sat], FS, 0.008, seed=12))
+    out = CliRunner().invoke(main, ["acquire", str(tmp_path / "rx.yaml")])
+    assert out.exit_code == 0 and "detected: 12" in out.output and "1 ms x 4 with a verification" in out.output
+    # not even 1 ms: one line, exit 2
+    _write_int8(tmp_path / "short.bin", make_signal([sat], FS, 0.0005, seed=12))
     out = CliRunner().invoke(main, ["acquire", str(tmp_path / "rx.yaml")])
     assert out.exit_code == 2 and "too short" in out.output
 

@@ -138,7 +138,7 @@ def test_failing_run_is_recorded_and_others_continue(tmp_path):
     """A recording too short for acquisition fails; the other run completes; failures are cached unless
     retry_failed."""
     good = _noise(tmp_path / "good.bin", 0.6)
-    bad = _noise(tmp_path / "bad.bin", 0.01)
+    bad = _noise(tmp_path / "bad.bin", 0.0005)     # under 1 ms: not even a fitted search fits
     b = {"name": "f", "output_dir": str(tmp_path / "out"), "code_version": "test",
          "set": {"acquisition.prns": [1, 2], "navigation.enabled": False},
          "inputs": [{"name": "good", "recording": good}, {"name": "bad", "recording": bad}]}
