@@ -151,7 +151,7 @@ def main():
 
 
 def _load(config, input_path, sets, output=None):
-    from .config import load_receiver_config
+    from .schema import load_receiver_config
     overrides = list(sets)
     if input_path:
         overrides.append(("input.path", input_path))
@@ -262,6 +262,34 @@ def acquire(config, input_path, sets):
     if not any(r.detected for r in res):
         for line in no_satellite_lines(cfg, reader):
             click.echo(line)
+
+
+@main.command("plugins")
+def plugins_cmd():
+    """List the carrier loops and vector filters: built-in and installed plugins, with where each comes
+    from (docs/plugins.md)."""
+    from . import plugins as P
+    from .tracking.carrier import REGISTRY as LOOPS, check_class
+    from .tracking.vector import REGISTRY as FILTERS, filter_class
+    tables = (("carrier_loop", "carrier loops (tracking.carrier.variant)", LOOPS,
+               lambda name, f: check_class(name, f.cls)),
+              ("vector_filter", "vector filters (vector.variant)", FILTERS, lambda name, f: filter_class(name)))
+    for kind, title, builtin, check in tables:
+        group = P.KINDS[kind][0]
+        click.echo(f"{title}; plugins: entry points {group} or module:Class")
+        for name, cls in builtin.items():
+            click.echo(f"  {name:<14} built-in  gnssrx {__version__}")
+        for name, found in P.installed(kind):
+            if isinstance(found, str):
+                click.echo(f"  {name:<14} BROKEN    {found}")
+                continue
+            try:
+                check(name, found)
+            except UserError as exc:
+                click.echo(f"  {name:<14} BROKEN    {exc}")
+                continue
+            click.echo(f"  {name:<14} plugin    {found.version or '?'}  {found.origin}  "
+                       f"({found.cls.__module__}.{found.cls.__qualname__})")
 
 
 #: commands that live in their own packages: name -> (module, attribute), imported when the command is

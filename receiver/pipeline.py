@@ -26,7 +26,7 @@ from .source.io import SampleReader
 from .source.prefetch import PrefetchingReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
-from .config import RECEIVER_SCHEMA, run_signals, signal_prns
+from .schema import RECEIVER_SCHEMA, plugins_attr, run_signals, signal_prns
 from .runfile.provenance import provenance_async
 from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
@@ -209,7 +209,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         log = logging.getLogger(__name__).info
     car = cfg.tracking.carrier
     for name in (car.auto_weak, car.auto_strong) if car.variant == "auto" else (car.variant,):
-        make_carrier_loop(name, cfg.tracking)                          # validate early
+        make_carrier_loop(name, cfg.tracking, check=True)              # validate early (plugins too)
     if cfg.vector.enabled:
         from .tracking.vector import make_filter
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
@@ -248,10 +248,17 @@ def _writer(cfg, reader, out_path, fs, if_hz, reads, prov):
         "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
         "input_if_hz": cfg.input.if_hz,
         "command": " ".join(sys.argv), "system": _run_system(cfg), "signals": ",".join(run_signals(cfg)),
-        **prov(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
+        **_plugins(cfg), **prov(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
         compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
         round_columns=cfg.output.round_columns,
         chunk_rows=chunk_rows_for(reader.duration_s, cfg.output.channel_rate_hz))
+
+
+def _plugins(cfg) -> dict:
+    """Run-file attribute ``plugins`` (name, version, origin and parameters of each plugin the config uses;
+    absent when it uses none)."""
+    text = plugins_attr(cfg)
+    return {"plugins": text} if text else {}
 
 
 def _run_system(cfg) -> str:
@@ -264,7 +271,7 @@ def _run_system(cfg) -> str:
 def check_meaning(cfg, reader):
     """Checks of meaning (receiver.config.validate_receiver: IF, PRN list) and those that need the input
     file: vector.start_s inside the processed span (else a warning)."""
-    from .config import validate_receiver
+    from .schema import validate_receiver
     validate_receiver(cfg)
     v = cfg.vector
     if v.enabled and v.start_s is not None and v.start_s >= reader.duration_s:

@@ -55,7 +55,7 @@ def tokyo_run(tmp_path_factory):
 
 
 def _run_tokyo(out: Path) -> None:
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml",
                                [("input.path", str(TOKYO_REC)), ("output.path", str(out)),

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import threads
-from ..config import run_signals
+from .config import run_signals
 from ..errors import UserError
 from ..gnss.registry import get_signal
 from ..source.io import SampleReader

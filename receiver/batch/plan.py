@@ -24,10 +24,12 @@ import copy
 import hashlib
 import json
 import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..config import RECEIVER_SCHEMA, apply_overrides, build, read_yaml, search_bases
+from ..config import apply_overrides, read_yaml, search_bases
+from ..schema import build_receiver, used_plugins
 from ..errors import UserError
 from .config import Batch
 
@@ -83,6 +85,21 @@ def code_fingerprint(setting: str = "auto") -> str:
         h.update(rel.encode())
         h.update(p.read_bytes())
     return f"auto:{__version__}:{h.hexdigest()[:20]}"
+
+
+def _plugin_fingerprints(cfg) -> list:
+    """Name, version and source hash of each plugin the receiver config uses (part of the run's cache key:
+    a changed plugin runs again)."""
+    import inspect
+    out = []
+    for u in used_plugins(cfg):
+        mod = sys.modules.get(u["class"].rsplit(".", 1)[0])
+        try:
+            src = hashlib.sha256(Path(inspect.getsourcefile(mod)).read_bytes()).hexdigest()[:20]
+        except (TypeError, OSError):
+            src = ""
+        out.append({"name": u["name"], "version": u["version"], "class": u["class"], "source": src})
+    return out
 
 
 def _walk_strings(d: dict, fn, prefix=""):
@@ -247,14 +264,16 @@ def make_plan(batch: Batch) -> Plan:
             raw = apply_overrides(raw, [("output.path", None)])
             where = f"variant '{var.label}', input '{inp.name}'"
             try:
-                cfg = build(RECEIVER_SCHEMA, raw).to_dict()
+                built = build_receiver(raw)
+                plugins = _plugin_fingerprints(built)
+                cfg = built.to_dict()
             except UserError as exc:
                 raise UserError(f"{where}: {exc}") from None
             cfg = _walk_strings(cfg, lambda k, v: (_receiver_file(v, b.base_dir) or v)
                                 if k != "output.path" else v)
             hashed = _walk_strings(cfg, lambda k, v: ident.get(v) or (file_signature(v) if os.path.isabs(v)
                                                                      and os.path.isfile(v) else v))
-            key = _hash({"config": hashed, "code": code})
+            key = _hash({"config": hashed, "code": code, **({"plugins": plugins} if plugins else {})})
             h5 = os.path.join(runs_dir, key + ".h5")
             cfg = apply_overrides(cfg, [("output.path", h5)])
             runs.append(RunTask(

@@ -9,7 +9,7 @@ import os
 import time
 import traceback
 
-from ..config import RECEIVER_SCHEMA, build
+from ..schema import build_receiver
 from ..logs import capture
 from .cache import _write_json
 from .metrics import METRICS_VERSION, compute_metrics
@@ -91,7 +91,7 @@ def execute_run(task: dict) -> dict:
         from ..pipeline import run
         from ..threads import set_threads
         set_threads(1)                                # the batch parallelises over runs: 1 thread each
-        cfg = build(RECEIVER_SCHEMA, task["config"])
+        cfg = build_receiver(task["config"])
         with capture(log):                            # log records of the stages go to the run's record
             summary = run(cfg, quiet=True, log=lambda *a, **k: None)
             from ..export import export_all      # the standard outputs the config asks for

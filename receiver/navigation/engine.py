@@ -27,6 +27,7 @@ from ..runfile.record import FIX_DTYPE, OBS_DTYPE
 from ..gnss.signals import C_LIGHT
 from .channel import BIT_MS, ChannelNav, common_slope
 from .ephemeris_store import EphemerisStore
+from .config import default
 from .pvt import Aiding, NavSolver, Observation, vnorm
 from .pvt_filter import make_pvt_filter
 
@@ -76,8 +77,8 @@ class NavigationEngine(EphemerisStore):
         self.rinex_ephs = ephemerides or {}
         self.iono_utc = iono_utc            # the RINEX header's Klobuchar / UTC set (assisted mode), or None
         self.iono_fallback = None           # navigation.klobuchar_fallback: used while no broadcast set is known
-        if getattr(nav_cfg, "ionosphere", "klobuchar") == "klobuchar" and \
-                getattr(nav_cfg, "klobuchar_fallback", True):
+        if getattr(nav_cfg, "ionosphere", default("ionosphere")) == "klobuchar" and \
+                getattr(nav_cfg, "klobuchar_fallback", default("klobuchar_fallback")):
             from ..gnss.atmosphere import FALLBACK_KLOBUCHAR_ALPHA, FALLBACK_KLOBUCHAR_BETA
             from ..gnss.ephemeris import IonoUtc
             self.iono_fallback = IonoUtc(alpha=FALLBACK_KLOBUCHAR_ALPHA, beta=FALLBACK_KLOBUCHAR_BETA)
@@ -337,7 +338,7 @@ class NavigationEngine(EphemerisStore):
         h = np.array(self.aid_hist)
         dt = t_s - h[:, 0]
         aid = Aiding(code_sigma_m=c.code_sigma_m, residual_threshold_m=c.residual_threshold_m,
-                     max_pdop=getattr(c, "max_pdop", float("inf")),
+                     max_pdop=getattr(c, "max_pdop", default("aiding.max_pdop")),
                      rate_sigma_mps=c.rate_sigma_mps)
         w = 1.0 / h[:, 5] ** 2
         # the drift: the velocity of a fix from 3 Dopplers needs it (and the epoch placement a finite drift)

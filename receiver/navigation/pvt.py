@@ -24,6 +24,7 @@ from ..gnss.signals_bds import B1I_HZ
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import earth_rotation, sat_state, select
 from ..gnss.ephemeris_jit import sat_states
+from .config import default
 from .wls_jit import WEIGHTING, linearise
 from ..gnss.time import normalize_week_tow, wrap_week_seconds
 
@@ -215,14 +216,14 @@ class NavSolver:
     CONVERGED_M = 1e-4
 
     def __init__(self, nav_cfg=None):
-        g = lambda name, default: getattr(nav_cfg, name, default) if nav_cfg is not None else default  # noqa: E731
-        self.elevation_mask_deg = float(g("elevation_mask_deg", 5.0))
-        self.weighting = str(g("weighting", "elevation"))
-        self.troposphere = str(g("troposphere", "saastamoinen"))
-        self.ionosphere = str(g("ionosphere", "klobuchar"))
-        self.residual_threshold_m = float(g("residual_threshold_m", 30.0))
-        self.max_pdop = float(g("max_pdop", 20.0))
-        if self.weighting not in ("elevation", "cn0", "none", "rtklib"):
+        g = lambda name: getattr(nav_cfg, name, default(name)) if nav_cfg is not None else default(name)  # noqa: E731
+        self.elevation_mask_deg = float(g("elevation_mask_deg"))
+        self.weighting = str(g("weighting"))
+        self.troposphere = str(g("troposphere"))
+        self.ionosphere = str(g("ionosphere"))
+        self.residual_threshold_m = float(g("residual_threshold_m"))
+        self.max_pdop = float(g("max_pdop"))
+        if self.weighting not in WEIGHTING:
             raise ValueError(f"unknown weighting {self.weighting!r}")
 
     # -------------------------------------------------------------------------------------

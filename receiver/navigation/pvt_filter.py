@@ -74,6 +74,7 @@ from ..gnss.clock import OSCILLATORS, h0_h2
 from ..gnss.signals import C_LIGHT
 from ..gnss.time import HALF_WEEK, WEEK_S, normalize_week_tow, week_seconds_since
 from ..estimation.filters import ExtendedKalmanFilter, SquareRootCubatureKalmanFilter, tria
+from .config import FILTERS, default
 from .pvt import Fix
 
 #: (h0, h_-2) of the fractional-frequency PSD of the oscillator classes (receiver.gnss.clock)
@@ -85,7 +86,7 @@ Q_CODE_CARRIER_DRIFT = 1e-4
 INIT_SIGMA = {"pos": 100.0, "vel": 100.0, "b": 100.0, "d": 100.0, "delta": 1000.0}
 #: WLS fixes inconsistent with the prediction in a row before the filter restarts from the WLS
 RESET_AFTER = 3
-KINDS = ("ekf", "ckf")
+KINDS = tuple(k for k in FILTERS if k != "wls")
 IB, ID = 6, 7
 
 
@@ -97,10 +98,12 @@ class PvtFilter:
     are the filter's (satellite lists, DOPs and residuals stay those of the WLS).
     """
 
-    def __init__(self, kind: str = "ekf", accel_psd: float = 1.0, code_sigma_m: float = 3.0,
-                 rate_sigma_mps: float = 0.1, clock: str = "tcxo", code_carrier_drift: bool = True,
-                 reset_m: float = 100.0, weighting: str = "elevation", rate_interval_s: float | None = None,
-                 smoothed_code: bool = False):
+    def __init__(self, kind: str = KINDS[0], accel_psd: float = default("filter_accel_psd"),
+                 code_sigma_m: float = default("filter_code_sigma_m"),
+                 rate_sigma_mps: float = default("filter_rate_sigma_mps"), clock: str = default("filter_clock"),
+                 code_carrier_drift: bool = default("filter_code_carrier_drift"),
+                 reset_m: float = default("filter_reset_m"), weighting: str = default("weighting"),
+                 rate_interval_s: float | None = None, smoothed_code: bool = default("filter_smoothed_code")):
         if kind not in KINDS:
             raise ValueError(f"unknown navigation filter {kind!r} (ekf or ckf)")
         if clock not in CLOCK_CLASSES:
@@ -131,14 +134,14 @@ class PvtFilter:
 
     @classmethod
     def from_config(cls, nav_cfg) -> "PvtFilter":
-        g = lambda name, default: getattr(nav_cfg, name, default)  # noqa: E731
-        rate = g("rate_hz", None)
-        return cls(kind=g("filter", "ekf"), accel_psd=g("filter_accel_psd", 1.0),
-                   code_sigma_m=g("filter_code_sigma_m", 3.0), rate_sigma_mps=g("filter_rate_sigma_mps", 0.1),
-                   clock=g("filter_clock", "tcxo"), code_carrier_drift=g("filter_code_carrier_drift", True),
-                   reset_m=g("filter_reset_m", 100.0), weighting=g("weighting", "elevation"),
+        g = lambda name: getattr(nav_cfg, name, default(name))  # noqa: E731
+        rate = getattr(nav_cfg, "rate_hz", None)        # absent: no delta-range rate model
+        return cls(kind=g("filter"), accel_psd=g("filter_accel_psd"),
+                   code_sigma_m=g("filter_code_sigma_m"), rate_sigma_mps=g("filter_rate_sigma_mps"),
+                   clock=g("filter_clock"), code_carrier_drift=g("filter_code_carrier_drift"),
+                   reset_m=g("filter_reset_m"), weighting=g("weighting"),
                    rate_interval_s=1.0 / rate if rate else None,
-                   smoothed_code=g("filter_smoothed_code", False))
+                   smoothed_code=g("filter_smoothed_code"))
 
     # ------------------------------------------------------------------------------------- models
     def transition(self, dt: float) -> np.ndarray:
@@ -371,7 +374,7 @@ class PvtFilter:
 
 def make_pvt_filter(nav_cfg):
     """The filter selected by ``navigation.filter`` (None for ``wls``)."""
-    kind = getattr(nav_cfg, "filter", "wls")
+    kind = getattr(nav_cfg, "filter", default("filter"))
     if kind in (None, "wls"):
         return None
     return PvtFilter.from_config(nav_cfg)

@@ -53,7 +53,7 @@ def _clean(v):
 def snapshot(config, input_path, ephemeris, time_text, time_unc, position, pos_unc, height, length_ms, every_s,
              independent, output, as_json, sets):
     """Snapshot position of a short recording (coarse-time navigation from a broadcast ephemeris)."""
-    from ..config import load_receiver_config
+    from ..schema import load_receiver_config
     from ..errors import UserError
     from .run import snapshot_file
     cfg = load_receiver_config(config, list(sets) + ([("input.path", input_path)] if input_path else []))

@@ -20,6 +20,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 DEPENDS = {
     "kernel.py": ["correlator.py"],
     "loops/compiled.py": ["kernel.py", "correlator.py", "loops/ekf.py", "loops/kfpll.py"],
+    "loops/runner.py": ["kernel.py", "correlator.py"],     # the loops' own functions: called by address
     "vector/loop.py": ["kernel.py", "correlator.py", "vector/discriminators.py", "vector/kalman.py"],
     # outside the package: the correlator-level simulator's compiled driver calls the loops' compiled twins
     "../evaluate/corrloop.py": ["loops/compiled.py", "loops/ekf.py", "loops/kfpll.py", "kernel.py",

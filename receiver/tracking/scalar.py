@@ -4,7 +4,8 @@ A :class:`Channel` is created from an acquisition result and consumes blocks of 
 ``records = channel.process(block, block_start)`` returns the channel-epoch records
 (:data:`receiver.record.EPOCH_DTYPE`) of all epochs that fit in the block.  With the built-in PLL and no
 external commands the whole block runs in one compiled call, and so it does with another carrier loop
-that has a compiled twin (receiver/tracking/loops/compiled.py: all registered variants).  A vector loop
+that has a compiled path (CarrierLoop.compiled; receiver/tracking/loops/runner.py runs it: every built-in
+variant and any plugin that has one).  A vector loop
 (or a carrier loop without a compiled twin) steps the channel epoch by epoch with
 ``process(..., max_epochs=1)`` and sets the NCOs between epochs with :meth:`Channel.command`.
 """
@@ -18,7 +19,10 @@ from .correlator import CODE_PAD
 from ..gnss.signals import GPS_L1CA
 from . import kernel as K
 from .carrier import channel_variant, make_carrier_loop
-from .loops import compiled as LC
+from .loops import runner as LR
+
+#: tracking.cn0_estimator: name -> the kernel's C_CN0_EST code
+CN0_ESTIMATORS = {"snv": 0, "m2m4": 1}
 
 
 class Channel:
@@ -60,10 +64,15 @@ class Channel:
             self.code_ext = np.ascontiguousarray(np.concatenate([self.code_ext, sec]), dtype=np.float32)
         self.hist = np.zeros(20, np.int64)
         self.loop = make_carrier_loop(channel_variant(car, weak), trk_cfg)
-        # the loop's compiled twin (loops/compiled.py) runs inside the compiled epoch loop; the Python
-        # object steps epoch by epoch when use_compiled_loop is False (the reference, for tests)
-        self.use_compiled_loop = not self.loop.builtin and self.loop.name in LC.KINDS
-        self._lp, self._ls = LC.pack(self.loop) if self.use_compiled_loop else (None, None)
+        # the loop's compiled path (CarrierLoop.compiled: two compiled functions and their parameter / state
+        # arrays) runs inside the compiled epoch loop (loops/runner.py); the Python object steps epoch by
+        # epoch when use_compiled_loop is False (the reference, for tests) or the loop has no compiled path
+        twin = None if self.loop.builtin else self.loop.compiled()
+        self.use_compiled_loop = twin is not None
+        self._start_fn = self._update_fn = self._lp = self._ls = None
+        if twin is not None:
+            self._start_fn, self._update_fn, self._lp, self._ls = LR.loop_functions(twin)
+        self._cs = np.zeros(LR.N_CS)                 # the channel's side of the hand-over (compiled path)
         self._py_loop_started = False
         c = np.zeros(K.N_CONFIG)
         c[K.C_FS] = fs
@@ -85,7 +94,7 @@ class Channel:
         c[K.C_CN0_WIN_MS] = trk_cfg.cn0_window_ms
         c[K.C_LOCK_CN0_MIN] = trk_cfg.lock_cn0_min_dbhz
         c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
-        c[K.C_CN0_EST] = {"snv": 0, "m2m4": 1}[trk_cfg.cn0_estimator]
+        c[K.C_CN0_EST] = CN0_ESTIMATORS[trk_cfg.cn0_estimator]
         c[K.C_LOST_MS] = trk_cfg.lost_ms
         c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
         set_presence(c, trk_cfg)
@@ -151,7 +160,7 @@ class Channel:
     @property
     def _loop_started(self) -> bool:
         if self.use_compiled_loop:
-            return bool(self._ls[LC.L_STARTED])
+            return bool(self._cs[LR.CS_STARTED])
         return self._py_loop_started
 
     @property
@@ -225,13 +234,15 @@ class Channel:
         total = 0
         carrier_hz = float(self.signal.carrier_hz)
         while total < cap:
-            n, pending = LC.run_epochs(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
-                                       self._out[total:], cap - total, self._lp, self._ls, carrier_hz)
+            n, pending = LR.call_run_epochs(block, block_start, self.st, self.cfg, self.code_ext, self.hist,
+                                            self._out[total:], cap - total, self._lp, self._ls, self._cs,
+                                            carrier_hz, self._start_fn, self._update_fn)
             total += n
             if not pending:
                 break
             K.repair_state(self.st)          # non-finite state: as after every Python-stepped epoch
-            LC.apply_epoch(self._out[total - 1], self.st, self.cfg, self._lp, self._ls, carrier_hz)
+            LR.call_apply_epoch(self._out[total - 1], self.st, self.cfg, self._lp, self._ls, self._cs,
+                                carrier_hz, self._start_fn, self._update_fn)
         K.repair_state(self.st)
         if total == 0:
             return np.zeros(0, record.EPOCH_DTYPE)

@@ -19,7 +19,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.evaluate import evaluate  # noqa: E402
 from receiver.gnss.bds_nav import EPH_LSB  # noqa: E402
 from receiver.pipeline import run  # noqa: E402

@@ -29,7 +29,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.acquisition.stage import acquire  # noqa: E402
 from receiver.pipeline import open_input, run  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402

@@ -21,7 +21,7 @@ import time
 import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.evaluate import evaluate  # noqa: E402
 from receiver.pipeline import run  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402

@@ -21,7 +21,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.export import export_all  # noqa: E402
 from receiver.pipeline import run  # noqa: E402
 from receiver.runfile.reader import load_run  # noqa: E402

@@ -21,7 +21,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 
 from receiver.batch.tasks import write_nav_for_scenario  # noqa: E402
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.gnss.rinex import read_rinex_nav, write_rinex_nav  # noqa: E402
 from receiver.pipeline import run  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 from receiver.acquisition import reject_cross_correlations, search, verify  # noqa: E402
 from receiver.acquisition.high_sensitivity import search_hs  # noqa: E402
-from receiver.config import RECEIVER_SCHEMA  # noqa: E402
+from receiver.schema import RECEIVER_SCHEMA  # noqa: E402
 from receiver.gnss.signals import CA_CHIP_RATE, CA_CODE_LEN, L1_HZ, ca_code  # noqa: E402
 
 FS = 2.6e6

@@ -18,7 +18,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.gnss.signals import CA_CHIP_RATE, L1_HZ, ca_code, sample_code  # noqa: E402
 from receiver.threads import cores, map_ordered, set_threads  # noqa: E402
 from receiver.tracking.scalar import Channel  # noqa: E402

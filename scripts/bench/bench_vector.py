@@ -21,7 +21,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 
 
 def bench(config, variant, channels, extra=()):
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     from receiver.tracking.vector import tracker as T
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.pipeline import run
 from receiver.runfile.reader import RunFile
 from receiver.sim.simulate import simulate

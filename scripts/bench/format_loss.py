@@ -13,7 +13,7 @@ import tempfile
 import h5py
 import numpy as np
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.pipeline import run
 from receiver.sim.simulate import simulate
 from receiver.source.io import FORMATS

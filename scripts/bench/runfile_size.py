@@ -82,7 +82,7 @@ def report(path, extra=""):
 
 
 def run_reference(out, overrides):
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     acc = {"cpu": 0.0, "depth": 0}
     _instrument(acc)

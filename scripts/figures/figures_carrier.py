@@ -37,7 +37,7 @@ receiver.limit_blas_threads()
 import numpy as np  # noqa: E402
 
 
-from receiver.config import load_receiver_config  # noqa: E402
+from receiver.schema import load_receiver_config  # noqa: E402
 from receiver.evaluate import corrloop  # noqa: E402
 from receiver.sim.corrsim import (CorrScenario, loss_of_lock_probability, make_truth, phase_error_std_deg,  # noqa: E402
                               run, tracking_threshold, windowed_pli, wrap_costas)

@@ -391,7 +391,7 @@ def tokyo(data, quick, reuse, log):
     if not os.path.exists(TOKYO_BIN):
         log(f"  third-party recording absent ({TOKYO_BIN}): skipped")
         return []
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run as run_pipeline
     rows = []
     for variant in ("fixed_r", "adaptive_r", "polynomial", "cv"):

@@ -23,7 +23,7 @@ import yaml
 from click.testing import CliRunner
 
 from receiver.cli import main
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 
 from repo_paths import ROOT
 SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"

@@ -5,7 +5,7 @@ import h5py
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.registry import get_signal
 from receiver.gnss.signals import C_LIGHT
 from receiver.navigation.channel import ChannelNav

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.sim.corrsim import (CorrScenario, if_phase_error, loss_of_lock_probability, phase_error_std_deg,
                               run)
 from receiver.tracking.carrier import make_carrier_loop

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 
 from synth import make_signal
 

@@ -9,7 +9,7 @@ import h5py
 import pytest
 import yaml
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.pipeline import CHUNK_S, run
 from receiver.sim.simulate import simulate
 

@@ -63,7 +63,7 @@ def test_engine_holds_a_first_ephemeris_that_disagrees_with_the_current_fix():
     (a miscorrected word) is held until a second reception of the same set."""
     from types import SimpleNamespace
 
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.gnss.ephemeris import earth_rotation, sat_state
     from receiver.gnss.lnav import encode_frames
     from receiver.gnss.rinex import read_rinex_nav

@@ -4,7 +4,7 @@ import pytest
 
 from receiver.acquisition import search
 from receiver.acquisition.high_sensitivity import doppler_window, search_hs
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.runfile.record import STATE_BIT_SYNC
 from receiver.tracking.scalar import Channel
 

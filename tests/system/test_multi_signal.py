@@ -3,7 +3,7 @@ centred between L1 and B1I), satellite keys (BeiDou PRN p -> 400 + p), the confi
 import h5py
 import pytest
 
-from receiver.config import load_receiver_config, run_signals, signal_prns
+from receiver.schema import load_receiver_config, run_signals, signal_prns
 from receiver.errors import UserError
 from receiver.gnss.satid import MIXED, parse_label, sat_key, sat_label, sat_system, split_key
 
@@ -34,7 +34,7 @@ def test_signals_config():
     # the vector loops track GPS + BeiDou runs (tests/system/test_vector_gnss.py); a signal they do not know is
     # refused in one line
     assert load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["vector.enabled=true"]).vector.enabled
-    import receiver.config as C
+    import receiver.tracking.vector.config as C
     known = C.VECTOR_SIGNALS
     try:
         C.VECTOR_SIGNALS = ("gps_l1ca",)

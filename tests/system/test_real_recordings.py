@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from receiver.acquisition.stage import acquire
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.pipeline import open_input
 
 from repo_paths import REAL_DATA

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.geodesy import ecef2enu
 from receiver.pipeline import run
 

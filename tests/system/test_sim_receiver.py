@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from receiver.acquisition import search
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.source.io import SampleReader
 from receiver.pipeline import run
 from receiver.sim.simulate import simulate

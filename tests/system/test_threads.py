@@ -70,7 +70,7 @@ def test_thread_count_from_the_environment(monkeypatch):
 def test_run_files_are_bit_identical_whatever_the_thread_count(tmp_path, variant):
     if not (TOKYO_REC.exists() and TOKYO_NAV.exists()):
         pytest.skip("../shared/data reference recording absent")
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     from receiver.runfile.compare import compare_h5
     out = {}
@@ -155,7 +155,7 @@ def test_read_ahead_gives_the_samples_of_plain_reads():
         pytest.skip("../shared/data reference recording absent")
     import numpy as np
 
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import open_input
     from receiver.source.prefetch import PrefetchingReader
     cfg = load_receiver_config(ROOT / "configs" / "gpssim_static_tokyo.yaml", [("input.path", str(TOKYO_REC))])

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.pipeline import run
 from receiver.gnss.signals import C_LIGHT, CA_CHIP_RATE
 from receiver.sim.simulate import simulate

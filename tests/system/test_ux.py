@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from receiver.cli import LAZY_COMMANDS, main
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.errors import UserError
 from receiver.suggest import did_you_mean, looks_binary
 

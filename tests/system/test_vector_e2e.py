@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.pipeline import run
 
 from repo_paths import ROOT

@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.signals import C_LIGHT
 from receiver.pipeline import run
 

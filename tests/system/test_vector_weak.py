@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.signals import CA_CHIP_RATE, L1_HZ
 from receiver.tracking import kernel as K
 from receiver.tracking.scalar import Channel

@@ -2,14 +2,13 @@
 
 The Python loop classes (cpll.py, kfpll.py, ekf.py) are the readable reference; each has here a compiled
 twin of its ``start`` / ``step`` working on two float64 arrays: ``lp`` (parameters, fixed for the channel)
-and ``ls`` (state), packed from the Python object by :func:`pack`.  :func:`run_epochs` runs a channel's
-epochs over a block with the loop's update between epochs, all in compiled code, exactly as
-``Channel.process`` stepped them from Python (hand-over from the built-in pull-in loop at bit sync, the
-exact epoch duration from the sample count, NCO frequency / phase step, carrier-aided DLL).  The results
-agree with the Python-stepped loops to float rounding (tests/unit/tracking/test_carrier_compiled.py).
+and ``ls`` (state), packed from the Python object by :func:`pack`.  :func:`builtin_start` /
+:func:`builtin_update` are that twin through the carrier-loop interface's compiled path (the signatures of
+receiver/tracking/loops/runner.py, whose epoch loop runs them as it runs a plugin's); the results agree
+with the Python-stepped loops bit for bit (tests/unit/tracking/test_carrier_compiled.py).
 
-Interface per variant: a ``KIND_*`` code, a packing branch in :func:`pack`, a start branch in
-:func:`loop_start` and an update branch in :func:`loop_update`.
+Per variant: a ``KIND_*`` code, a packing branch in :func:`pack`, a start branch in :func:`loop_start` and an
+update branch in :func:`loop_update`.
 """
 from __future__ import annotations
 
@@ -19,10 +18,9 @@ import numpy as np
 from numba import njit
 
 from ...gnss.signals import C_LIGHT
-from .. import kernel as K
-from ..correlator import workspace
 from .ekf import ekf_step
 from .kfpll import kf_prior_hph, kf_step
+from .runner import START_SIG, UPDATE_SIG, CompiledFunction
 
 TWO_PI = 2.0 * math.pi
 
@@ -333,46 +331,29 @@ def loop_update(lp, ls, ip, qp, T, p1i, p1q, p2i, p2q):
     return _command(ls, T, s[0] / TWO_PI - f * T / 2.0, f)
 
 
-# ------------------------------------------------------------------ the channel's epoch loop
-@njit(cache=True, nogil=True)
-def apply_epoch(row, st, cfg, lp, ls, carrier_hz):
-    """After one epoch (its output row): the hand-over at bit sync, or the loop's update and the NCO
-    commands (Channel._python_carrier_update)."""
-    if ls[L_STARTED] == 0.0:
-        if row[K.O_STATE] != K.MODE_BIT_SYNC:
-            return
-        loop_start(lp, ls, st[K.S_CARR_FREQ] - cfg[K.C_IF], row[K.O_INT_MS] * 1e-3, st[K.S_PLL_RATE],
-                   carrier_hz)
-        cfg[K.C_CARRIER_EXTERNAL] = 1.0
-        return
-    T = (st[K.S_NEXT_SAMPLE] - row[K.O_SAMPLE]) / cfg[K.C_FS]
-    if T == 0.0:
-        T = row[K.O_INT_MS] * 1e-3
-    dop, dphase = loop_update(lp, ls, row[K.O_PI], row[K.O_PQ], T, row[K.O_P1I], row[K.O_P1Q],
-                              row[K.O_P2I], row[K.O_P2Q])
-    old = st[K.S_CARR_FREQ] - cfg[K.C_IF]
-    st[K.S_CARR_FREQ] = cfg[K.C_IF] + dop
-    st[K.S_PLL_FREQ] = dop
-    if dphase != 0.0:
-        st[K.S_CARR_PHASE] += dphase
-    if cfg[K.C_CODE_EXTERNAL] == 0:
-        st[K.S_CODE_RATE] += cfg[K.C_CHIP_RATE] * (dop - old) / cfg[K.C_CARRIER_HZ]
+# ------------------------------------------------------------------ the loop interface's compiled path
+@njit(START_SIG, cache=True, nogil=True)
+def builtin_start(lp, ls, doppler_hz, T, rate_hz_s, carrier_hz):
+    """The built-in variants' compiled ``start`` (receiver/tracking/loops/runner.py START_SIG)."""
+    loop_start(lp, ls, doppler_hz, T, rate_hz_s, carrier_hz)
 
 
-@njit(cache=True, nogil=True)
-def run_epochs(samples, block_start, st, cfg, code_ext, hist, out, max_epochs, lp, ls, carrier_hz):
-    """Epochs while they fit in the block (at most max_epochs), the carrier loop stepped between them.
-    Returns (epochs written, pending): pending = 1 when the state became non-finite after the last epoch
-    written: the caller repairs it (kernel.repair_state) and then calls apply_epoch on that row."""
-    n_out = 0
-    ws = workspace()
-    while n_out < max_epochs:
-        n = K.track_block_ws(samples, block_start, st, cfg, code_ext, hist, out[n_out:n_out + 1], 1, ws)
-        if n == 0:
-            break
-        n_out += 1
-        for i in range(st.shape[0]):
-            if not np.isfinite(st[i]):
-                return n_out, 1
-        apply_epoch(out[n_out - 1], st, cfg, lp, ls, carrier_hz)
-    return n_out, 0
+@njit(UPDATE_SIG, cache=True, nogil=True)
+def builtin_update(lp, ls, ip, qp, T, p1i, p1q, p2i, p2q):
+    """The built-in variants' compiled ``update`` (UPDATE_SIG)."""
+    return loop_update(lp, ls, ip, qp, T, p1i, p1q, p2i, p2q)
+
+
+_FUNCTIONS = []
+
+
+class CompiledTwin:
+    """Mixin of the built-in Python loops: their :meth:`compiled` path is this module's twin (as a plugin's
+    is its own pair of functions; receiver/tracking/loops/plugin.py)."""
+
+    def compiled(self):
+        if not _FUNCTIONS:
+            _FUNCTIONS.extend((CompiledFunction(builtin_start, START_SIG),
+                               CompiledFunction(builtin_update, UPDATE_SIG)))
+        lp, ls = pack(self)
+        return _FUNCTIONS[0], _FUNCTIONS[1], lp, ls

@@ -27,6 +27,7 @@ import logging
 
 import numpy as np
 
+from ... import plugins
 from ...errors import UserError
 from ...gnss.signals import C_LIGHT, CA_CHIP_RATE
 from .. import kernel as K
@@ -47,11 +48,32 @@ REGISTRY: dict[str, type[VectorFilter]] = {
 DEFAULT_DELAY_S = 5.0
 
 
+def filter_class(name: str) -> type[VectorFilter]:
+    """The class of vector variant ``name``: a built-in (:data:`REGISTRY`), an installed plugin (entry point
+    ``gnssrx.vector_filters``) or ``module:Class``, checked against the interface (base.py; one-line
+    errors)."""
+    if name in REGISTRY:
+        return REGISTRY[name]
+    found = plugins.find("vector_filter", name)
+    if found is None:
+        avail = list(REGISTRY) + sorted(plugins.entry_points("vector_filter"))
+        raise UserError(f"unknown vector variant '{name}' (available: {', '.join(avail)}, or module:Class)")
+    cls, pre = found.cls, f"vector filter plugin '{name}'"
+    if not issubclass(cls, VectorFilter):
+        raise UserError(f"{pre}: {cls.__name__} is not a receiver.tracking.vector.base.VectorFilter")
+    if not isinstance(cls.name, str) or not cls.name.isidentifier() or cls.name == VectorFilter.name:
+        raise UserError(f"{pre}: its class attribute name must be an identifier, got {cls.name!r}")
+    for method in ("matrices", "initial", "layout"):
+        if getattr(cls, method, None) is getattr(VectorFilter, method):
+            raise UserError(f"{pre}: missing method {method}")
+    if type(getattr(cls, "n", None)) is type(VectorFilter.n) and cls.n is VectorFilter.n:
+        raise UserError(f"{pre}: missing property n")
+    plugins.check_params(pre, getattr(cls, "PARAMS", {}))
+    return cls
+
+
 def make_filter(name: str, vcfg) -> VectorFilter:
-    try:
-        cls = REGISTRY[name]
-    except KeyError:
-        raise UserError(f"unknown vector variant '{name}' (available: {', '.join(REGISTRY)})") from None
+    cls = filter_class(name)
     filt = cls(vcfg, int(vcfg.integration_ms) * 1e-3)
     if vcfg.motion_model != "cv" and not filt.selectable_motion:
         raise UserError(f"vector.motion_model '{vcfg.motion_model}' applies to fixed_r and adaptive_r only "

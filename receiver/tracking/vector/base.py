@@ -33,10 +33,14 @@ def clock_psd(clock_class: str):
 class VectorFilter:
     """Base class of the vector-loop filters (see the module docstring)."""
     name = "base"
+    version: str | None = None      # a plugin's (None: its distribution's version)
     selectable_motion = False       # True: vector.motion_model chooses the kinematic model
+    #: a plugin's own config keys (receiver.config.P), mounted at vector.<name> and given as self.params
+    PARAMS: dict = {}
 
     def __init__(self, vcfg, T: float):
         self.vcfg = vcfg
+        self.params = vcfg[self.name] if self.PARAMS else None
         self.T = float(T)
         self.has_delta = bool(vcfg.code_carrier_drift)
         self.r_code = float(vcfg.r_code_m2)

@@ -4,7 +4,7 @@ import numpy as np
 
 from receiver.acquisition import search, verify
 from receiver.acquisition.stage import acquire, fit_dwell
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.pipeline import open_input
 
 from synth import make_signal

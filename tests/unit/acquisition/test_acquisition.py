@@ -130,7 +130,7 @@ def test_acquire_cli_on_a_10ms_file(tmp_path):
 def test_lo_offset_widens_the_search_and_warns(tmp_path):
     """A front end whose LO is 20 kHz off puts every satellite outside +/-10 kHz: fewer than 4 found, the
     search widens to +/-25 kHz, finds them and the common offset is reported."""
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.acquisition.stage import acquire
     from receiver.pipeline import open_input
     dops = {3: 18500.0, 8: 21300.0, 14: 19800.0, 22: 23100.0}
@@ -155,7 +155,7 @@ def test_lo_offset_widens_the_search_and_warns(tmp_path):
 def test_channel_opened_on_a_false_detection_is_released_quickly():
     """Integrity end to end: a channel opened on noise (a false detection that got through) never reports
     lock and is released (lost) within 1.5 s -- pull-in, then tracking.lost_ms of failed lock tests."""
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.gnss.registry import get_signal
     from receiver.tracking.scalar import Channel
     cfg = load_receiver_config(None)

@@ -49,7 +49,7 @@ def test_cold_search_window_after_a_fix_covers_the_tracked_satellites(tokyo_run)
     import h5py
     from types import SimpleNamespace
 
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.tracking.channels import ChannelManager
     cfg = load_receiver_config(None, [])
     with h5py.File(tokyo_run) as f:
@@ -79,7 +79,7 @@ def test_cold_search_window_before_a_fix_covers_every_satellite(tokyo_run):
     import h5py
     from types import SimpleNamespace
 
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.tracking import kernel as K
     from receiver.tracking.channels import ChannelManager
     cfg = load_receiver_config(None, [])

@@ -20,8 +20,8 @@ PKG = ROOT / "receiver"
 #: bottom -> top; a module's layer is that of the longest prefix listed here (``receiver`` itself: the
 #: package's __init__ only).  A new top-level module must be placed here (and in the README) explicitly.
 LAYERS: list[tuple[str, ...]] = [
-    ("receiver", "receiver.errors", "receiver.config", "receiver.logs", "receiver.safeio", "receiver.threads",
-     "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start", "receiver.suggest"),
+    ("receiver", "receiver.errors", "receiver.config", "receiver.plugins", "receiver.logs", "receiver.safeio",
+     "receiver.threads", "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start", "receiver.suggest"),
     ("receiver.gnss",),
     ("receiver.estimation",),
     ("receiver.runfile",),
@@ -29,10 +29,10 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.acquisition",),
     ("receiver.tracking",),
     ("receiver.navigation",),
-    ("receiver.pipeline",),
+    ("receiver.pipeline", "receiver.schema"),
     ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.probe",
      "receiver.validate", "receiver.snapshot"),
-    ("receiver.cli",),
+    ("receiver.cli", "receiver.api"),
 ]
 
 #: (importer prefix, imported prefix): imports that the layer order alone would allow but the design forbids

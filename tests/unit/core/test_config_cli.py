@@ -5,7 +5,8 @@ import sys
 import numpy as np
 import pytest
 
-from receiver.config import RECEIVER_SCHEMA, build, load_receiver_config
+from receiver.config import build
+from receiver.schema import RECEIVER_SCHEMA, load_receiver_config
 from receiver.errors import UserError
 
 from synth import make_signal

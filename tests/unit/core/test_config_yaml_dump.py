@@ -6,7 +6,7 @@ import os
 
 import yaml
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 
 from repo_paths import ROOT
 

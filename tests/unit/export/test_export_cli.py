@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from receiver.cli import main
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.errors import UserError
 from receiver.export import export_all, output_paths
 

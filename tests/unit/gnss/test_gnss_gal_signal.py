@@ -63,7 +63,7 @@ def test_cboc_approximation_cost():
 
 
 def test_config_accepts_the_name_but_says_it_is_not_tracked():
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     with pytest.raises(UserError, match="config key .signal.: gal_e1 is not acquired or tracked yet"):
         load_receiver_config(None, [("signal", "gal_e1"), ("acquisition.prns", [11, 12])])
     with pytest.raises(UserError, match="config key .signals.: gal_e1"):

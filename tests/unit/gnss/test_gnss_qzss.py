@@ -87,7 +87,7 @@ def test_rinex3_qzss_records_round_trip(tmp_path):
 # ------------------------------------------------------------------------------- simulated recording
 @pytest.fixture(scope="module")
 def qzss_run(tmp_path_factory):
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     from receiver.sim.simulate import simulate
     d = tmp_path_factory.mktemp("qzss")
@@ -121,7 +121,7 @@ def test_qzss_satellites_acquired_and_tracked_as_jnn(qzss_run):
 
 
 def test_config_rejects_prns_the_signal_has_no_code_for():
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.errors import UserError
     with pytest.raises(UserError, match="no PRN 150"):
         load_receiver_config(REPO / "configs/default.yaml", [("acquisition.prns", [1, 150])])

@@ -134,7 +134,7 @@ def test_engine_predicts_the_clock_and_height_from_unaided_fixes(rx):
     """NavigationEngine: the constraints are the recent unaided fixes extrapolated with their drift / vertical
     speed; their sigma grows with the age of the latest unaided fix; aided fixes never feed the prediction;
     no aiding past max_age_s or with navigation.aiding.enabled false."""
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.navigation.engine import NavigationEngine
     from receiver.navigation.pvt import Fix
 

@@ -6,7 +6,7 @@ ionosphere that is NOT the fallback set's (the nominal constellation's Klobuchar
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.lnav import encode_frames
 from receiver.navigation.engine import NavigationEngine
 from receiver.runfile.record import FIX_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE

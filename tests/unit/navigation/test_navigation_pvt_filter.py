@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.errors import UserError
 from receiver.gnss.geodesy import azel, ecef2lla, lla2ecef
 from receiver.gnss.atmosphere import saastamoinen_m

@@ -148,7 +148,7 @@ def test_probe_cli_noise_and_bad_input(tmp_path):
 
 
 def test_hints_name_the_contradicted_format(tmp_path, iq26):
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     path = _write(tmp_path / "a.bin", iq26, "int8_iq")
     m = hints.format_mismatch(path, "uint8_iq")
     assert m is not None and "centred on 0" in m and "int8_iq" in m

@@ -84,7 +84,7 @@ def test_metrics_and_reader_on_a_thinned_file(files):
 
 def test_pipeline_passes_the_rate_to_the_writer(tmp_path, monkeypatch):
     import receiver.pipeline as pl
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     seen = {}
 
     class Stop(Exception):

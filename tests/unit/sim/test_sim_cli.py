@@ -8,7 +8,7 @@ import yaml
 from click.testing import CliRunner
 
 from receiver import __version__
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.errors import UserError
 from receiver.source.io import FORMATS, quantize
 from receiver.sim import simulate as sim_mod

@@ -2,7 +2,8 @@
 vanish mid-stream get a notch added / removed; chunked reads give the samples of one read."""
 import numpy as np
 
-from receiver.config import RECEIVER_SCHEMA, build
+from receiver.config import build
+from receiver.schema import RECEIVER_SCHEMA
 from receiver.source.conditioning import ConditionedReader
 
 FS = 2.6e6

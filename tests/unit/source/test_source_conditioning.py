@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from receiver.source.conditioning import Canceller, ConditionedReader, detect_tones
-from receiver.config import RECEIVER_SCHEMA, build
+from receiver.config import build
+from receiver.schema import RECEIVER_SCHEMA
 from receiver.gnss.signals import CA_CHIP_RATE, L1_HZ, ca_code, sample_code
 
 from synth import make_signal
@@ -147,7 +148,7 @@ def test_dc_removal_runs_only_where_the_front_ends_dc_is_at_0_hz(tmp_path, fmt, 
     stage skips the DC canceller there (the stream passes unchanged, /conditioning says where the DC is).
     A zero-IF I/Q input keeps its DC at 0 Hz through the stage, and DC removal takes it out."""
     from receiver import pipeline
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.source.io import quantize
     fs = 16.368e6
     rng = np.random.default_rng(7)

@@ -97,7 +97,7 @@ def highrate(tmp_path_factory):
 
 def _run(d, paths, name, decimate):
     import h5py
-    from receiver.config import load_receiver_config
+    from receiver.schema import load_receiver_config
     from receiver.pipeline import run
     out = d / f"{name}.h5"
     cfg = load_receiver_config(paths["yaml"], [("output.path", str(out)), ("navigation.enabled", False),

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.errors import UserError
 from receiver.pipeline import run
 from receiver.sim.simulate import simulate

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from repo_paths import TOKYO_REC
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.tracking import kernel as K
 from receiver.tracking.carrier import REGISTRY
 from receiver.tracking.loops import compiled as LC

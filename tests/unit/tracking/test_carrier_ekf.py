@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.tracking.carrier import make_carrier_loop
 from receiver.tracking.loops.ekf import jacobian, observation
 

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.signals import L1_HZ
 from receiver.tracking.carrier import REGISTRY, make_carrier_loop
 from receiver.tracking.loops.common import (atan_variance_cycles2, butterworth_bn_factor, clock_q,

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.signals import L1_HZ
 from receiver.gnss.signals_bds import B1I_HZ
 from receiver.evaluate.corrloop import run as run_compiled

@@ -6,7 +6,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from receiver.config import RECEIVER_SCHEMA, build
+from receiver.config import build
+from receiver.schema import RECEIVER_SCHEMA
 from receiver.gnss.signals import CA_CODE_LEN, GPS_L1CA, C_LIGHT, L1_HZ
 from receiver.tracking import channels as CH
 from receiver.tracking.channels import ChannelManager

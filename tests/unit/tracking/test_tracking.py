@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.runfile.record import STATE_BIT_SYNC
 from receiver.tracking.scalar import Channel
 

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from receiver.config import RECEIVER_SCHEMA, build
+from receiver.config import build
+from receiver.schema import RECEIVER_SCHEMA
 from receiver.errors import UserError
 from receiver.tracking.correlator import correlate, extend_code
 from receiver.gnss.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ, ca_code

@@ -3,7 +3,7 @@ normal loops hold is handed over to them; a weak channel's DLL converges at the 
 import numpy as np
 import pytest
 
-from receiver.config import load_receiver_config
+from receiver.schema import load_receiver_config
 from receiver.gnss.signals import CA_CHIP_RATE, L1_HZ
 from receiver.tracking.scalar import Channel
 

@@ -1,0 +1,115 @@
+"""The ``input`` section of the receiver config (schema fragment of the source stage) and its checks.
+
+The format choices are the readers of :mod:`receiver.source.io` (``FORMATS``, then the GNSS-SDR / SigMF
+``ALIASES``); receiver/schema.py assembles this fragment into the receiver's schema.
+"""
+from __future__ import annotations
+
+from ..config import P, Section
+from ..errors import UserError
+from .io import ALIASES, BIT_ORDERS, ENCODINGS, FORMATS
+
+#: the aliases of real (not complex) formats: input.if_hz must then lie in (0, fs/2)
+REAL_FORMAT_ALIASES = tuple(a for a, f in ALIASES.items() if not FORMATS[f].complex)
+
+SCHEMA = {
+    "path": P(None, "str", "IF sample file (relative paths are taken from the current directory; "
+                          "`--input` overrides)", nullable=True),
+    "format": P("int8_iq", "str", "sample format (docs: Your own recording; GNSS-SDR item_type and SigMF "
+                                  "datatype names are accepted as aliases)",
+                choices=tuple(FORMATS) + tuple(ALIASES)),
+    "header_bytes": P(0, "int", "bytes skipped at the start of the file before the first sample", lo=0),
+    "bit_order": P("msb_first", "str", "packed formats: the first field of a byte is in its most "
+                                       "(msb_first) or least (lsb_first) significant bits",
+                   choices=BIT_ORDERS),
+    "encoding": P("sign_magnitude", "str", "packed1/2/4 formats: field encoding (sign_magnitude: "
+                                           "top bit = sign, value +/-(2m+1); twos_complement: value 2s+1; "
+                                           "offset_binary: value 2u-(2^bits-1))",
+                  choices=ENCODINGS),
+    "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
+    "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
+    "signal_files": P({}, "dict", "runs over several signals recorded into one file per signal at the same "
+                                  "instant: signal name -> {path, if_hz} of that signal's file (same format "
+                                  "and sample rate as input.path, which holds the first signal); a signal "
+                                  "not listed is read from input.path"),
+    "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
+    "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and resample to a "
+                                 "complex baseband stream before acquisition and tracking.  auto: when the "
+                                 "input is at least 1.5x the target rate (4 MS/s for gps_l1ca, 8 MS/s for "
+                                 "bds_b1i), resample to it by an exact ratio L/M (L, M <= 4096; else the "
+                                 "largest whole factor, else the lowest whole rate above it that such a "
+                                 "ratio reaches); slower inputs stay as they are, except a rate that is "
+                                 "not a whole number of samples per ms (e.g. 2.0461 MS/s), which is "
+                                 "resampled slightly up to one.  An integer N: decimate by N.  1: off "
+                                 "(docs: Input conditioning)"),
+    "skip_s": P(0.0, "float", "seconds skipped at the start of the file", lo=0.0),
+    "duration_s": P(None, "float", "seconds processed (empty: to the end of the file)",
+                    nullable=True, lo=0.0),
+    "start_gps_week": P(None, "int", "GPS week of the first sample (only for assisted mode / "
+                                     "time-tagging before the first decoded TOW)", nullable=True),
+    "start_gps_tow_s": P(None, "float", "approximate GPS time of week of the first sample",
+                         nullable=True),
+    "conditioning": {
+        "dc_removal": P(True, "bool", "remove the DC offset / LO leakage (a ~dc_bw_hz wide notch at 0 Hz "
+                                      "that follows a drifting offset; not run when the decimating input "
+                                      "stage mixes a nonzero IF down, which moves the DC to -IF)"),
+        "tone_detection": P(True, "bool", "detect CW tones / spurs in the spectrum of the first detect_ms "
+                                          "(reported in the run summary and /conditioning)"),
+        "tone_excision": P(True, "bool", "cancel the detected tones (one adaptive notch of notch_bw_hz "
+                                         "per tone, causal, continuous across blocks)"),
+        "detect_ms": P(100.0, "float", "span analysed by the tone detector (ms; shorter files: all of "
+                                       "it)", lo=1.0),
+        "fft_size": P(4096, "int", "periodogram length of the tone detector (bin = sample rate / "
+                                   "fft_size)", lo=64, hi=1 << 20),
+        "pfa": P(1e-3, "float", "probability of one or more false tone detections over the whole "
+                                "spectrum of white noise", lo=1e-12, hi=0.5),
+        "min_db": P(6.0, "float", "a tone must also exceed the local noise floor of its periodogram "
+                                   "bin by this much (dB)", lo=0.0),
+        "max_tones": P(32, "int", "largest number of tones cancelled (the strongest; up to max(16, max_tones) are "
+                                  "reported)", lo=0, hi=64),
+        "notch_bw_hz": P(100.0, "float", "-3 dB width of each tone notch (Hz)", lo=1.0),
+        "dc_bw_hz": P(100.0, "float", "-3 dB width of the DC notch (Hz)", lo=1.0),
+        "pulse_blanking": P(False, "bool", "zero samples whose magnitude exceeds blank_sigma x the RMS "
+                                           "of the conditioned detection span (pulsed interference)"),
+        "blank_sigma": P(5.0, "float", "pulse blanking threshold in RMS units", lo=1.0),
+        "monitor_ms": P(100.0, "float", "interference monitor: every monitor_ms of the stream the "
+                                        "conditioned samples are checked for new tones (a notch is added "
+                                        "at once) and every notch for a tone that has gone (removed); "
+                                        "0: the tones of the first detect_ms only", lo=0.0),
+        "notch_track_hz": P(3000.0, "float", "natural frequency of each tone notch's frequency-tracking "
+                                             "loop (a drifting or swept tone stays in its notch); 0: fixed "
+                                             "notch frequencies", lo=0.0),
+        "monitor_segments": P(8, "int", "periodogram segments (of fft_size samples) per monitor check",
+                              lo=2, hi=256),
+    },
+}
+
+
+def check(i: Section):
+    """Checks of meaning across the input keys (one-line UserErrors): the IF inside the sampled band, the
+    decimation factor."""
+    half = i.sample_rate_hz / 2
+    if i.format.endswith("_real") or i.format in REAL_FORMAT_ALIASES:
+        if not 0.0 < i.if_hz < half:
+            raise UserError(f"config key 'input.if_hz' must be in (0, sample_rate_hz/2 = {half:g}) for the "
+                            f"real format {i.format}, got {i.if_hz:g}")
+    elif abs(i.if_hz) >= half:
+        raise UserError(f"config key 'input.if_hz' must be within +/- sample_rate_hz/2 = {half:g}, "
+                        f"got {i.if_hz:g}")
+    d = i.decimate
+    if d != "auto" and (isinstance(d, bool) or not isinstance(d, int) or d < 1):
+        raise UserError(f"config key 'input.decimate' must be auto or an integer >= 1, got {d!r}")
+
+
+def check_signal_files(i: Section, sigs: list):
+    """input.signal_files names the run's signals after the first, each {path, if_hz} inside the band."""
+    half = i.sample_rate_hz / 2
+    for name, v in (i.signal_files or {}).items():
+        if name not in sigs[1:]:
+            raise UserError(f"config key 'input.signal_files': {name!r} is not one of the run's signals after the "
+                            f"first ({', '.join(sigs[1:]) or 'none'}; the first is read from input.path)")
+        if not isinstance(v, dict) or set(v) - {"path", "if_hz"} or not isinstance(v.get("path"), str) or \
+                isinstance(v.get("if_hz", 0.0), bool) or not isinstance(v.get("if_hz", 0.0), (int, float)) or \
+                abs(v.get("if_hz", 0.0)) >= half:
+            raise UserError(f"config key 'input.signal_files.{name}' must be {{path: FILE, if_hz: HZ}} with "
+                            f"|if_hz| < sample_rate_hz/2, got {v!r}")
