@@ -5,7 +5,7 @@ Tracks the same block with fresh channels for each loop, one thread, and prints 
 ``--repeat`` runs of the CPU seconds per signal second, and each plugin's ratio to the built-in it is
 compared with.  Loops: the built-in cpll_atan (compiled twin), the same algorithm as a plugin through the
 public interface (tests/unit/tracking/plugins/cpll_again.py, compiled path), the example plugin fll_pll
-(examples/gnssrx-fll-pll, compiled path) and, for scale, the kernel's own PLL and cpll_atan stepped from
+(docs/examples/gnssrx-fll-pll, compiled path) and, for scale, the kernel's own PLL and cpll_atan stepped from
 Python.  Uses the reference recording (../shared/data/gpssim_static_tokyo.bin) when present, else a
 synthetic signal.  No acquisition, navigation or file output: only tracking.
 
@@ -21,7 +21,7 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[2]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "unit" / "tracking" / "plugins"),
-                str(ROOT / "examples" / "gnssrx-fll-pll" / "src")]
+                str(ROOT / "docs" / "examples" / "gnssrx-fll-pll" / "src")]
 
 import numpy as np  # noqa: E402
 

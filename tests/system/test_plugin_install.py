@@ -1,4 +1,4 @@
-"""The example plugin package (examples/gnssrx-fll-pll) installed beside a non-editable gnssrx: its wheel
+"""The example plugin package (docs/examples/gnssrx-fll-pll) installed beside a non-editable gnssrx: its wheel
 and gnssrx's (built as tests/system/test_install.py builds it: no build isolation, no network, no
 dependencies) installed into a fresh target directory, then `gnssrx plugins` shows it, `gnssrx run` tracks
 with it (the run file records its name, version and parameters), `gnssrx batch` runs it against the
@@ -17,7 +17,7 @@ import pytest
 from repo_paths import ROOT
 from test_install import _build_wheel
 
-EXAMPLE = ROOT / "examples" / "gnssrx-fll-pll"
+EXAMPLE = ROOT / "docs" / "examples" / "gnssrx-fll-pll"
 
 
 def _plugin_wheel(dest: Path) -> Path:
