@@ -68,12 +68,14 @@ class Section:
         return name in self._values
 
     def get(self, dotted: str):
+        """The value at a dotted path (``"tracking.carrier.dataless"``) below this section (KeyError if absent)."""
         node = self
         for part in dotted.split("."):
             node = node[part]
         return node
 
     def to_dict(self) -> dict:
+        """The section as a plain nested dict (a deep copy; sections become dicts)."""
         return {k: (v.to_dict() if isinstance(v, Section) else copy.deepcopy(v))
                 for k, v in self._values.items()}
 
@@ -188,6 +190,9 @@ def parse_override(item: str) -> tuple[str, Any]:
 
 
 def apply_overrides(raw: dict, overrides) -> dict:
+    """A deep copy of the raw config dict with the ``--set`` overrides applied: ``"key=value"`` strings
+    (parse_override) or (dotted key, value) pairs; missing sections are created, a key through a non-section
+    is a UserError."""
     raw = copy.deepcopy(raw)
     for item in overrides or ():
         key, value = parse_override(item) if isinstance(item, str) else item
@@ -293,6 +298,8 @@ def find_file(value):
 
 
 def resolve_path(value: str, config_path=None) -> str:
+    """A relative file name resolved against the referring config file's directory, then search_bases(); returned
+    unchanged when empty, absolute, existing as given, or found nowhere."""
     if not value or os.path.isabs(value) or os.path.exists(value):
         return value
     bases = ([os.path.dirname(os.path.abspath(os.fspath(config_path)))] if config_path else []) + search_bases()

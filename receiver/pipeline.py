@@ -79,9 +79,11 @@ class RunSummary:
 
     @property
     def realtime_factor(self) -> float:
+        """Seconds of signal processed per second of wall-clock time (inf for a zero wall time)."""
         return self.duration_s / self.wall_s if self.wall_s > 0 else float("inf")
 
     def text(self) -> str:
+        """The run summary as text (one item per line), as ``gnssrx run`` prints it."""
         lines = [f"output          {self.output}",
                  f"signal          {self.duration_s:.1f} s processed in {self.wall_s:.1f} s "
                  f"(real-time factor {self.realtime_factor:.1f}x)",
@@ -111,6 +113,7 @@ class RunSummary:
 
 
 def default_output_path(cfg, input_path: str) -> str:
+    """``output.path`` if set, else the input file's stem + ``.h5`` in the current directory."""
     if cfg.output.path:
         return cfg.output.path
     stem = os.path.splitext(os.path.basename(input_path))[0]

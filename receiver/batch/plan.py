@@ -123,6 +123,8 @@ def _pathlike(v: str) -> bool:
 # ------------------------------------------------------------------------------------------ plan
 @dataclass
 class RecordingTask:
+    """One simulated recording of the plan: its content-hash key, input name, seed, resolved scenario and
+    output paths (keys if, truth, yaml, nav, meta)."""
     key: str
     input: str
     seed: int
@@ -130,11 +132,14 @@ class RecordingTask:
     paths: dict                     # if, truth, yaml, nav, meta
 
     def available(self) -> bool:
+        """Whether the recording is already on disk (its meta, IF, truth and nav files all exist)."""
         return all(os.path.exists(self.paths[k]) for k in ("meta", "if", "truth", "nav"))
 
 
 @dataclass
 class RunTask:
+    """One receiver run of the plan: its content-hash key (the cache key), variant label, input, validated
+    config, output paths (h5, json) and what its evaluation needs (truth file, reference position)."""
     key: str
     variant: str                    # label (name + sweep point)
     variant_name: str
@@ -153,6 +158,8 @@ class RunTask:
 
 @dataclass
 class Plan:
+    """The planned batch: the runs (RunTask), the recordings to simulate (key -> RecordingTask) and the code
+    version that entered the keys."""
     batch: Batch
     runs: list
     recordings: dict                # key -> RecordingTask

@@ -58,6 +58,9 @@ def first_ephemeris_range_error(eph, tx_tow: float, rx_gps_tow: float, rx_ecef) 
 
 
 class NavigationEngine(EphemerisStore):
+    """Navigation of a run (see the module docstring): per-channel navigation state (ChannelNav, keyed by PRN
+    or, for several signals, by receiver.gnss.satid.sat_key), receiver time, fixes at ``navigation.rate_hz``
+    with the WLS solver or the PVT filter, and aiding from the recent unaided fixes."""
     def __init__(self, nav_cfg, fs: float, if_hz: float, first_sample: int, ephemerides=None,
                  iono_utc=None, week_hint: int | None = None, approx_tow0: float | None = None, signal=None,
                  signals=None):
@@ -102,6 +105,7 @@ class NavigationEngine(EphemerisStore):
         self.approx_tow0 = approx_tow0
 
     def channel(self, prn: int) -> ChannelNav:
+        """The ChannelNav of channel key ``prn`` (created on first use, with its first-ephemeris check)."""
         if prn not in self.channels:
             if self.signals:
                 from ..gnss.satid import split_key
@@ -137,6 +141,8 @@ class NavigationEngine(EphemerisStore):
         return abs(err) <= FIRST_EPH_RANGE_M
 
     def add_records(self, prn: int, recs, bit_offset: int):
+        """Feed a chunk of channel ``prn``'s epoch records (EPOCH_DTYPE) with its bit offset (code period of
+        bit 0, -1 unknown) to its ChannelNav (ChannelNav.add)."""
         self.channel(prn).add(recs, bit_offset)
 
     def set_noncoherent(self, prn: int, from_sample):

@@ -140,9 +140,11 @@ class Aiding:
     max_pdop: float = float("inf")      # an aided fix whose PDOP (constraints included) exceeds this is refused
 
     def count(self) -> int:
+        """Number of constraints given (clock and/or height): 0, 1 or 2."""
         return int(self.clock_m is not None) + int(self.height_m is not None)
 
     def kinds(self) -> tuple:
+        """Names of the constraints given, from ("clock", "height")."""
         return tuple(k for k, v in (("clock", self.clock_m), ("height", self.height_m)) if v is not None)
 
     def rows(self, x, b, ncols):

@@ -134,6 +134,8 @@ class PvtFilter:
 
     @classmethod
     def from_config(cls, nav_cfg) -> "PvtFilter":
+        """The filter configured by the navigation section (``navigation.filter*``, ``weighting``; the delta-range
+        rate model at the interval 1 / ``rate_hz`` when the section has one)."""
         g = lambda name: getattr(nav_cfg, name, default(name))  # noqa: E731
         rate = getattr(nav_cfg, "rate_hz", None)        # absent: no delta-range rate model
         return cls(kind=g("filter"), accel_psd=g("filter_accel_psd"),
@@ -145,6 +147,8 @@ class PvtFilter:
 
     # ------------------------------------------------------------------------------------- models
     def transition(self, dt: float) -> np.ndarray:
+        """State transition F over dt seconds (position from velocity, clock bias from drift and, with the
+        code-minus-carrier drift state, from it)."""
         F = np.eye(self.n)
         F[0:3, 3:6] = dt * np.eye(3)
         F[IB, ID] = dt
@@ -153,6 +157,8 @@ class PvtFilter:
         return F
 
     def process_noise(self, dt: float) -> np.ndarray:
+        """Process noise Q over dt seconds: white acceleration (accel_psd) on position/velocity, the two-state
+        clock (S_b, S_d) on bias/drift (m, m/s), Q_CODE_CARRIER_DRIFT on the code-minus-carrier drift state."""
         n, qa, sb, sd = self.n, self.accel_psd, self.s_b, self.s_d
         Q = np.zeros((n, n))
         for a in range(3):
@@ -225,6 +231,8 @@ class PvtFilter:
         return np.hstack([rho, rate])
 
     def jacobian(self, x: np.ndarray, geo: dict) -> np.ndarray:
+        """Jacobian H of the measurements (pseudoranges, then the rates of the satellites in ``geo["ok"]``) at
+        state x (the clone's delta-range rows with ``geo["clone"]``)."""
         p, v, ok = geo["p"], geo["v"], geo["ok"]
         d = p - x[0:3]
         rng = np.linalg.norm(d, axis=1)
@@ -255,10 +263,13 @@ class PvtFilter:
     # ------------------------------------------------------------------------------------- filter
     @property
     def x(self):
+        """The filter's state vector (ECEF position m, velocity m/s, clock bias m, drift m/s, ...), or None
+        before the first fix."""
         return None if self.kf is None else self.kf.x
 
     @property
     def P(self):
+        """The filter's state covariance, or None before the first fix."""
         return None if self.kf is None else self.kf.P
 
     def _make(self, x, P=None, S=None):

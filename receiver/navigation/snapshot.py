@@ -49,6 +49,9 @@ class SnapObs:
 
 @dataclass
 class SnapshotFix:
+    """A coarse-time snapshot fix (coarse_time_fix): ok and a message, the position (ECEF m and WGS-84
+    lat/lon/height), the estimated GPS time of the first sample, velocity and clock drift, the satellites
+    used with their residuals, DOPs and how the prior and the time were found."""
     ok: bool
     message: str = ""
     ecef: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
@@ -77,11 +80,14 @@ class SnapshotFix:
 
     @property
     def n_sats(self) -> int:
+        """Number of satellites used in the fix."""
         return len(self.prns)
 
 
 @dataclass
 class SnapshotSettings:
+    """Options of the snapshot solver (coarse_time_fix): corrections, elevation mask, residual and PDOP
+    limits, altitude and time aiding, and the rejection limits of a fix."""
     troposphere: bool = True
     ionosphere: bool = True
     elevation_mask_deg: float = 5.0
@@ -103,6 +109,8 @@ class Ephemerides:
         self.by_prn, self.iono, self.max_age_s = by_prn, iono, max_age_s
 
     def get(self, prn: int, week: int, tow: float):
+        """The ephemeris of ``prn`` valid at GPS week ``week``, seconds of week ``tow`` (the healthy one with
+        the nearest toe within max_age_s), or None."""
         return select(self.by_prn.get(prn, ()), tow, week, self.max_age_s)
 
     def covered(self, week: int, tow: float) -> list:

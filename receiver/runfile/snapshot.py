@@ -26,6 +26,8 @@ COLUMNS = (
 
 
 def rows(results) -> np.ndarray:
+    """The snapshot results (receiver.snapshot.run.SnapshotResult) as a structured array of COLUMNS, one row
+    each; the numbers of a failed fix are NaN."""
     dt = np.dtype([(n, t) for n, t, _ in COLUMNS])
     out = np.zeros(len(results), dt)
     for i, r in enumerate(results):

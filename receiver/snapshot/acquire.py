@@ -30,6 +30,8 @@ from ..gnss.signals import GPS_L1CA, sample_code
 
 @dataclass
 class SnapAcq:
+    """Acquisition of one PRN in a snapshot: detection, code phase (chips) at its first sample, Doppler (Hz),
+    C/N0 (dB-Hz), detection metric and what the bit edge search found."""
     prn: int
     detected: bool
     code_phase_chips: float        # at the first sample of the snapshot

@@ -29,6 +29,8 @@ MIN_LENGTH_MS = 1
 
 @dataclass
 class SnapshotResult:
+    """One snapshot of ``gnssrx snapshot``: where it is in the file (s), its length (ms), the coarse time
+    given, its fix (SnapshotFix) and the PRNs detected, searched and missed."""
     index: int
     offset_s: float                  # first sample of the snapshot, seconds into the file
     length_ms: int
@@ -40,6 +42,7 @@ class SnapshotResult:
     missed: list = field(default_factory=list)       # in the sky (ephemeris, fix) but not found
 
     def as_dict(self) -> dict:
+        """The result as a JSON-ready dict (the fix's position, time, residuals ... when it is ok)."""
         f = self.fix
         d = {"index": self.index, "offset_s": self.offset_s, "length_ms": self.length_ms, "ok": bool(f.ok),
              "message": f.message, "coarse_gps_week": self.coarse_week, "coarse_gps_tow_s": self.coarse_tow_s,
@@ -63,6 +66,7 @@ class SnapshotResult:
 
 
 def utc_text(week: int, tow: float) -> str:
+    """GPS week and seconds of week as a UTC ISO 8601 text with milliseconds (``...Z``)."""
     g = gps_datetime(week, tow)
     return (g - _dt.timedelta(seconds=leap_seconds_at(g))).isoformat(timespec="milliseconds") + "Z"
 
@@ -111,6 +115,7 @@ def parse_position(text: str) -> np.ndarray:
 
 
 def load_ephemerides(path) -> Ephemerides:
+    """The GPS ephemerides of a RINEX navigation file (and its ionosphere parameters) as Ephemerides."""
     by_prn, iono = read_rinex_nav(path, systems=("G",))
     return Ephemerides(by_prn, iono)
 

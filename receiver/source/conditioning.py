@@ -43,6 +43,8 @@ QUIET_CHECKS = 3        # monitor checks a notch's tone must stay below the dete
 
 @dataclass
 class Tone:
+    """A narrowband tone found by detect_tones: frequency (Hz, in the sampled complex band), peak bin SNR and
+    JNR (dB), and whether a notch cancels it."""
     freq_hz: float          # frequency of the tone in the sampled (complex) band
     snr_bin_db: float       # peak periodogram bin over the local noise floor
     jnr_db: float           # tone power over the total noise power of the sampled band
@@ -52,6 +54,8 @@ class Tone:
 
 @dataclass
 class Detection:
+    """What detect_tones found: the tones, the periodogram's size, segments and bin width (Hz), the detection
+    threshold (dB over the floor), the total noise power and the DC offset of the span."""
     tones: list = field(default_factory=list)
     fft_size: int = 0
     segments: int = 0
@@ -264,6 +268,7 @@ class Canceller:
 
     @property
     def active(self) -> bool:
+        """Whether the canceller changes the samples (a notch, or blanking)."""
         return self.freqs.size > 0 or self.blank_level > 0
 
     def set_tones(self, freqs, rot, amp, mu, quiet, dw=None, dr=None, res=None):
@@ -374,6 +379,8 @@ class ConditionedReader:
         return self.canceller.active
 
     def read(self, start: int, n: int) -> np.ndarray:
+        """Samples [start, start + n) of the underlying reader (file sample index), conditioned (notches, DC
+        removal, blanking; unchanged when none runs; a read continuing the previous one carries the filter on)."""
         if not self.canceller.active and not self._mon_step:
             return self._reader.read(start, n)
         start = max(start, self._reader.first)
@@ -503,6 +510,7 @@ class ConditionedReader:
 
     # ------------------------------------------------------------------ reporting
     def summary_lines(self) -> list:
+        """The conditioning's lines of the run summary: DC removal, tones found and cancelled, blanking."""
         d, c = self.detection, self.cfg
         lines = []
         parts = []

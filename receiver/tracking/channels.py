@@ -80,6 +80,8 @@ STARVED_COLD_S = 1.0            # cold-search interval while fewer than 4 satell
 
 @dataclass
 class SatTrack:
+    """Per-satellite state of the channel manager: searching | tracking | reacquiring, the recent good
+    epochs and the reference the re-acquisition prediction starts from (samples are file sample indices)."""
     prn: int
     channel_id: int
     state: str = "searching"            # searching | tracking | reacquiring
@@ -97,6 +99,8 @@ class SatTrack:
 
 
 class ChannelManager:
+    """Owner of the tracking channels of a run (see the module docstring): cold searches, channel opening,
+    loss of signal, re-acquisition around the prediction, false-lock restarts and the channel events."""
     def __init__(self, cfg, reader, nav, fs, if_hz, signal, acquire, writer=None, log=None, prns=None):
         self.cfg = cfg
         self.rc = cfg.tracking.reacquisition
@@ -584,5 +588,6 @@ class ChannelManager:
 
     # ------------------------------------------------------------------ summary
     def summary(self) -> dict:
+        """Per PRN: its final state, number of re-acquisitions and of false locks."""
         return {p: {"state": s.state, "reacquisitions": s.reacquisitions, "false_locks": s.false_locks}
                 for p, s in sorted(self.sats.items())}

@@ -26,6 +26,8 @@ CN0_ESTIMATORS = {"snv": 0, "m2m4": 1}
 
 
 class Channel:
+    """One scalar tracking channel of a PRN (DLL and carrier loop, the epochs in the compiled kernel) from an
+    acquisition at file sample index ``sample_index``; its state array ``st`` holds the kernel's S_* slots."""
     def __init__(self, prn: int, doppler_hz: float, code_phase_chips: float, sample_index: int,
                  trk_cfg, fs: float, if_hz: float, channel_id: int = 0, signal=None, weak: bool = False):
         sig = self.signal = signal if signal is not None else GPS_L1CA
@@ -139,22 +141,27 @@ class Channel:
     # ---------------------------------------------------------------- state
     @property
     def next_sample(self) -> int:
+        """File sample index of the next epoch's first sample."""
         return int(self.st[K.S_NEXT_SAMPLE])
 
     @property
     def lost(self) -> bool:
+        """Whether the kernel declared the channel lost."""
         return self.st[K.S_MODE] == K.MODE_LOST
 
     @property
     def doppler_hz(self) -> float:
+        """Carrier Doppler (Hz): the carrier NCO frequency minus the IF."""
         return self.st[K.S_CARR_FREQ] - self.if_hz
 
     @property
     def cn0_dbhz(self) -> float:
+        """The kernel's C/N0 estimate (dB-Hz)."""
         return self.st[K.S_CN0]
 
     @property
     def bit_offset(self) -> int:
+        """Code period (modulo 20) at a data-bit edge, -1 unknown."""
         return int(self.st[K.S_BIT_OFFSET])
 
     @property

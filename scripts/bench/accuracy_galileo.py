@@ -26,7 +26,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from receiver.acquisition.galileo import refine_pilot, search
+from receiver.acquisition.galileo import refine_pilot, search  # noqa: E402
 from receiver.gnss.atmosphere import saastamoinen_m  # noqa: E402
 from receiver.gnss.ephemeris import earth_rotation, sat_state  # noqa: E402
 from receiver.gnss.gal_inav import EPH_LSB, InavDecoder  # noqa: E402
@@ -123,7 +123,8 @@ def main(argv=None) -> int:
     blk = raw[:2 * int(fs * 0.2)].astype(np.float32)
     x0 = (blk[0::2] + 1j * blk[1::2]).astype(np.complex64)
     t1 = time.time()
-    acq = [] if a.reuse_tracking and (out / "gal_epochs.pkl").exists() else [r for r in search(x0, 0, fs, 0.0, range(1, 37), noncoherent=5, doppler_max_hz=5000.0) if r.detected]
+    acq = [] if a.reuse_tracking and (out / "gal_epochs.pkl").exists() else [
+        r for r in search(x0, 0, fs, 0.0, range(1, 37), noncoherent=5, doppler_max_hz=5000.0) if r.detected]
     print(f"acquired {[r.prn for r in acq]} ({time.time() - t1:.1f} s)")
     chans = {}
     for r in acq:

@@ -29,7 +29,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from receiver.gnss.geodesy import enu_matrix, lla2ecef  # noqa: E402
+from receiver.gnss.geodesy import enu_matrix  # noqa: E402
 from receiver.navigation.snapshot import (SnapObs, SnapshotSettings, coarse_time_fix, in_sky,  # noqa: E402
                                           with_bit_edges)
 from receiver.runfile.truth import TruthFile  # noqa: E402

@@ -1,4 +1,5 @@
-"""A file that ends just after a chunk start, inside the previous chunk's overlap (GPS-SDR-SIM with an oscillator error: 60 s + 179 samples at 3 MS/s).
+"""A file that ends just after a chunk start, inside the previous chunk's overlap (GPS-SDR-SIM with an
+oscillator error: 60 s + 179 samples at 3 MS/s).
 The previous block already reached the end of the file; a channel whose next epoch did not fit
 stopped before the last chunk's start.  Before: the pipeline ran that chunk and the kernel raised
 'channel is behind the block start' (the whole run lost); now the run ends with the previous chunk and the

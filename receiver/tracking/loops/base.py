@@ -28,10 +28,14 @@ class CarrierLoop:
         self.params = cfg.carrier[self.name] if (self.PARAMS and cfg is not None) else None
 
     def start(self, doppler_hz: float, T: float, rate_hz_s: float = 0.0, carrier_hz: float | None = None):
+        """(Re)start the loop at doppler_hz (Hz) with epoch length T (s); rate_hz_s is the Doppler rate
+        (Hz/s), carrier_hz the carrier frequency (Hz; None: kept)."""
         self.doppler_hz = doppler_hz
         self.T = T
 
     def update(self, epoch) -> float:   # pragma: no cover - interface
+        """One epoch from a kernel output row (a variant implements it; the built-in loops return the
+        Doppler for the next epoch, Hz, and the phase step, cycles)."""
         raise NotImplementedError
 
     def compiled(self):

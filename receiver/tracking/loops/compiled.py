@@ -352,6 +352,8 @@ class CompiledTwin:
     is its own pair of functions; receiver/tracking/loops/plugin.py)."""
 
     def compiled(self):
+        """``(start, update, lp, ls)`` of this module's compiled twin of the loop (the built-in functions and the
+        loop's packed parameters / state)."""
         if not _FUNCTIONS:
             _FUNCTIONS.extend((CompiledFunction(builtin_start, START_SIG),
                                CompiledFunction(builtin_update, UPDATE_SIG)))

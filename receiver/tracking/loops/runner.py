@@ -127,11 +127,15 @@ def _entry(dispatcher, args):
 
 def call_run_epochs(samples, block_start, st, cfg, code_ext, hist, out, max_epochs, lp, ls, cs, carrier_hz,
                     start: CompiledFunction, update: CompiledFunction):
+    """The compiled ``run_epochs`` kernel for these arguments, called with the loop's compiled start/update
+    (its entry point cached per signature)."""
     args = (samples, block_start, st, cfg, code_ext, hist, out, max_epochs, lp, ls, cs, carrier_hz)
     return _entry(run_epochs, args)(*args, start, update)
 
 
 def call_apply_epoch(row, st, cfg, lp, ls, cs, carrier_hz, start: CompiledFunction, update: CompiledFunction):
+    """The compiled ``apply_epoch`` kernel for these arguments, called with the loop's compiled start/update
+    (its entry point cached per signature)."""
     args = (row, st, cfg, lp, ls, cs, carrier_hz)
     return _entry(apply_epoch, args)(*args, start, update)
 

@@ -73,6 +73,8 @@ def filter_class(name: str) -> type[VectorFilter]:
 
 
 def make_filter(name: str, vcfg) -> VectorFilter:
+    """The vector filter of variant ``name`` (built-in or plugin) for the vector section, at its
+    integration time (s); a motion model the variant cannot take is a UserError."""
     cls = filter_class(name)
     filt = cls(vcfg, int(vcfg.integration_ms) * 1e-3)
     if vcfg.motion_model != "cv" and not filt.selectable_motion:

@@ -56,6 +56,7 @@ class VectorFilter:
     # --------------------------------------------------------------------- to implement
     @property
     def n(self) -> int:
+        """Number of states (a variant implements it)."""
         raise NotImplementedError
 
     def layout(self) -> np.ndarray:
@@ -78,6 +79,7 @@ class VectorFilter:
                 float(x[idl]) if idl >= 0 else 0.0)
 
     def describe(self) -> str:
+        """The filter as text for the vector handover log message (base: its name)."""
         return self.name
 
 
@@ -98,10 +100,12 @@ class KinematicFilter(VectorFilter):
 
     @property
     def selectable_motion(self) -> bool:
+        """True when ``vector.motion_model`` chooses the model (the class fixes none)."""
         return self.motion is None
 
     @property
     def model(self) -> str:
+        """The kinematic model: ``cv`` or ``ca``."""
         return self.motion or str(self.vcfg.motion_model)
 
     @property
@@ -111,13 +115,16 @@ class KinematicFilter(VectorFilter):
 
     @property
     def n(self) -> int:
+        """Number of states: the kinematic ones, b, d and (with code_carrier_drift) delta."""
         return self.nk + (3 if self.has_delta else 2)
 
     def layout(self):
+        """int64 [ip, iv, ib, id, idel] (idel -1 without the code-minus-carrier drift state)."""
         k = self.nk
         return np.array([0, 3, k, k + 1, k + 2 if self.has_delta else -1], np.int64)
 
     def transition(self):
+        """State transition F over one epoch of T seconds (kinematic model and two-state clock)."""
         T, n, k = self.T, self.n, self.nk
         F = np.eye(n)
         F[0:3, 3:6] = T * np.eye(3)
@@ -144,6 +151,7 @@ class KinematicFilter(VectorFilter):
         return E.T @ np.diag([q, q, q * scale]) @ E
 
     def q_text(self) -> str:
+        """The process-noise settings as text (PSD in m^2/s^3 or m^2/s^5, vertical scale)."""
         if self.model == "ca":
             txt = f"constant acceleration, q_jerk {self.vcfg.q_jerk:g} m^2/s^5"
         else:
@@ -174,9 +182,12 @@ class KinematicFilter(VectorFilter):
         return Q
 
     def matrices(self):
+        """(F, Q, QB) for one epoch of T seconds; no manoeuvre noise (QB zero)."""
         return self.transition(), self.process_noise(), np.zeros((self.n, self.n))
 
     def initial(self, r, v, b, d, delta, sig):
+        """(x0, P0) from the navigation solution at the handover (r m ECEF, v m/s, b m, d m/s, delta m/s);
+        sig: dict of standard deviations pos, vel, b, d, delta.  Sets the position of the local vertical."""
         self._r0 = np.array(r, float)       # the local level of the process noise (handover position)
         n, k = self.n, self.nk
         x = np.zeros(n)
