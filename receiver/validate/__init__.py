@@ -57,23 +57,28 @@ class Case:
     outages: list = field(default_factory=list)
 
     def truth(self):
+        """(t, ecef): the truth rows at 10 Hz and their times since the start."""
         rows = np.load(self.truth_path)
         return np.arange(rows.shape[0]) / gpssdrsim.MOTION_RATE_HZ, rows
 
     def input_sets(self) -> list[str]:
+        """The receiver's --set overrides of the input section for this recording."""
         return [f"input.format={self.input['format']}",
                 f"input.sample_rate_hz={self.input['sample_rate_hz']:.3f}",
                 f"input.if_hz={self.input['if_hz']:.3f}",
                 f"input.start_gps_week={self.week}", f"input.start_gps_tow_s={self.tow0:.3f}"]
 
     def save(self, path):
+        """Write the case as JSON."""
         Path(path).write_text(json.dumps(asdict(self), indent=1, default=float))
 
     @classmethod
     def load(cls, path):
+        """Read a case written by :meth:`save`."""
         return cls(**json.loads(Path(path).read_text()))
 
     def cleanup(self):
+        """Delete the recording (the JSON and the truth stay)."""
         if os.path.exists(self.path):
             os.remove(self.path)
 

@@ -1,4 +1,5 @@
-"""``gnssrx validate`` (``make validate``; from a checkout ``python -m receiver.cli validate``): run the outside-simulator matrix.
+"""``gnssrx validate``: run the outside-simulator matrix (``make validate``; from a checkout
+``python -m receiver.cli validate``).
 
     gnssrx validate [MATRIX.yaml] [-j N] [--cache DIR] [--only SUBSTR,...] [--no-doc] [--rescore] [--dry-run]
 

@@ -13,7 +13,8 @@
       - {name: ..., label: ..., scenario: {...}, recording: {...}, expect: {...}}
 
 Rows run seed by seed (every row's seed 0, then seed 1 ...; ``priority: 0`` rows first in each round), so
-a partial run covers every row.  Seed k of a row: scenarios.seed_scenario (place and time of day rotated by k, heading), noise seed
+a partial run covers every row.  Seed k of a row: scenarios.seed_scenario (place and time of day rotated
+by k, heading), noise seed
 1000 * k + the row's index.  A (row, seed, variant) passes when every ``expect`` bound holds (upper bounds,
 but ``availability``, a lower bound); a missing first fix fails all.
 
@@ -100,6 +101,7 @@ def generator_hash() -> str:
 
 
 def seeded(row: dict, k: int) -> tuple[dict, dict]:
+    """(scenario, recording) of seed k of a matrix row."""
     scn = seed_scenario(row.get("scenario") or {}, k)
     rec = dict(row.get("recording") or {})
     rec["seed"] = 1000 * k + int(row["index"]) + int(rec.get("seed", 0))
@@ -107,6 +109,7 @@ def seeded(row: dict, k: int) -> tuple[dict, dict]:
 
 
 def job_key(row, k, variant, sim_id, rx_id) -> str:
+    """The cache key of one (row, seed, variant) run (see the module docstring)."""
     scn, rec = seeded(row, k)
     blob = json.dumps({"scenario": scn, "recording": rec, "mode": row.get("mode", "assisted"),
                        "variant": variant, "sets": row.get("sets") or [],
@@ -238,10 +241,12 @@ def _agg(ms, key, fn):
 
 
 def describe(row) -> tuple[str, str, str, str]:
+    """(dynamics, MS/s, format, C/N0) of a row for the table."""
     rec = row.get("recording") or {}
     scn = row.get("scenario") or {}
     fs = float(rec.get("sample_rate_hz", 2.6e6)) / 1e6
-    return (scn.get("dynamics", "?"), f"{fs:g}", rec.get("format", "int8_iq").replace("_iq", "").replace("_real", " real"),
+    fmt = rec.get("format", "int8_iq").replace("_iq", "").replace("_real", " real")
+    return (scn.get("dynamics", "?"), f"{fs:g}", fmt,
             f"{rec.get('cn0_dbhz', 45):g}")
 
 
@@ -277,6 +282,7 @@ def table(rows, res) -> str:
 
 
 def write_doc(text: str, path=DOC, header: str = "") -> None:
+    """Put the table into the generated section of docs/validation.md (replacing the previous one)."""
     path = Path(path)
     body = path.read_text() if path.is_file() else ""
     block = f"{BEGIN}\n{header}{text}\n{END}"
@@ -288,6 +294,7 @@ def write_doc(text: str, path=DOC, header: str = "") -> None:
 
 
 def doc_header(cache_dir=DEFAULT_CACHE) -> str:
+    """The line above the table: receiver sources, git commit, simulator binary, date."""
     commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True).stdout.strip()
     return (f"Receiver sources {receiver_hash()} (git {commit}), GPS-SDR-SIM binary "

@@ -80,6 +80,7 @@ def _resample(x, base, pos0, step, n_out, table, out):
 
 
 def real_format(fmt: str) -> bool:
+    """True for the real-IF output formats."""
     return fmt.endswith("_real")
 
 

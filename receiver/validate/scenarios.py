@@ -64,6 +64,7 @@ _DT = 0.01
 
 
 def place_lla(place):
+    """(lat_deg, lon_deg, height_m) of a place name or a [lat, lon, h] triple."""
     if isinstance(place, str):
         if place not in PLACES:
             raise ValueError(f"unknown place '{place}' (one of {', '.join(PLACES)})")

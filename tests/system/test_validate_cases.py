@@ -8,8 +8,6 @@ fix in).  Skips without GPS-SDR-SIM (or a C compiler to build it) or ../shared (
 """
 from __future__ import annotations
 
-import math
-
 import pytest
 
 from receiver.validate import SimulatorUnavailable, make_case, run_receiver, score_run
