@@ -116,11 +116,16 @@ def generate(ecef: np.ndarray, start: str, fs: float, out_dir, path_loss: bool =
     motion = out_dir / f"gpssim_{key}.motion.csv"
     write_motion(motion, ecef)
     tmp = out.with_suffix(".part")
-    cmd = [str(exe), "-e", str(nav), "-u", str(motion), "-t", start, "-d", f"{ecef.shape[0] / 10:.1f}",
-           "-s", f"{fs:.0f}", "-b", "16", "-o", str(tmp)]
+    # GPS-SDR-SIM copies its file names into 100-character buffers (MAX_CHAR): names relative to its
+    # working directory, and the broadcast file through a short link there
+    link = out_dir / "brdc.nav"
+    if not link.exists():
+        link.symlink_to(Path(nav).resolve())
+    cmd = [str(exe), "-e", link.name, "-u", motion.name, "-t", start, "-d", f"{ecef.shape[0] / 10:.1f}",
+           "-s", f"{fs:.0f}", "-b", "16", "-o", tmp.name]
     if not path_loss:
         cmd += ["-p", "128"]
-    p = subprocess.run(cmd, capture_output=True, text=True)
+    p = subprocess.run(cmd, capture_output=True, text=True, cwd=out_dir)
     expect = (ecef.shape[0] - 1) * int(round(fs / 10)) * 4
     if p.returncode != 0 or not tmp.is_file() or tmp.stat().st_size != expect:
         msg = [ln for ln in (p.stderr or "").splitlines() if "ERROR" in ln] or [f"exit {p.returncode}"]
