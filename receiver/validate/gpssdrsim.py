@@ -1,8 +1,7 @@
 """GPS-SDR-SIM (an independent GPS L1 C/A simulator, osqzss/gps-sdr-sim) as a signal source.
 
-:func:`simulator` returns the path of a built binary: ``$GNSSRX_GPSSDRSIM`` when set, else the prebuilt
-``/work/tools/outside-sim/gps-sdr-sim`` when present, else one built by the shared build script
-(``../shared/tools/build-gps-sdr-sim.sh``) into the cache directory (``out/validate/sim-bin``).  Without a C
+:func:`simulator` returns the path of a built binary: ``$GNSSRX_GPSSDRSIM`` when set, else one built by the
+shared build script (``../shared/tools/build-gps-sdr-sim.sh``) into the cache directory (``out/validate/sim-bin``).  Without a C
 compiler or the sources it raises :class:`SimulatorUnavailable` with the reason (tests skip on it).
 
 :func:`generate` runs it in dynamic mode (``-u``: an ECEF user-motion file at 10 Hz; row k is the antenna
@@ -31,7 +30,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = Path(os.environ.get("GNSSRX_SHARED") or ROOT.parent / "shared")     # ../shared (or $GNSSRX_SHARED)
 BUILD_SCRIPT = SHARED / "tools" / "build-gps-sdr-sim.sh"
-PREBUILT = Path("/work/tools/outside-sim/gps-sdr-sim")
 DEFAULT_CACHE = ROOT / "out" / "validate"
 NAV_FILE = SHARED / "data" / "brdc0010.22n"
 #: complex power of one satellite's signal with -p 128 (table amplitude 250 on I and Q)
@@ -62,8 +60,6 @@ def simulator(cache_dir=None) -> Path:
         if not os.access(env, os.X_OK):
             raise SimulatorUnavailable(f"GNSSRX_GPSSDRSIM={env} is not an executable")
         return Path(env)
-    if PREBUILT.is_file() and os.access(PREBUILT, os.X_OK):
-        return PREBUILT
     out = Path(cache_dir or DEFAULT_CACHE) / "sim-bin"
     exe = out / "gps-sdr-sim"
     if exe.is_file() and os.access(exe, os.X_OK):
@@ -116,16 +112,13 @@ def generate(ecef: np.ndarray, start: str, fs: float, out_dir, path_loss: bool =
     motion = out_dir / f"gpssim_{key}.motion.csv"
     write_motion(motion, ecef)
     tmp = out.with_suffix(".part")
-    # GPS-SDR-SIM keeps file names in 100-character buffers: it runs in out_dir with short relative names
-    # (the ephemeris linked in), whatever the length of the paths around it
-    nav_link = out_dir / f"gpssim_{key}.nav"
-    if not nav_link.exists():
-        try:
-            nav_link.symlink_to(Path(nav).resolve())
-        except OSError:
-            shutil.copyfile(nav, nav_link)
-    cmd = [str(Path(exe).resolve()), "-e", nav_link.name, "-u", motion.name, "-t", start,
-           "-d", f"{ecef.shape[0] / 10:.1f}", "-s", f"{fs:.0f}", "-b", "16", "-o", tmp.name]
+    # GPS-SDR-SIM copies its file names into 100-character buffers (MAX_CHAR): names relative to its
+    # working directory, and the broadcast file through a short link there
+    link = out_dir / "brdc.nav"
+    if not link.exists():
+        link.symlink_to(Path(nav).resolve())
+    cmd = [str(exe), "-e", link.name, "-u", motion.name, "-t", start, "-d", f"{ecef.shape[0] / 10:.1f}",
+           "-s", f"{fs:.0f}", "-b", "16", "-o", tmp.name]
     if not path_loss:
         cmd += ["-p", "128"]
     p = subprocess.run(cmd, capture_output=True, text=True, cwd=out_dir)
