@@ -1,8 +1,8 @@
 """GPS-SDR-SIM (an independent GPS L1 C/A simulator, osqzss/gps-sdr-sim) as a signal source.
 
-:func:`simulator` returns the path of a built binary: ``$GNSSRX_GPSSDRSIM`` when set, else one built by the
-shared build script (``../shared/tools/build-gps-sdr-sim.sh``) into the cache directory (``out/validate/sim-bin``).  Without a C
-compiler or the sources it raises :class:`SimulatorUnavailable` with the reason (tests skip on it).
+:func:`simulator` returns the path of a built binary: ``$GNSSRX_GPSSDRSIM`` when set, else one built by the shared
+build script (``../shared/tools/build-gps-sdr-sim.sh``) into the cache directory (``out/validate/sim-bin``).
+Without a C compiler or the sources it raises :class:`SimulatorUnavailable` with the reason (tests skip on it).
 
 :func:`generate` runs it in dynamic mode (``-u``: an ECEF user-motion file at 10 Hz; row k is the antenna
 position at GPS time t0 + 0.1 k, the first output sample is at t0) with ``-b 16`` (noiseless int16 I/Q)
