@@ -86,12 +86,8 @@ class Run:
 
     def cfg(self, dotted: str, default=None):
         """One config value by its dotted key."""
-        node = self.config
-        for part in dotted.split("."):
-            if not isinstance(node, dict) or part not in node:
-                return default
-            node = node[part]
-        return node
+        from .runfile.reader import dotted_get
+        return dotted_get(self.config, dotted, default)
 
 
 def open_run(path, channels: bool = True) -> Run:

@@ -263,6 +263,16 @@ def _whole_ms(rho_frac, pred, ref):
     return np.round((pred + b0 - rho_frac) / MS_M)
 
 
+def _line_of_sight(ephs, prns, week, t, x, iono, settings):
+    """The satellites' state at GPS time ``t`` (s of week) seen from ECEF ``x``: position, velocity (m, m/s),
+    clock and clock drift (m, m/s), atmospheric corrections (m), elevations, ranges (m), unit vectors."""
+    pos, vel, clk, cdrift, _ = sat_geometry(ephs, prns, week, t, x)
+    corr, el = _corrections(x, pos, t, iono, settings)
+    los = pos - x
+    rng = np.linalg.norm(los, axis=1)
+    return pos, vel, clk, cdrift, corr, el, rng, los / rng[:, None]
+
+
 def _solve_fixed(obs, rho_frac, m_int, ephs, week, tow0, x0, dt0, settings, sig, use_time=True):
     """Gauss-Newton for (x, b, dt) with the whole milliseconds fixed.  Returns a dict or None."""
     prns = [o.prn for o in obs]
@@ -273,11 +283,7 @@ def _solve_fixed(obs, rho_frac, m_int, ephs, week, tow0, x0, dt0, settings, sig,
     it = 0
     for it in range(1, settings.max_iter + 1):
         t = tow0 + dt
-        pos, vel, clk, cdrift, tau = sat_geometry(ephs, prns, week, t, x)
-        corr, el = _corrections(x, pos, t, iono, settings)
-        los = pos - x
-        rng = np.linalg.norm(los, axis=1)
-        u = los / rng[:, None]
+        pos, vel, clk, cdrift, corr, el, rng, u = _line_of_sight(ephs, prns, week, t, x, iono, settings)
         pred = rng - clk + corr
         if it == 1:
             b = float(np.median(rho - pred))
@@ -312,11 +318,7 @@ def _solve_fixed(obs, rho_frac, m_int, ephs, week, tow0, x0, dt0, settings, sig,
         if np.linalg.norm(step[:3]) < 1e-3 and (not use_time or abs(step[4]) < 1e-6):
             break
     t = tow0 + dt
-    pos, vel, clk, cdrift, tau = sat_geometry(ephs, prns, week, t, x)
-    corr, el = _corrections(x, pos, t, iono, settings)
-    los = pos - x
-    rng = np.linalg.norm(los, axis=1)
-    u = los / rng[:, None]
+    pos, vel, clk, cdrift, corr, el, rng, u = _line_of_sight(ephs, prns, week, t, x, iono, settings)
     res = rho - (rng - clk + corr + b)
     rate = np.sum(u * vel, axis=1) - cdrift
     h = np.hstack([-u, np.ones((len(prns), 1))] + ([rate[:, None]] if use_time else []))
