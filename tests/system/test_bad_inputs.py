@@ -20,11 +20,10 @@ import h5py
 import numpy as np
 import pytest
 import yaml
-from click.testing import CliRunner
 
-from receiver.cli import main
 from receiver.schema import load_receiver_config
 
+from clirun import cli
 from repo_paths import ROOT
 SCENARIO = ROOT / "configs" / "scenarios" / "static_default.yaml"
 FS = 2.0e6
@@ -50,18 +49,6 @@ def one_error_line(stderr: str, code_text: str = "gnssrx: ") -> str:
     return lines[0]
 
 
-def cli(args, cwd=None):
-    """In-process CLI call: (exit code, stdout, stderr).  An uncaught exception is a test failure."""
-    old = os.getcwd()
-    try:
-        if cwd:
-            os.chdir(cwd)
-        res = CliRunner().invoke(main, [str(a) for a in args])
-    finally:
-        os.chdir(old)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res.exit_code, res.stdout, res.stderr
 
 
 def subprocess_cli(args, cwd, preexec_fn=None, timeout=600):

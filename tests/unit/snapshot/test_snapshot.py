@@ -2,21 +2,19 @@
 snapshot acquisition's fine code phase / Doppler against a synthetic signal, end to end on a short simulated
 recording, the real 10-ms PySDR recording (skips without ../shared) and the bad-input one-line errors."""
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from click.testing import CliRunner
 
-from receiver.cli import main
 from receiver.gnss.geodesy import ecef2lla, enu_matrix, lla2ecef
 from receiver.gnss.signals import CA_CHIP_RATE, C_LIGHT, L1_HZ
 from receiver.navigation.snapshot import (Ephemerides, SnapObs, SnapshotSettings, coarse_time_fix,
                                           sat_geometry)
 from receiver.snapshot.acquire import dwell_plan, fine_code_phase, fine_doppler, snapshot_acquire
 
+from clirun import cli
 from synth import make_signal
 
 from repo_paths import ROOT, SHARED_DATA as SHARED  # noqa: E402
@@ -27,17 +25,6 @@ PYSDR_NAV = SHARED / "real" / "hour0860.22n"
 LAMBDA = C_LIGHT / L1_HZ
 
 
-def cli(args, cwd=None):
-    old = os.getcwd()
-    try:
-        if cwd:
-            os.chdir(cwd)
-        res = CliRunner().invoke(main, [str(a) for a in args])
-    finally:
-        os.chdir(old)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res.exit_code, res.stdout, res.stderr
 
 
 def one_error_line(stderr: str) -> str:
