@@ -86,7 +86,7 @@ class Run:
 
     def cfg(self, dotted: str, default=None):
         """One config value by its dotted key."""
-        from .runfile.reader import dotted_get
+        from .config import dotted_get
         return dotted_get(self.config, dotted, default)
 
 

@@ -308,3 +308,13 @@ def resolve_path(value: str, config_path=None) -> str:
         if os.path.exists(cand):
             return os.path.normpath(cand)
     return value
+
+
+def dotted_get(mapping: dict, dotted: str, default=None):
+    """The value at a dotted key (``"navigation.ephemeris"``) of nested dicts, or `default` when absent."""
+    node = mapping
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return default
+        node = node[part]
+    return node

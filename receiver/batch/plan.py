@@ -28,7 +28,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..config import apply_overrides, read_yaml, search_bases
+from ..config import apply_overrides, dotted_get, read_yaml, search_bases
 from ..schema import build_receiver, used_plugins
 from ..errors import UserError
 from .config import Batch
@@ -213,15 +213,6 @@ def _deep_merge(a: dict, b: dict) -> dict:
     return out
 
 
-def _cfg_get(d: dict, dotted: str):
-    node = d
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return node
-
-
 def make_plan(batch: Batch) -> Plan:
     """Expand the batch into runs and the simulated recordings they need (validating every config)."""
     from ..sim.scenario import load_scenario
@@ -287,7 +278,7 @@ def make_plan(batch: Batch) -> Plan:
                 key=key, variant=var.label, variant_name=var.name, input=inp.name, kind=inp.kind, seed=seed,
                 config=cfg, h5=h5, json=os.path.join(runs_dir, key + ".json"), truth=truth,
                 reference_llh=inp.reference_llh, recording=rec_key,
-                set_values={k: _cfg_get(cfg, k) for k in b.set_keys},
+                set_values={k: dotted_get(cfg, k) for k in b.set_keys},
                 carrier_settle_s=b.cfg.metrics.carrier_settle_s))
     keys = [r.key for r in runs]
     if len(set(keys)) != len(keys):

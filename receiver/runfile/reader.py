@@ -90,16 +90,6 @@ class H5Input:
         return {k: _plain(v) for k, v in self.f.attrs.items()}
 
 
-
-def dotted_get(mapping: dict, dotted: str, default=None):
-    """The value at a dotted key (``"navigation.ephemeris"``) of nested dicts, or `default` when absent."""
-    node = mapping
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return default
-        node = node[part]
-    return node
-
 class RunFile(H5Input):
     """One run file open for reading (a context manager; :meth:`close` releases the file).
 
@@ -251,6 +241,7 @@ class RunData:
 
     def cfg(self, dotted: str, default=None):
         """Configuration value at a dotted key (e.g. ``"navigation.ephemeris"``), or `default` when absent."""
+        from ..config import dotted_get
         return dotted_get(self.config, dotted, default)
 
     @property

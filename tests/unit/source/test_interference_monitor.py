@@ -2,23 +2,9 @@
 vanish mid-stream get a notch added / removed; chunked reads give the samples of one read."""
 import numpy as np
 
-from receiver.config import build
-from receiver.schema import RECEIVER_SCHEMA
 from receiver.source.conditioning import ConditionedReader
 
-FS = 2.6e6
-
-
-class _ArrayReader:
-    def __init__(self, x):
-        self.x, self.fs, self.first, self.end = x, FS, 0, len(x)
-
-    def read(self, start, n):
-        return self.x[max(start, 0):min(start + n, self.end)].copy()
-
-
-def _cond(**kw):
-    return build(RECEIVER_SCHEMA, {"input": {"conditioning": kw}}).input.conditioning
+from test_source_conditioning import FS, _ArrayReader, _cond  # noqa: E402  (the same stand-in reader)
 
 
 def _noise(n, seed):
