@@ -297,12 +297,20 @@ class RunData:
         if self.attrs.get("input_path"):
             cands.append(os.path.join(os.path.dirname(str(self.attrs["input_path"])), os.path.basename(p)))
         from ..gnss.rinex import read_rinex_nav
+        from ..gnss.satid import MIXED, sat_key
         for c in cands:
             if os.path.isfile(c):
                 try:
-                    return read_rinex_nav(c)
+                    ephs, iono = read_rinex_nav(c)
                 except UserError:
                     return None
+                if self.system == MIXED:        # + the BeiDou records, keyed like the observables (sat_key)
+                    try:
+                        bds, _ = read_rinex_nav(c, systems=("C",))
+                    except UserError:
+                        bds = {}
+                    ephs = {**ephs, **{sat_key("C", p): lst for p, lst in bds.items()}}
+                return ephs, iono
         return None
 
     def decoded(self):

@@ -16,7 +16,7 @@ import os
 import numpy as np
 
 from receiver.config import read_yaml
-from receiver.gnss.geodesy import ecef2lla, enu_matrix
+from receiver.evaluate.systems import common_epochs, score_enu
 from receiver.pipeline import run
 from receiver.runfile.reader import load_run
 from receiver.schema import load_receiver_config
@@ -34,18 +34,6 @@ def truth_of(stem):
     t = read_yaml(stem + ".truth.yaml")
     return (np.asarray(t["truth"]["ecef_m"], float), float(t["if_hz"]),
             [f"input.format={t['format']}", f"input.sample_rate_hz={t['sample_rate_hz']}"])
-
-
-def stats(fx, x_true, keep=None):
-    """dict of a fix table (rows with gps_tow in keep, if given): n, 3D RMS, mean E/N/U, sats, PDOP."""
-    if keep is not None:
-        fx = fx[np.isin(np.round(fx["gps_tow"], 3), keep)]
-    if not len(fx):
-        return dict(n=0, rms=np.nan, enu=np.full(3, np.nan), sats=np.nan, pdop=np.nan)
-    lat, lon, _ = ecef2lla(x_true)
-    enu = (fx["ecef"] - x_true) @ enu_matrix(lat, lon).T
-    return dict(n=len(fx), rms=float(np.sqrt(np.mean(np.sum(enu ** 2, axis=1)))), enu=np.mean(enu, axis=0),
-                sats=float(np.mean(fx["n_sats"])), pdop=float(np.mean(fx["pdop"])))
 
 
 def line(name, s):
@@ -80,16 +68,12 @@ def main(argv=None):
                                        + a.overrides)
             run(cfg, quiet=True, log=lambda *x: None)
         fixes[key] = load_run(h5).fixes
-    common = None
-    for fx in fixes.values():
-        t = set(np.round(fx["gps_tow"], 3).tolist())
-        common = t if common is None else common & t
-    common = np.array(sorted(common or ()))
+    common = common_epochs(*fixes.values())
     head = "| case          | fixes | 3D RMS m | mean E m | mean N m | mean U m | sats | PDOP |"
     for title, keep in (("all fixes", None), (f"{len(common)} common epochs", common)):
         print(f"\n{title}\n{head}\n|---|---|---|---|---|---|---|---|")
         for key, fx in fixes.items():
-            print(line(cases[key][0], stats(fx, x_true, keep)))
+            print(line(cases[key][0], score_enu(fx, x_true, keep)))
 
 
 if __name__ == "__main__":

@@ -122,3 +122,57 @@ def test_klobuchar_delay_scaled_to_the_signal_carrier(sky):
     assert np.linalg.norm(fix.ecef - X) < 0.05
     wrong = NavSolver(cfg).fix(WEEK, T, only_c, ephs, gps_set, x0=X + 100.0)     # L1 set: 1.8 % too much
     assert np.linalg.norm(wrong.ecef - X) > 0.07                                   # (0.09 m; right: 0.02 m)
+
+
+def test_combined_fix_weights_each_signal_by_its_code_noise(sky):
+    """B1I (2.046 Mcps) ranges are twice as precise as L1 C/A ones at the same C/N0 and elevation: a fix mixing
+    them weights each satellite by the inverse of its code variance, (1.023 / 2.046)^2 = 1/4 for B1I.  With
+    seeded noise of those standard deviations the combined fix is better than the better system alone, and
+    better than with the one-signal weights; one-system fixes are unchanged (all weights scaled alike)."""
+    g, c, ephs = sky
+    rng = np.random.default_rng(5)
+    err = {"G": [], "C": [], "GC": [], "GC equal": []}
+    solver = NavSolver(CFG)
+    equal = NavSolver(CFG)
+    equal._weights = lambda el, cn0, iono=None, ura_m=None, code_var=None: NavSolver._weights(equal, el, cn0, iono,
+                                                                                                 ura_m)
+    for _ in range(200):
+        obs = [Observation(prn=o.prn, tx_tow=o.tx_tow - rng.normal(0.0, 1.0 if o.system == "G" else 0.5) / C_LIGHT,
+                           system=o.system) for _, o in g + c]
+        for name, sy, sv in (("G", "G", solver), ("C", "C", solver), ("GC", "GC", solver), ("GC equal", "GC", equal)):
+            fix = sv.fix(WEEK, T, [o for o in obs if o.system in sy], ephs, x0=X)
+            err[name].append(np.sum((fix.ecef - X) ** 2))
+    rms = {k: float(np.sqrt(np.mean(v))) for k, v in err.items()}
+    assert rms["GC"] < min(rms["G"], rms["C"]) and rms["GC"] < rms["GC equal"]
+    w = solver._weights(np.radians([30.0, 30.0, 60.0]), np.full(3, 45.0), code_var=np.array([1.0, 0.25, 1.0]))
+    assert w[1] == pytest.approx(4.0 * w[0]) and w[2] == pytest.approx(w[1] * np.sin(np.radians(60)) ** 2 / 4
+                                                                      / np.sin(np.radians(30)) ** 2)
+    one = solver._weights(np.radians([30.0, 60.0]), np.full(2, 45.0), code_var=np.array([0.25, 0.25]))
+    np.testing.assert_array_equal(one, solver._weights(np.radians([30.0, 60.0]), np.full(2, 45.0)))
+
+
+def test_combined_run_applies_the_gps_klobuchar_set_to_every_satellite():
+    """A GPS + BeiDou run: the GPS set (decoded, else the fallback set) corrects every satellite; a decoded
+    BeiDou D1/D2 set (B1I reference) only while neither is there.  BeiDou-only runs keep their own set."""
+    from receiver.gnss.ephemeris import IonoUtc
+    from receiver.gnss.signals_bds import B1I_HZ
+    from receiver.navigation.ephemeris_store import EphemerisStore
+    from receiver.runfile.record import IONO_BROADCAST, IONO_FALLBACK
+
+    def ch(io):
+        return types.SimpleNamespace(decoder=types.SimpleNamespace(iono_utc=io))
+    gps_set = IonoUtc(alpha=(1e-8, 0, 0, 0), beta=(9e4, 0, 0, 0))
+    bds_set = IonoUtc(alpha=(2e-8, 0, 0, 0), beta=(0, 0, 0, 0), ref_hz=B1I_HZ)
+    fallback = IonoUtc(alpha=(3e-8, 0, 0, 0), beta=(8e4, 0, 0, 0))
+    st = EphemerisStore()
+    st.iono_utc, st.solver = None, types.SimpleNamespace(ionosphere="klobuchar")
+    st.signals, st.iono_fallback = {"G": None, "C": None}, fallback
+    st.channels = {5: ch(None), 406: ch(bds_set)}
+    assert st.iono() is fallback and st.iono_params() == IONO_FALLBACK
+    st.channels[7] = ch(gps_set)
+    assert st.iono() is gps_set and st.iono_params() == IONO_BROADCAST
+    del st.channels[7]
+    st.iono_fallback = None                      # no fallback: the BeiDou set rather than none
+    assert st.iono() is bds_set
+    st.signals, st.iono_fallback, st.channels = None, fallback, {6: ch(bds_set)}     # BeiDou-only run
+    assert st.iono() is bds_set and st.iono_params() == IONO_BROADCAST
