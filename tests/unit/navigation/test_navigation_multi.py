@@ -136,7 +136,7 @@ def test_combined_fix_weights_each_signal_by_its_code_noise(sky):
     equal = NavSolver(CFG)
     equal._weights = lambda el, cn0, iono=None, ura_m=None, code_var=None: NavSolver._weights(equal, el, cn0, iono,
                                                                                                  ura_m)
-    for _ in range(200):
+    for _ in range(100):
         obs = [Observation(prn=o.prn, tx_tow=o.tx_tow - rng.normal(0.0, 1.0 if o.system == "G" else 0.5) / C_LIGHT,
                            system=o.system) for _, o in g + c]
         for name, sy, sv in (("G", "G", solver), ("C", "C", solver), ("GC", "GC", solver), ("GC equal", "GC", equal)):
