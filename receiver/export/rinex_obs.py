@@ -2,8 +2,11 @@
 
 Observation types: C1C (pseudorange, m), L1C (carrier phase, cycles), D1C (Doppler, Hz), S1C (C/N0,
 dB-Hz) for GPS and QZSS (L1 C/A; QZSS PRN 193.. is J01..); C2I, L2I, D2I, S2I for BeiDou B1I (RINEX 3
-band 2).  A file with more than one system is a mixed ('M') file with one SYS / # / OBS TYPES line per
-system.  Conventions:
+band 2); C1C, L1C, D1C, S1C for Galileo E1 (band 1, attribute C: the E1-C pilot, which gnssrx's Galileo
+channel tracks for code and carrier; E1-B only gives the I/NAV symbols, so the RINEX 3 code of a B+C tracker,
+1X, would claim power the measurements do not use).  A file with more than one system is a mixed ('M') file
+with one SYS / # / OBS TYPES line per system; the time system is GPS in every file (TIME OF FIRST OBS says
+so, also in a Galileo-only file whose default would be GAL).  Conventions:
 
 * Epochs are the receiver clock readings of the measurements: GPS time of the fix plus its clock bias / c
   (the pseudoranges are the raw ones, c (receiver time - transmit time)), so another program estimates
@@ -14,7 +17,9 @@ system.  Conventions:
 * Loss-of-lock indicator (on L1C): bit 0 when the carrier loop's lock time is shorter than the time since
   the satellite's previous observation (lock was lost and regained in between), or when the satellite
   appears after the first epoch with a lock time shorter than the gap; bit 1 while the half-cycle
-  ambiguity is not resolved (no LNAV preamble seen yet).
+  ambiguity is not resolved (no LNAV / D1 preamble seen yet; the Galileo pilot, whose secondary code is
+  known, has none once the channel tracks).
+* SYS / PHASE SHIFT: no cycle shift is applied to any phase (0.00000 written for each system's phase code).
 * Signal strength indicator (C1C and L1C): 1..9 from C/N0 in 6 dB-Hz steps (RINEX 3 table).
 """
 from __future__ import annotations
@@ -174,6 +179,18 @@ def nav_ephemerides(run: RunData) -> list:
     return run.used_ephemerides()
 
 
+def gal_header_params(run: RunData, ephs) -> dict | None:
+    """The Galileo header parameters of the navigation file (:func:`receiver.gnss.rinex_gal.gal_header_lines`):
+    the run's decoded NeQuick-G / GST-UTC / GGTO sets (``RunData.gal_params()`` when the run file provides
+    them) with the GST week of its first Galileo ephemeris; None without Galileo ephemerides or parameters."""
+    gal = [e for e in ephs if getattr(e, "system", "G") == "E"]
+    getter = getattr(run, "gal_params", None)
+    params = getter() if callable(getter) else None
+    if not gal or not params:
+        return None
+    return dict(params, gst_week=gal[0].gst_week)
+
+
 def write_nav(path, run: RunData) -> dict:
     """Write the RINEX 3.04 navigation file of the ephemerides the fixes used, with the iono/UTC parameters; returns
     {"ephemerides": count, "satellites": keys, "iono": written}.  ValueError when the run has none."""
@@ -181,7 +198,7 @@ def write_nav(path, run: RunData) -> dict:
     ephs = nav_ephemerides(run)
     if not ephs:
         raise ValueError("the run has no ephemerides")
-    write_rinex_nav(path, ephs, run.iono(), system=run.system)
+    write_rinex_nav(path, ephs, run.iono(), system=run.system, gal=gal_header_params(run, ephs))
     return {"ephemerides": len(ephs), "satellites": sorted({run.eph_key(e) for e in ephs}),
             "iono": run.iono() is not None}
 

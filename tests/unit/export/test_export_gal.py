@@ -1,0 +1,151 @@
+"""Galileo E1 outputs on a synthetic Galileo-only run (run-file system E): RINEX 3 observation header and
+labels (E, C1C L1C D1C S1C: the E1-C pilot), NMEA talker GA with the NMEA 4.10 Galileo IDs, and RTKLIB's
+single-point solution on our observation + Enn navigation files equal to the position the pseudoranges
+were made for (so RTKLIB reads our Galileo records to the orbits and clocks gnssrx computes)."""
+import shutil
+import subprocess
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from receiver.export.nmea import checksum, nmea_lines
+from receiver.export.rinex_obs import write_rinex_obs
+from receiver.gnss.ephemeris import earth_rotation, sat_state
+from receiver.gnss.gal_inav import quantize_gal
+from receiver.gnss.geodesy import azel, ecef2lla, lla2ecef
+from receiver.gnss.rinex import write_rinex_nav
+from receiver.gnss.signals import C_LIGHT
+from receiver.runfile.reader import RunData
+from receiver.runfile.record import FIX_DTYPE, OBS_DTYPE
+from receiver.sim.gal_constellation import gal_nominal_content
+
+REPO = Path(__file__).resolve().parents[3]
+WEEK, TOW = 2300, 345600.0 + 600.0
+TRUTH = np.array(lla2ecef(35.68, 139.77, 40.0))
+BIAS_M = 12345.678                 # receiver clock bias
+EPOCHS = 5
+
+
+@pytest.fixture(scope="module")
+def sky():
+    """Nominal Galileo ephemerides with clock terms, harmonics and a BGD, and the satellites above 10 deg."""
+    content = gal_nominal_content(REPO / "data/gal_nominal_constellation.yaml", WEEK, TOW)
+    rng = np.random.default_rng(5)
+    ephs = {}
+    for prn, c in content.items():
+        bgd = rng.normal(0, 3e-9)
+        ephs[prn] = quantize_gal(replace(c.eph, af0=rng.normal(0, 3e-4), af1=rng.normal(0, 3e-12), tgd=bgd,
+                                         bgd_e1e5a=bgd,       # RTKLIB 2.4.3 applies BGD(E1,E5a) on E1 alone
+                                         crs=rng.normal(0, 50), crc=rng.normal(0, 150), cuc=rng.normal(0, 2e-6),
+                                         cus=rng.normal(0, 2e-6), cic=rng.normal(0, 5e-8),
+                                         cis=rng.normal(0, 5e-8), delta_n=rng.normal(0, 2e-9)))
+    visible = []
+    for prn, e in sorted(ephs.items()):
+        pos, _, _, _ = sat_state(e, TOW)
+        if np.degrees(azel(TRUTH, pos)[1]) > 10.0:
+            visible.append(prn)
+    assert len(visible) >= 6
+    return ephs, visible
+
+
+def _pseudorange(e, t_rx):
+    """c (receiver clock at reception - satellite clock at transmission) for a receiver at TRUTH with
+    clock bias BIAS_M, and the satellite's azimuth / elevation (deg)."""
+    t_sv = t_rx - 0.075
+    for _ in range(6):
+        pos, _, clk, _ = sat_state(e, t_sv)
+        tau = t_rx - (t_sv - clk)
+        rho = np.linalg.norm(earth_rotation(pos, tau) - TRUTH)
+        t_sv = t_rx - rho / C_LIGHT + clk
+    az, el = azel(TRUTH, earth_rotation(pos, tau))
+    return C_LIGHT * (t_rx - t_sv) + BIAS_M, np.degrees(az), np.degrees(el)
+
+
+def _run(tmp_path, sky) -> RunData:
+    ephs, visible = sky
+    fx = np.zeros(EPOCHS, FIX_DTYPE)
+    obs = np.zeros(EPOCHS * len(visible), OBS_DTYPE)
+    lat, lon, h = ecef2lla(TRUTH)
+    for k in range(EPOCHS):
+        t = TOW + k
+        fx[k] = (WEEK, t, 30.0 + k, TRUTH, np.zeros(3), BIAS_M, 0.0, len(visible), 1.5, 0.8, 1.2, 1.7, 0,
+                 lat, lon, h, 0)
+        for j, prn in enumerate(visible):
+            pr, az, el = _pseudorange(ephs[prn], t)
+            obs[k * len(visible) + j] = (k, WEEK, t, 30.0 + k, prn, pr, 0.0, -500.0 + 10 * j, 1e5 * j + 5 * k,
+                                         45.0, 10.0 + k, 1, 1, el, az, 0.0)
+    return RunData(path=str(tmp_path / "gal.h5"), attrs={"system": "E"}, config={}, fixes=fx, obs=obs,
+                   ephemerides=[ephs[p] for p in visible], _iono_done=True)
+
+
+def test_galileo_rinex_observation_header_and_labels(tmp_path, sky):
+    out = tmp_path / "gal.obs"
+    info = write_rinex_obs(out, _run(tmp_path, sky))
+    text = out.read_text().splitlines()
+    assert text[0][20:21] == "O" and text[0][40:41] == "E"
+    types = {ln[0]: ln[7:60].split() for ln in text if ln[60:].strip() == "SYS / # / OBS TYPES"}
+    assert types == {"E": ["C1C", "L1C", "D1C", "S1C"]}           # E1-C (pilot) tracking, RINEX 3 band 1
+    assert [ln[:5] for ln in text if ln[60:].strip() == "SYS / PHASE SHIFT"] == ["E L1C"]
+    assert all(ln[48:51] == "GPS" for ln in text if ln[60:].strip().startswith("TIME OF"))
+    body = text[next(i for i, ln in enumerate(text) if "END OF HEADER" in ln) + 1:]
+    _, visible = sky
+    assert [ln[:3] for ln in body[1:1 + len(visible)]] == [f"E{p:02d}" for p in visible]
+    assert info["epochs"] == EPOCHS and info["satellites"] == visible
+
+
+def test_galileo_nmea_talker_and_ids(tmp_path, sky):
+    """Galileo-only fix: GA talker on GGA/RMC/GSA/GSV, satellite IDs 1-36 (NMEA 4.10)."""
+    _, visible = sky
+    lines = nmea_lines(_run(tmp_path, sky))
+    for ln in lines:
+        body, cs = ln[1:].split("*")
+        assert checksum(body) == cs
+    assert {ln[1:3] for ln in lines} == {"GA"}
+    gsa = [ln for ln in lines if ln[3:6] == "GSA"]
+    assert len(gsa) == EPOCHS
+    assert [v for v in gsa[0].split("*")[0].split(",")[3:15] if v] == [f"{p:02d}" for p in visible]
+    first = lines[:[i for i, ln in enumerate(lines) if ln[3:6] == "GGA"][1]]            # the first fix's
+    gsv_ids = [int(f) for ln in first if ln[3:6] == "GSV" for f in ln.split("*")[0].split(",")[4::4]]
+    assert gsv_ids == visible
+
+
+RTKLIB_CONF = """\
+pos1-posmode       =single
+pos1-frequency     =l1
+pos1-elmask        =5
+pos1-ionoopt       =off
+pos1-tropopt       =off
+pos1-sateph        =brdc
+pos1-navsys        =8
+out-solformat      =xyz
+out-timesys        =gpst
+out-timeform       =tow
+out-timendec       =6
+"""
+
+
+@pytest.mark.skipif(shutil.which("rnx2rtkp") is None, reason="RTKLIB rnx2rtkp not installed (apt-get install rtklib)")
+def test_rnx2rtkp_on_our_galileo_files_finds_the_true_position(tmp_path, sky):
+    """Pseudoranges made with gnssrx's Galileo orbits / clocks / BGD for a known position (no atmosphere):
+    RTKLIB, reading our RINEX observation and Enn navigation files with its own Galileo code, puts the
+    receiver there (centimetres) and finds the clock bias."""
+    ephs, visible = sky
+    run = _run(tmp_path, sky)
+    obs, nav = tmp_path / "gal.obs", tmp_path / "gal.nav"
+    write_rinex_obs(obs, run)
+    write_rinex_nav(nav, [ephs[p] for p in visible])
+    conf = tmp_path / "spp.conf"
+    conf.write_text(RTKLIB_CONF)
+    pos = tmp_path / "spp.pos"
+    res = subprocess.run(["rnx2rtkp", "-k", str(conf), "-o", str(pos), str(obs), str(nav)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+    rows = np.loadtxt(pos, comments="%", ndmin=2)
+    assert len(rows) == EPOCHS and np.all(rows[:, 5] == 5) and np.all(rows[:, 6] == len(visible))
+    err = np.linalg.norm(rows[:, 2:5] - TRUTH, axis=1)
+    print(f"\nrnx2rtkp -sys E on synthetic Galileo files: 3D error max {np.max(err):.4f} m")
+    assert np.max(err) < 0.05, err
+    # RTKLIB's solution time = receiver clock reading - its clock bias estimate = the true GPS time
+    np.testing.assert_allclose(rows[:, 1], TOW + np.arange(EPOCHS), atol=1e-6)
