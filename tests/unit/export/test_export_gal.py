@@ -30,14 +30,15 @@ EPOCHS = 5
 
 @pytest.fixture(scope="module")
 def sky():
-    """Nominal Galileo ephemerides with clock terms, harmonics and a BGD, and the satellites above 10 deg."""
+    """Nominal Galileo ephemerides with clock terms, harmonics and two different BGDs, and the satellites above
+    10 deg."""
     content = gal_nominal_content(REPO / "data/gal_nominal_constellation.yaml", WEEK, TOW)
     rng = np.random.default_rng(5)
     ephs = {}
     for prn, c in content.items():
-        bgd = rng.normal(0, 3e-9)
-        ephs[prn] = quantize_gal(replace(c.eph, af0=rng.normal(0, 3e-4), af1=rng.normal(0, 3e-12), tgd=bgd,
-                                         bgd_e1e5a=bgd,       # RTKLIB 2.4.3 applies BGD(E1,E5a) on E1 alone
+        ephs[prn] = quantize_gal(replace(c.eph, af0=rng.normal(0, 3e-4), af1=rng.normal(0, 3e-12),
+                                         tgd=rng.normal(0, 3e-9),               # BGD(E1,E5b): applied on E1
+                                         bgd_e1e5a=rng.normal(0, 3e-9),         # BGD(E1,E5a): not
                                          crs=rng.normal(0, 50), crc=rng.normal(0, 150), cuc=rng.normal(0, 2e-6),
                                          cus=rng.normal(0, 2e-6), cic=rng.normal(0, 5e-8),
                                          cis=rng.normal(0, 5e-8), delta_n=rng.normal(0, 2e-9)))
@@ -128,9 +129,10 @@ out-timendec       =6
 
 @pytest.mark.skipif(shutil.which("rnx2rtkp") is None, reason="RTKLIB rnx2rtkp not installed (apt-get install rtklib)")
 def test_rnx2rtkp_on_our_galileo_files_finds_the_true_position(tmp_path, sky):
-    """Pseudoranges made with gnssrx's Galileo orbits / clocks / BGD for a known position (no atmosphere):
-    RTKLIB, reading our RINEX observation and Enn navigation files with its own Galileo code, puts the
-    receiver there (centimetres) and finds the clock bias."""
+    """Pseudoranges made with gnssrx's Galileo orbits / clocks / BGD(E1,E5b) for a known position (no
+    atmosphere): RTKLIB, reading our RINEX observation and Enn navigation files with its own Galileo code, puts
+    the receiver there (centimetres) and finds the clock bias.  (Written without the BGD, or with the two BGDs
+    swapped, the files put it 1.3 m or 1.8 m away: RTKLIB also applies BGD(E1,E5b) to an E1 pseudorange.)"""
     ephs, visible = sky
     run = _run(tmp_path, sky)
     obs, nav = tmp_path / "gal.obs", tmp_path / "gal.nav"
