@@ -32,9 +32,10 @@ from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 from .gnss.registry import get_signal
-from .gnss.satid import MIXED, sat_key, sat_label
+from .gnss.satid import MIXED, sat_key, sat_label, split_key
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
+from .tracking.gal_channels import GalChannelManager
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
@@ -336,8 +337,7 @@ class _Keyed:
     # navigation engine
     @property
     def channels(self):
-        return {p - self._k(0): c for p, c in self._t.channels.items()
-                if (p > sat_key("C", 0)) == (self._sys == "C")}
+        return {p - self._k(0): c for p, c in self._t.channels.items() if split_key(p)[0] == self._sys}
 
     def add_records(self, prn, recs, bit_offset):
         self._t.add_records(self._k(prn), recs, bit_offset)
@@ -417,9 +417,9 @@ class _ChunkLoop:
             part = _Part(sig, rd, multi)
             p_nav = _Keyed(nav, sig.system) if multi and nav is not None else nav
             p_writer = _Keyed(writer, sig.system) if multi else writer
-            part.manager = ChannelManager(cfg, rd, p_nav, fs, rd.if_hz, sig,
-                                          functools.partial(acquire, signal=sig), p_writer,
-                                          prns=signal_prns(cfg, sig.name))
+            manager = GalChannelManager if sig.system == "E" else ChannelManager     # Galileo E1: 4-ms codes
+            part.manager = manager(cfg, rd, p_nav, fs, rd.if_hz, sig, functools.partial(acquire, signal=sig),
+                                   p_writer, prns=signal_prns(cfg, sig.name))
             self.parts.append(part)
         with stage("acquisition"):
             for part in self.parts:

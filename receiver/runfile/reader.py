@@ -185,9 +185,10 @@ class RunFile(H5Input):
         return self.columns("acquisition", names)
 
     def ephemerides(self) -> list:
-        """The decoded ephemerides stored in ``/ephemeris`` (and ``/ephemeris_bds``: the BeiDou ones of a run
-        over several signals)."""
-        return [e for g in ("ephemeris", "ephemeris_bds") if g in self.f for e in _ephemerides(self.f[g])]
+        """The decoded ephemerides stored in ``/ephemeris`` (and ``/ephemeris_bds`` / ``/ephemeris_gal``: the
+        BeiDou / Galileo ones of a run over several signals)."""
+        return [e for g in ("ephemeris", "ephemeris_bds", "ephemeris_gal") if g in self.f
+                for e in _ephemerides(self.f[g])]
 
     def iono_utc_attrs(self) -> dict | None:
         """Attributes of the ``/iono_utc`` group (named like the IonoUtc fields), or None when the file has none."""
@@ -444,6 +445,8 @@ def _ephemerides(group) -> list:
     cls = Ephemeris
     if "tgd2" in cols:                       # BeiDou ephemerides (BDT toe/toc/week)
         from ..gnss.bds_ephemeris import BdsEphemeris as cls
+    elif "bgd_e1e5a" in cols:                # Galileo I/NAV ephemerides (GST toe/toc, week = GPS week)
+        from ..gnss.gal_inav import GalEphemeris as cls
     out = []
     for i in range(n):
         kw = {}
