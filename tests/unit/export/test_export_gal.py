@@ -151,3 +151,74 @@ def test_rnx2rtkp_on_our_galileo_files_finds_the_true_position(tmp_path, sky):
     assert np.max(err) < 0.05, err
     # RTKLIB's solution time = receiver clock reading - its clock bias estimate = the true GPS time
     np.testing.assert_allclose(rows[:, 1], TOW + np.arange(EPOCHS), atol=1e-6)
+
+
+def _mixed_run(tmp_path):
+    """Two epochs of G01, G07, J01, E05, E11, C01, C12 in a run over several signals (keys 305, 311, 401, 412)."""
+    sats = [1, 7, 193, 305, 311, 401, 412]
+    lat, lon, h = ecef2lla(TRUTH)
+    fx = np.zeros(2, FIX_DTYPE)
+    obs = np.zeros(2 * len(sats), OBS_DTYPE)
+    for k in range(2):
+        fx[k] = (WEEK, TOW + k, 30.0 + k, TRUTH, np.zeros(3), 12.0, 0.1, len(sats), 1.2, 0.7, 1.0, 1.4, 0,
+                 lat, lon, h, 1)
+        for j, p in enumerate(sats):
+            obs[k * len(sats) + j] = (k, WEEK, TOW + k, 30.0 + k, p, 2.1e7 + 1e5 * j, 0.0, -1000.0 + j, 1e6 + j,
+                                      44.0, 10.0, 1, 1, 40.0 + j, 100.0 + 10 * j, 0.1)
+    return RunData(path=str(tmp_path / "mixed.h5"), attrs={"system": "M"}, config={}, fixes=fx, obs=obs,
+                   _iono_done=True)
+
+
+def test_mixed_gps_galileo_beidou_rinex_and_nmea(tmp_path):
+    """GPS + QZSS + Galileo + BeiDou in one fix: a mixed RINEX file with an E line of C1C..S1C and E05/E11
+    labels; NMEA GN with one GSA per system (NMEA 4.10 IDs 1 GPS, 3 Galileo, 4 BeiDou), GSV per system."""
+    run = _mixed_run(tmp_path)
+    out = tmp_path / "mixed.obs"
+    write_rinex_obs(out, run)
+    text = out.read_text().splitlines()
+    assert text[0][40:41] == "M"
+    types = {ln[0]: ln[7:60].split() for ln in text if ln[60:].strip() == "SYS / # / OBS TYPES"}
+    assert types == {"G": ["C1C", "L1C", "D1C", "S1C"], "C": ["C2I", "L2I", "D2I", "S2I"],
+                     "E": ["C1C", "L1C", "D1C", "S1C"], "J": ["C1C", "L1C", "D1C", "S1C"]}
+    body = text[next(i for i, ln in enumerate(text) if "END OF HEADER" in ln) + 1:]
+    assert [ln[:3] for ln in body[1:8]] == ["G01", "G07", "J01", "E05", "E11", "C01", "C12"]
+    lines = nmea_lines(run)
+    first = lines[:[i for i, ln in enumerate(lines) if ln[3:6] == "GGA"][1]]
+    assert first[0].startswith("$GNGGA") and first[1].startswith("$GNRMC")
+    gsa = [ln.split("*")[0].split(",") for ln in first if ln[3:6] == "GSA"]
+    assert {f[-1]: [v for v in f[3:15] if v] for f in gsa} == {"1": ["01", "07", "193"], "3": ["05", "11"],
+                                                               "4": ["01", "12"]}
+    gsv = {ln[1:3]: [int(v) for v in ln.split("*")[0].split(",")[4::4]] for ln in first if ln[3:6] == "GSV"}
+    assert gsv == {"GP": [1, 7, 193], "GA": [5, 11], "GB": [1, 12]}
+
+
+def test_galileo_run_file_info_and_navigation_file(tmp_path, sky):
+    """A Galileo-only run file (system E): ``gnssrx info`` names the system and lists E.. satellites; the
+    navigation file exported from it holds Enn records equal to the stored ephemerides."""
+    from receiver.export.info import format_info, run_info
+    from receiver.export.rinex_obs import write_nav
+    from receiver.gnss.gal_inav import GalEphemeris
+    from receiver.gnss.rinex import read_rinex_nav
+    from receiver.runfile.reader import load_run
+    from receiver.runfile.writer import RunWriter
+    ephs, visible = sky
+    synthetic = _run(tmp_path, sky)
+    path = tmp_path / "gal_run.h5"
+    w = RunWriter(path, "{}", {"sample_rate_hz": 4e6, "system": "E"})
+    w.write_ephemerides({p: ephs[p] for p in visible})
+    w.append_observables(synthetic.obs)
+    w.append_fixes(synthetic.fixes)
+    w.close()
+    text = format_info(run_info(path))
+    labels = " ".join(f"E{p:02d}" for p in visible)
+    assert "systems         Galileo" in text
+    assert f"satellites {labels}" in text and f"(decoded) {labels}" in text
+    run = load_run(path)
+    assert all(type(e) is GalEphemeris for e in run.ephemerides)
+    info = write_nav(tmp_path / "gal_run.nav", run)
+    assert info["satellites"] == visible
+    back, _ = read_rinex_nav(tmp_path / "gal_run.nav", systems=("E",))
+    assert sorted(back) == visible
+    for p in visible:
+        t = ephs[p].toe + 100.0
+        np.testing.assert_allclose(sat_state(back[p][0], t)[0], sat_state(ephs[p], t)[0], atol=1e-4)
