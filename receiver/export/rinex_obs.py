@@ -32,6 +32,7 @@ import numpy as np
 from .. import __version__
 from ..gnss.satid import sat_label, sat_system
 from ..gnss.time import split_gps_time
+from ..errors import UserError
 from ..runfile.reader import RunData
 
 OBS_TYPES = ("C1C", "L1C", "D1C", "S1C")
@@ -179,16 +180,46 @@ def nav_ephemerides(run: RunData) -> list:
     return run.used_ephemerides()
 
 
+def decoded_gal_params(path) -> dict:
+    """The Galileo system parameters of a run, decoded again from the E1-B prompts (``prompt1_i``, one I/NAV
+    symbol per 4-ms record) of its stored Galileo channels: {"nequick", "utc", "ggto", "gst_week"} as far as
+    some channel decoded them (empty without Galileo channels)."""
+    from ..gnss.gal_inav import InavDecoder
+    from ..runfile.reader import RunFile
+    out: dict = {}
+    with RunFile(path) as rf:
+        for name in rf.channel_names():
+            if name[:1] != "E":
+                continue
+            ch = rf.channel(name, ("code_period", "prompt1_i"))
+            if len(ch.get("code_period", ())) < 500:
+                continue
+            dec = InavDecoder(rf.channel_prn(name))
+            cp, sym = ch["code_period"], ch["prompt1_i"]
+            for r in np.split(np.arange(len(cp)), np.nonzero(np.diff(cp) != 1)[0] + 1):
+                if len(r):
+                    dec.feed(sym[r], int(cp[r[0]]))
+            for key in ("nequick", "utc", "ggto", "gst_week"):
+                if key not in out and getattr(dec, key) is not None:
+                    out[key] = getattr(dec, key)
+            if len(out) == 4:
+                break
+    return out
+
+
 def gal_header_params(run: RunData, ephs) -> dict | None:
-    """The Galileo header parameters of the navigation file (:func:`receiver.gnss.rinex_gal.gal_header_lines`):
-    the run's decoded NeQuick-G / GST-UTC / GGTO sets (``RunData.gal_params()`` when the run file provides
-    them) with the GST week of its first Galileo ephemeris; None without Galileo ephemerides or parameters."""
+    """The Galileo header parameters of the navigation file (:func:`receiver.gnss.rinex_gal.gal_header_lines`)
+    when it has Galileo ephemerides: :func:`decoded_gal_params` of the run (the GST week of the first Galileo
+    ephemeris when no channel decoded one); None otherwise."""
     gal = [e for e in ephs if getattr(e, "system", "G") == "E"]
-    getter = getattr(run, "gal_params", None)
-    params = getter() if callable(getter) else None
-    if not gal or not params:
+    if not gal:
         return None
-    return dict(params, gst_week=gal[0].gst_week)
+    try:
+        params = decoded_gal_params(run.path)
+    except UserError:                      # no run file behind the data (tests): no parameters
+        return None
+    params.setdefault("gst_week", gal[0].gst_week)
+    return params if len(params) > 1 else None
 
 
 def write_nav(path, run: RunData) -> dict:

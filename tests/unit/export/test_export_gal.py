@@ -194,12 +194,15 @@ def test_mixed_gps_galileo_beidou_rinex_and_nmea(tmp_path):
 
 def test_galileo_run_file_info_and_navigation_file(tmp_path, sky):
     """A Galileo-only run file (system E): ``gnssrx info`` names the system and lists E.. satellites; the
-    navigation file exported from it holds Enn records equal to the stored ephemerides."""
+    navigation file exported from it holds Enn records equal to the stored ephemerides, and the header the
+    NeQuick-G / GST-UTC / GST-GPS parameters decoded again from a channel's stored E1-B symbols."""
     from receiver.export.info import format_info, run_info
     from receiver.export.rinex_obs import write_nav
-    from receiver.gnss.gal_inav import GalEphemeris
+    from receiver.gnss.gal_inav import GalEphemeris, Ggto, GstUtc, InavContent, InavStream, NequickG
     from receiver.gnss.rinex import read_rinex_nav
+    from receiver.gnss.rinex_gal import read_gal_header
     from receiver.runfile.reader import load_run
+    from receiver.runfile.record import EPOCH_DTYPE
     from receiver.runfile.writer import RunWriter
     ephs, visible = sky
     synthetic = _run(tmp_path, sky)
@@ -208,6 +211,18 @@ def test_galileo_run_file_info_and_navigation_file(tmp_path, sky):
     w.write_ephemerides({p: ephs[p] for p in visible})
     w.append_observables(synthetic.obs)
     w.append_fixes(synthetic.fixes)
+    # 70 s of one channel's E1-B symbols (an odd 30-s sub-frame carries word 10, the GGTO)
+    e = ephs[visible[0]]
+    content = InavContent(e, NequickG(ai0=80.25, ai1=0.5, ai2=-0.0078125),
+                          GstUtc(a0=2.0 ** -30 * 5, a1=-2.0 ** -49, dt_ls=18, tot=342000, wnot=e.gst_week % 256,
+                                 wn_lsf=e.gst_week % 256, dn=7, dt_lsf=18),
+                          Ggto(a0g=2.0 ** -35 * 77, a1g=2.0 ** -51 * -3, t0g=342000.0, wn0g=e.gst_week % 64))
+    n = 70 * 250
+    rec = np.zeros(n, EPOCH_DTYPE)
+    rec["code_period"] = 1 + np.arange(n)
+    rec["time_s"] = 0.004 * np.arange(n)
+    rec["prompt1_i"] = 900.0 * InavStream(content, e.gst_week).signs(int(TOW - 600.0) * 250, n)
+    w.append_channel(visible[0], rec)
     w.close()
     text = format_info(run_info(path))
     labels = " ".join(f"E{p:02d}" for p in visible)
@@ -219,6 +234,13 @@ def test_galileo_run_file_info_and_navigation_file(tmp_path, sky):
     assert info["satellites"] == visible
     back, _ = read_rinex_nav(tmp_path / "gal_run.nav", systems=("E",))
     assert sorted(back) == visible
+    h = read_gal_header(tmp_path / "gal_run.nav")
+    assert (h["nequick"].ai0, h["nequick"].ai1, h["nequick"].ai2) == (80.25, 0.5, -0.0078125)
+    # (the header fields keep 11 / 10 significant digits)
+    assert (h["utc"].a0, h["utc"].a1) == pytest.approx((2.0 ** -30 * 5, -2.0 ** -49), rel=1e-9)
+    assert (h["utc"].tot, h["utc"].wnot) == (342000, e.gst_week % 256)
+    assert (h["ggto"].a0g, h["ggto"].a1g) == pytest.approx((2.0 ** -35 * 77, 2.0 ** -51 * -3), rel=1e-9)
+    assert (h["ggto"].t0g, h["ggto"].wn0g) == (342000.0, e.gst_week % 64)
     for p in visible:
         t = ephs[p].toe + 100.0
         np.testing.assert_allclose(sat_state(back[p][0], t)[0], sat_state(ephs[p], t)[0], atol=1e-4)
