@@ -183,16 +183,17 @@ def _vector_handover(cfg, parts, nav, fs, quiet=False):
 
 def _assisted_ephemerides(path, sigs):
     """navigation.ephemeris (assisted mode): the RINEX records of the run's systems, keyed like its channels
-    (one signal: its PRNs -- a BeiDou B1I run the BeiDou records, BDT; several signals: satellite keys,
+    (one signal: its PRNs -- a BeiDou B1I run the BeiDou records, BDT, a Galileo E1 run the Galileo I/NAV
+    ones; several signals: satellite keys,
     receiver.gnss.satid.sat_key, from a mixed RINEX 3 file), and the header's Klobuchar set (GPS's first)."""
     from .gnss.rinex import read_rinex_nav
     letters = [get_signal(n).system for n in sigs]
     if len(letters) == 1:
-        return read_rinex_nav(path, systems=("C",) if letters[0] == "C" else ("G", "J"))
+        return read_rinex_nav(path, systems=(letters[0],) if letters[0] in "CE" else ("G", "J"))
     ephs, iono = {}, None
     for i, letter in enumerate(letters):
         try:
-            e, io = read_rinex_nav(path, systems=("C",) if letter == "C" else ("G", "J"))
+            e, io = read_rinex_nav(path, systems=(letter,) if letter in "CE" else ("G", "J"))
         except UserError:
             if i == 0:
                 raise

@@ -8,7 +8,8 @@ Records (:data:`receiver.runfile.record.EPOCH_DTYPE`), one per 4-ms E1 code peri
   relative transmit time is ``code_period x 4 ms + code_phase_chips / 1.023 MHz`` (ChannelNav.period_s);
 * ``prompt_i`` / ``prompt_q``: the E1-C (pilot) prompt with CS25 wiped off -- what the PLL and DLL track --,
   ``early`` / ``late``: the pilot's |E| and |L|; ``prompt1_i`` / ``prompt1_q``: the E1-B (data) prompt, one
-  I/NAV symbol (negative = logic 1); ``prompt2_*`` zero; ``integration_ms`` 4;
+  I/NAV symbol (the carrier locked on the pilot, transmitted as -e_C: a logic-0 symbol reads negative; the
+  I/NAV decoder takes either polarity from the page sync); ``prompt2_*`` zero; ``integration_ms`` 4;
 * ``state``: STATE_PULL_IN for the first PULL_IN_EPOCHS, then STATE_BIT_SYNC (every period is a symbol:
   no bit synchronisation to wait for), STATE_LOST on the epoch the channel gives up;
 * ``pll_lock``: the low-passed phase-lock indicator cos(2 phi) of the pilot above LOCK_PLI and the C/N0
