@@ -186,21 +186,8 @@ def _assisted_ephemerides(path, sigs):
     (one signal: its PRNs -- a BeiDou B1I run the BeiDou records, BDT, a Galileo E1 run the Galileo I/NAV
     ones; several signals: satellite keys,
     receiver.gnss.satid.sat_key, from a mixed RINEX 3 file), and the header's Klobuchar set (GPS's first)."""
-    from .gnss.rinex import read_rinex_nav
-    letters = [get_signal(n).system for n in sigs]
-    if len(letters) == 1:
-        return read_rinex_nav(path, systems=(letters[0],) if letters[0] in "CE" else ("G", "J"))
-    ephs, iono = {}, None
-    for i, letter in enumerate(letters):
-        try:
-            e, io = read_rinex_nav(path, systems=(letter,) if letter in "CE" else ("G", "J"))
-        except UserError:
-            if i == 0:
-                raise
-            continue            # no records of a further system: its satellites decode their own ephemerides
-        ephs.update({sat_key(letter, p): lst for p, lst in e.items()})
-        iono = iono if iono is not None else io
-    return ephs, iono
+    from .gnss.rinex import read_rinex_nav_for
+    return read_rinex_nav_for(path, [get_signal(n).system for n in sigs])
 
 
 @interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk

@@ -279,6 +279,31 @@ def read_rinex_nav(path, systems=("G", "J")):
     return out, iono
 
 
+def read_rinex_nav_for(path, letters):
+    """The records of a navigation file for a run over the signals whose RINEX letters are ``letters``
+    (``["G"]``, ``["E"]``, ``["G", "E", "C"]``, ...): one letter gives that system's records keyed by PRN
+    (G: GPS + QZSS); several give each system's records keyed by satellite key
+    (:func:`receiver.gnss.satid.sat_key`: Galileo 300 + p, BeiDou 400 + p), a further system without records
+    contributing none.  Returns (ephemerides, the Klobuchar set of the first system that has one).
+    UserError as :func:`read_rinex_nav` (for the first system)."""
+    from .satid import sat_key
+    letters = list(letters)
+    pick = [(letter,) if letter in ("C", "E") else ("G", "J") for letter in letters]
+    if len(letters) == 1:
+        return read_rinex_nav(path, systems=pick[0])
+    ephs, iono = {}, None
+    for i, (letter, systems) in enumerate(zip(letters, pick)):
+        try:
+            e, io = read_rinex_nav(path, systems=systems)
+        except UserError:
+            if i == 0:
+                raise
+            continue
+        ephs.update({sat_key(letter, p): lst for p, lst in e.items()})
+        iono = iono if iono is not None else io
+    return ephs, iono
+
+
 def _d19(x: float) -> str:
     """Number in a 19-character field, scientific notation with 12 decimals."""
     return f"{x: .12E}".rjust(19)

@@ -285,7 +285,8 @@ class RunData:
             return None
 
     def assisting_rinex(self):
-        """(ephemerides dict, iono) of the assisted run's RINEX navigation file, or None when unreadable."""
+        """(ephemerides dict, iono) of the assisted run's RINEX navigation file, or None when unreadable: the
+        records of the run's systems, keyed like its observables (:func:`receiver.gnss.rinex.read_rinex_nav_for`)."""
         p = self.cfg("navigation.ephemeris")
         if not p:
             return None
@@ -297,14 +298,23 @@ class RunData:
             cands += [os.path.join(here, p), os.path.join(os.path.dirname(here), p)]
         if self.attrs.get("input_path"):
             cands.append(os.path.join(os.path.dirname(str(self.attrs["input_path"])), os.path.basename(p)))
-        from ..gnss.rinex import read_rinex_nav
+        from ..gnss.rinex import read_rinex_nav_for
         for c in cands:
             if os.path.isfile(c):
                 try:
-                    return read_rinex_nav(c)
+                    return read_rinex_nav_for(c, self.signal_letters())
                 except UserError:
                     return None
         return None
+
+    def signal_letters(self) -> list:
+        """The RINEX letters of the run's signals (``signals``, else ``signal``; G when the config has neither)."""
+        from ..gnss.registry import get_signal
+        names = self.cfg("signals") or [self.cfg("signal") or "gps_l1ca"]
+        try:
+            return [get_signal(n).system for n in names]
+        except (ValueError, TypeError):
+            return [self.system if self.system != "M" else "G"]
 
     def decoded(self):
         """(ephemerides prn -> Ephemeris, IonoUtc or None) decoded again from the stored channel records."""

@@ -244,3 +244,31 @@ def test_galileo_run_file_info_and_navigation_file(tmp_path, sky):
     for p in visible:
         t = ephs[p].toe + 100.0
         np.testing.assert_allclose(sat_state(back[p][0], t)[0], sat_state(ephs[p], t)[0], atol=1e-4)
+
+
+def test_assisted_runs_export_the_records_of_their_systems(tmp_path, sky):
+    """An assisted run (navigation.ephemeris: a mixed RINEX file with G05 and E05): the exported navigation
+    file holds the records the fixes used, E05 for a Galileo-only run, G05 and E05 for a GPS + Galileo one
+    (satellite keys 5 and 305) -- not the GPS record of the same PRN number."""
+    from receiver.export.rinex_obs import write_nav
+    from receiver.gnss.gal_inav import GalEphemeris
+    from receiver.gnss.rinex import read_rinex_nav
+    from receiver.sim.constellation import nominal_ephemerides
+    ephs, _ = sky
+    gps, _ = nominal_ephemerides(REPO / "data/gps_nominal_constellation.yaml", WEEK, TOW)
+    mixed = tmp_path / "assist.rnx"
+    write_rinex_nav(mixed, [gps[5], ephs[5]])
+    for system, config, keys in (("E", {"signal": "gal_e1"}, [5]),
+                                 ("M", {"signals": ["gps_l1ca", "gal_e1"]}, [5, 305])):
+        obs = np.zeros(len(keys), OBS_DTYPE)
+        obs["prn"], obs["gps_week"], obs["gps_tow"] = keys, WEEK, TOW
+        run = RunData(path=str(tmp_path / f"{system}.h5"), attrs={"system": system},
+                      config=dict(config, navigation={"ephemeris": str(mixed)}), fixes=np.zeros(0, FIX_DTYPE),
+                      obs=obs, _iono_done=True, _decoded=({}, None))     # no file behind: nothing decoded
+        used = {run.eph_key(e): type(e) for e in run.used_ephemerides()}
+        assert used == ({5: GalEphemeris} if system == "E" else {5: type(gps[5]), 305: GalEphemeris})
+        write_nav(tmp_path / f"{system}.nav", run)
+        labels = sorted(ln[:3] for ln in open(tmp_path / f"{system}.nav") if ln[:1] in "GE" and ln[1:3].isdigit())
+        assert labels == (["E05"] if system == "E" else ["E05", "G05"])
+        back, _ = read_rinex_nav(tmp_path / f"{system}.nav", systems=("E",))
+        assert back[5][0].sqrt_a == pytest.approx(ephs[5].sqrt_a, rel=1e-12)
