@@ -27,7 +27,7 @@ SIGNALS_SCHEMA = {
 
 SCHEMA = {
     "prns": P(list(range(1, 33)), "list_int", "PRNs searched (gps_l1ca: GPS 1-32 and QZSS 193-202 = "
-                                              "J01-J10; bds_b1i: 1-63)", lo=1, hi=202),
+                                              "J01-J10; bds_b1i: 1-63; gal_e1: 1-50)", lo=1, hi=202),
     "prns_by_signal": P({}, "dict", "runs over several signals: PRNs searched per signal name (e.g. "
                                     "{bds_b1i: [6, 7, 8]}); a signal not listed searches acquisition.prns "
                                     "when it is the first of `signals`, else all its PRNs"),
