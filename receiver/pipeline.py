@@ -32,7 +32,7 @@ from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST
 from .gnss.registry import get_signal
-from .gnss.satid import MIXED, sat_key
+from .gnss.satid import MIXED
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
 from .tracking.gal_channels import GalChannelManager
