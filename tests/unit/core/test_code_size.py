@@ -27,8 +27,6 @@ NUMBA_DECORATORS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "stencil
 #: as their branches merge; test_allow_lists_hold_only_current_violations fails on an entry that no longer
 #: violates the rule, so it cannot outlive the split.
 FUNCTION_ALLOW: dict[str, str] = {
-    "receiver/gnss/rinex.py::read_rinex_nav": "galout (RINEX output) splits it",
-    "receiver/navigation/pvt.py::fix": "gal (Galileo PVT) splits receiver/navigation/pvt.py",
     "receiver/snapshot/run.py::snapshot_file": "snap splits receiver/snapshot/run.py",
 }
 #: modules another helper is splitting in this session (path -> who); emptied like FUNCTION_ALLOW
