@@ -171,6 +171,19 @@ _ZERO4 = np.zeros(4)
 # URA index -> nominal URA (m), IS-GPS-200 20.3.3.3.1.3 (upper bounds; 15: no accuracy prediction)
 URA_M = (2.40, 3.40, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0, 1536.0, 3072.0,
          6144.0, 6144.0)
+#: the accuracy (m) RTKLIB's error model gives a Galileo satellite without an accuracy prediction (NAPA)
+SISA_NAPA_M = 500.0
+
+
+def broadcast_accuracy_m(eph) -> float:
+    """The broadcast range accuracy (m) of an ephemeris, the URA term of RTKLIB's error model (weighting
+    rtklib): a Galileo SISA index through the ICD's SISA table (NAPA and spare indices: SISA_NAPA_M), a GPS /
+    QZSS / BeiDou URA index through the URA table."""
+    if getattr(eph, "system", "G") == "E":
+        from ..gnss.rinex_gal import sisa_m_from_index
+        m = sisa_m_from_index(eph.ura_index)
+        return m if m >= 0.0 else SISA_NAPA_M
+    return URA_M[min(max(int(eph.ura_index), 0), 15)]
 
 
 class _Sats:
@@ -254,7 +267,7 @@ class NavSolver:
         rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
         return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
                      [o.cn0_dbhz for o in obs], [o.doppler_hz * o.wavelength_m / LAMBDA_L1 for o in obs],
-                     ura_m=[URA_M[min(max(int(e.ura_index), 0), 15)] for e in ephs],
+                     ura_m=[broadcast_accuracy_m(e) for e in ephs],
                      systems=[o.system for o in obs])
 
     def _weights(self, el, cn0, iono=None, ura_m=None, code_var=None):

@@ -176,3 +176,60 @@ def test_combined_run_applies_the_gps_klobuchar_set_to_every_satellite():
     assert st.iono() is bds_set
     st.signals, st.iono_fallback, st.channels = None, fallback, {6: ch(bds_set)}     # BeiDou-only run
     assert st.iono() is bds_set and st.iono_params() == IONO_BROADCAST
+
+
+@pytest.fixture(scope="module")
+def gal_sky():
+    """The nominal Galileo constellation seen from X (satellite keys 300 + PRN), with BGD(E1,E5b) = 7 ns."""
+    from dataclasses import replace
+    from receiver.gnss.satid import sat_key
+    from receiver.sim.gal_constellation import gal_nominal_content
+    content = gal_nominal_content(REPO / "data/gal_nominal_constellation.yaml", WEEK, T)
+    e, ephs = [], {}
+    for p, cont in content.items():
+        eph = replace(cont.eph, tgd=7e-9)
+        o, el = _obs(eph, sat_key("E", p), "E", 0.0)
+        if el > 15:
+            e.append((el, o))
+            ephs[sat_key("E", p)] = eph
+    return sorted(e, key=lambda t: -t[0]), ephs
+
+
+def test_gps_galileo_beidou_fix_estimates_one_bias_per_extra_system(sky, gal_sky):
+    g, c, ephs = sky
+    e, gal_ephs = gal_sky
+    assert len(e) >= 4
+    ephs = {**ephs, **gal_ephs}
+    bias, isb_c, isb_e = 800.0, -34.5, 12.25
+    obs = [o for _, o in g] + _shift([o for _, o in c], isb_c) + _shift([o for _, o in e], isb_e)
+    fix = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, obs, ephs)
+    assert fix is not None and fix.n_sats == len(g) + len(c) + len(e)
+    assert np.linalg.norm(fix.ecef - X) < 0.05 and fix.clock_bias_m == pytest.approx(bias, abs=0.05)
+    assert fix.isb_m["C"] == pytest.approx(isb_c, abs=0.05) and fix.isb_m["E"] == pytest.approx(isb_e, abs=0.05)
+    # Galileo alone: its own clock, no bias column
+    gal_only = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, _shift([o for _, o in e], isb_e), ephs)
+    assert gal_only.isb_m == {} and np.linalg.norm(gal_only.ecef - X) < 0.05
+    assert gal_only.clock_bias_m == pytest.approx(bias + isb_e, abs=0.05)
+    gps_gal = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, [o for _, o in g] + _shift([o for _, o in e], isb_e), ephs)
+    gps_only = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, [o for _, o in g], ephs)
+    assert gps_gal.pdop < gps_only.pdop and gps_gal.pdop < gal_only.pdop
+
+
+def test_three_gps_satellites_fix_with_galileo(sky, gal_sky):
+    g, _, ephs = sky
+    e, gal_ephs = gal_sky
+    three = [o for _, o in g[:3]]
+    fix = NavSolver(CFG).fix(WEEK, T, three + _shift([o for _, o in e], -8.0), {**ephs, **gal_ephs})
+    assert fix is not None and fix.n_sats == 3 + len(e)
+    assert np.linalg.norm(fix.ecef - X) < 0.05 and fix.isb_m["E"] == pytest.approx(-8.0, abs=0.05)
+
+
+def test_galileo_clock_uses_bgd_e1e5b(gal_sky):
+    """ICD Eq. 15: the single-frequency E1 user's satellite clock is the E1,E5b clock minus BGD(E1,E5b)."""
+    from dataclasses import replace
+    _, ephs = gal_sky
+    eph = next(iter(ephs.values()))
+    t = eph.toe + 100.0
+    c0 = sat_state(replace(eph, tgd=0.0), t)[2]
+    c1 = sat_state(eph, t)[2]
+    assert float(c0 - c1) == pytest.approx(7e-9, abs=1e-13)
