@@ -5,7 +5,7 @@ Seconds instead of three tracking runs, so a change of the solver is measured at
 scripts/bench/accuracy_gps_bds.py runs the receiver itself.
 
     PYTHONPATH=. python scripts/bench/gps_bds_resolve.py RUN.h5 REC.bin [--iono run|fallback|none]
-        [--every N] [-o KEY=VALUE ...]          (KEY: a navigation setting, e.g. weighting=none)
+        [--every N] [--from-s S] [-o KEY=VALUE ...]     (KEY: a navigation setting, e.g. weighting=none)
 """
 from __future__ import annotations
 
@@ -50,9 +50,11 @@ def main(argv=None):
     ap.add_argument("recording")
     ap.add_argument("--iono", default="run", choices=("run", "fallback", "none"))
     ap.add_argument("--every", type=int, default=1, help="use every N-th epoch")
+    ap.add_argument("--from-s", type=float, default=0.0, help="only epochs from this time in the file (s)")
     ap.add_argument("-o", dest="overrides", action="append", default=[], help="navigation KEY=VALUE")
     a = ap.parse_args(argv)
     run = load_run(a.run)
+    run.obs = run.obs[run.obs["time_s"] >= a.from_s]
     changes = {}
     for ov in a.overrides:
         k, v = ov.split("=", 1)
