@@ -16,10 +16,10 @@ processed signal seconds) and samples /proc/<pid>/status (VmRSS, RssAnon, RssFil
 file-backed RSS) and the peak of each run.  The anonymous part is the receiver's own memory (buffers of the
 reader, the channels and the run-file writer); the file-backed part is the mapped input's resident pages.
 
-``dask`` runs a batch of ``--runs`` distinct runs (4-s slices of the reference recording at different start
-times and PLL bandwidths) through ``receiver.batch.run_batch`` on a ``LocalCluster`` with the memory limit,
-samples every worker's RSS, and reads the workers' and nannies' logs and the scheduler's events for a paused,
-restarted or killed worker.
+``dask`` runs a batch of ``--runs`` distinct runs (``--seconds``-long slices of the reference recording at
+different start times and PLL bandwidths) through ``receiver.batch.run_batch`` on a ``LocalCluster`` with the
+memory limit, samples every worker's RSS, and reads the workers' and nannies' logs and the scheduler's events
+for a paused, restarted or killed worker.
 """
 from __future__ import annotations
 
@@ -145,16 +145,25 @@ def cmd_generate(a) -> int:
 
 
 def _table(res: dict, every: int) -> None:
-    print(f"  {'t s':>7s} {'signal s':>9s} {'x real':>7s} {'CPU s':>7s} {'RSS MB':>7s} {'anon MB':>8s} "
-          f"{'file MB':>8s}")
+    """Every ``every``-th sample: time, signal seconds processed, real-time factor over the rows' interval
+    (signal s per wall s, and per CPU s), CPU, RSS and its anonymous and file-backed parts."""
+    print(f"  {'t s':>7s} {'signal s':>9s} {'x real':>7s} {'x/CPU':>7s} {'CPU s':>7s} {'RSS MB':>7s} "
+          f"{'anon MB':>8s} {'file MB':>8s}")
     rows = res["samples"]
+    prev = None
     for i, s in enumerate(rows):
         if i % every and i != len(rows) - 1:
             continue
         done = s["processed_s"]
-        rtf = f"{done / s['t_s']:7.1f}" if done else f"{'-':>7s}"
-        print(f"  {s['t_s']:7.0f} {done if done is not None else float('nan'):9.1f} {rtf} {s['cpu_s']:7.1f} "
-              f"{s['rss_mb']:7.0f} {s['anon_mb']:8.0f} {s['file_mb']:8.0f}")
+        rate = cpu_rate = f"{'-':>7s}"
+        if done is not None and prev is not None and prev["processed_s"] is not None and s["t_s"] > prev["t_s"]:
+            d = done - prev["processed_s"]
+            rate = f"{d / (s['t_s'] - prev['t_s']):7.1f}"
+            if s["cpu_s"] > prev["cpu_s"]:
+                cpu_rate = f"{d / (s['cpu_s'] - prev['cpu_s']):7.1f}"
+        print(f"  {s['t_s']:7.0f} {done if done is not None else float('nan'):9.1f} {rate} {cpu_rate} "
+              f"{s['cpu_s']:7.1f} {s['rss_mb']:7.0f} {s['anon_mb']:8.0f} {s['file_mb']:8.0f}")
+        prev = s
 
 
 def _run_cmd(path: Path, config: Path, seconds: float | None, out: Path) -> list[str]:
@@ -194,10 +203,10 @@ def cmd_run(a) -> int:
     return 0
 
 
-def _dask_batch_file(path: Path, out: Path, runs: int) -> None:
+def _dask_batch_file(path: Path, out: Path, runs: int, seconds: float) -> None:
     bws = [15, 18, 20, 25]
     skips = list(range((runs + len(bws) - 1) // len(bws)))
-    path.write_text(f"name: scaling_dask\noutput_dir: {out}\nset: {{input.duration_s: 4.0}}\n"
+    path.write_text(f"name: scaling_dask\noutput_dir: {out}\nset: {{input.duration_s: {seconds:g}}}\n"
                     f"sweep: {{input.skip_s: {skips}, tracking.pll_bw_hz: {bws}}}\n"
                     f"inputs:\n  - name: tokyo\n    recording: {RECORDING}\n    config: {TOKYO_CONFIG}\n"
                     f"    reference_llh: [35.681298, 139.766247, 10.0]\n")
@@ -217,7 +226,7 @@ def cmd_dask(a) -> int:
     with tempfile.TemporaryDirectory(prefix="bench_scaling_dask_") as tmp:
         tmp = Path(tmp)
         batch = tmp / "batch.yaml"
-        _dask_batch_file(batch, tmp / "out", a.runs)
+        _dask_batch_file(batch, tmp / "out", a.runs, a.seconds)
         cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1, processes=True,
                                memory_limit=a.memory_limit, dashboard_address=None)
         client = Client(cluster)
@@ -281,6 +290,7 @@ def main() -> int:
     d.add_argument("--runs", type=int, default=100)
     d.add_argument("--workers", type=int, default=2)
     d.add_argument("--memory-limit", default="1GB")
+    d.add_argument("--seconds", type=float, default=2.0, help="signal seconds of each run")
     d.add_argument("--interval", type=float, default=1.0)
     a = ap.parse_args()
     return {"generate": cmd_generate, "run": cmd_run, "dask": cmd_dask}[a.what](a)
