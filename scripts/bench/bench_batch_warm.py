@@ -77,7 +77,7 @@ def run_separate(runs: int, out: Path, jobs: int, names: dict) -> tuple[float, f
     def one(i):
         h5 = out / names[float(i)]
         p = subprocess.run([sys.executable, "-m", "receiver.cli", "run", str(CONFIG), "--input",
-                            str(RECORDING.resolve()),
+                            str(RECORDING),
                             "--set", "input.duration_s=1", "--set", f"input.skip_s={i}", "-o", str(h5), "--quiet"],
                            capture_output=True, text=True, env=_env())
         if p.returncode != 0:
