@@ -3,12 +3,13 @@
 Execution
     ``jobs == 1``: in this process; ``jobs > 1``: a process pool (forkserver); a Dask ``scheduler``
     (``tcp://host:port`` or ``local``): the distributed cluster, through its concurrent.futures executor
-    (``output_dir`` and ``recordings_dir`` must then be on a file system shared with the workers, and the
-    workers need gnssrx installed).  At most ``capacity`` tasks are in flight; ready runs go first, then new
-    simulations.  With ``keep_recordings: false`` at most capacity + 1 simulated IF files exist at a time and
-    each is deleted as soon as its last run is done.  Pool workers exit within 0.5 s when the batch process
-    dies (even by SIGKILL), so a restarted batch never races an orphan; stale ``*.partial`` run files are
-    removed at start.  Ctrl-C stops the workers and keeps every finished run.
+    (``output_dir`` and ``recordings_dir`` must then be on a file system shared with the workers, and the workers
+    need gnssrx installed). Workers are warm (receiver/batch/warm.py): the imports and compiled kernels of a run are
+    loaded once per worker process, before its first task. At most ``capacity`` tasks are in flight; ready runs go
+    first, then new simulations. With ``keep_recordings: false`` at most capacity + 1 simulated IF files exist at a
+    time and each is deleted as soon as its last run is done. Pool workers exit within 0.5 s when the batch process
+    dies (even by SIGKILL), so a restarted batch never races an orphan; stale ``*.partial`` run files are removed at
+    start. Ctrl-C stops the workers and keeps every finished run.
 """
 from __future__ import annotations
 
@@ -37,7 +38,9 @@ class _InlineExecutor:
         pass
 
 
-_PRELOAD = ["receiver.batch.tasks", "receiver.pipeline", "receiver.sim.simulate", "receiver.evaluate"]
+#: imported by the forkserver before it forks the pool's workers: the run's modules and compiled kernels
+#: (receiver/batch/warm.py), so every worker starts warm
+_PRELOAD = ["receiver.batch._preload"]
 
 
 def _process_pool(jobs: int):
@@ -56,7 +59,8 @@ def _process_pool(jobs: int):
 
 def _worker_init(batch_pid: int):
     """Pool workers exit as soon as the batch process is gone: a batch killed hard (SIGKILL) leaves no
-    orphan still running (forkserver workers hold both ends of their task queue and never see EOF)."""
+    orphan still running (forkserver workers hold both ends of their task queue and never see EOF).
+    The worker is warm (receiver/batch/warm.py): forked from the warmed forkserver, or warmed here (spawn)."""
     def watch():
         while True:
             time.sleep(0.5)
@@ -68,6 +72,19 @@ def _worker_init(batch_pid: int):
                 pass
 
     threading.Thread(target=watch, name="gnssrx-batch-watchdog", daemon=True).start()
+    from .warm import warm
+    warm()
+
+
+def _warm_dask(client) -> None:
+    """Every worker of the cluster warm before its first task (receiver/batch/dask_warm.py); a cluster that
+    refuses the plugin still runs the batch (each worker then pays its imports at its first task)."""
+    try:
+        from .dask_warm import register
+        register(client)
+    except Exception as exc:  # noqa: BLE001 - an optimisation only
+        import logging
+        logging.getLogger("receiver.batch").info("batch           Dask workers not pre-warmed (%s)", exc)
 
 
 class _Exec:
@@ -93,6 +110,7 @@ class _Exec:
                         raise UserError(f"cannot connect to the Dask scheduler {scheduler}: {exc}") from None
                 self._own_client = True
             self.client, self.kind = client, "dask"
+            _warm_dask(client)
             self.capacity = max(1, sum(client.nthreads().values()))
             self.pool = client.get_executor(pure=False)
         elif jobs <= 1:

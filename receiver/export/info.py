@@ -33,28 +33,15 @@ def run_info(path) -> dict:
             groups.setdefault(top, 0)
             groups[top] += 1
         info["groups"] = groups
-        ch = {}
-        for name in rf.channel_names():
-            g = rf.channel(name, ("time_s", "cn0_dbhz", "state"))
-            if "time_s" in g and g["time_s"].shape[0]:
-                t = g["time_s"]
-                d = {"records": int(t.shape[0]), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
-                if "cn0_dbhz" in g and "state" in g:
-                    c = g["cn0_dbhz"][g["state"] == 2]
-                    if c.size:
-                        d["mean_cn0_dbhz"] = float(np.mean(c))
-                ch[name] = d
-        info["channels"] = ch
+        facts = _channels_acquisition(rf)
+        info["channels"] = facts["channels"]
         a_io = rf.iono_utc_attrs()
         if a_io is not None:
             info["iono_utc"] = {k: (np.asarray(a_io[k]).tolist() if k in ("alpha", "beta") else
                                     (a_io[k].item() if isinstance(a_io[k], np.generic) else a_io[k]))
                                 for k in ("source", "alpha", "beta", "dt_ls") if k in a_io}
-        acq = rf.acquisition(("prn", "detected"))
-        if "prn" in acq:
-            det = acq["detected"] if "detected" in acq else np.zeros(0, bool)
-            info["acquisition"] = {"searches": int(acq["prn"].shape[0]),
-                                   "detected_prns": sorted({int(p) for p in acq["prn"][det]})}
+        if "acquisition" in facts:
+            info["acquisition"] = facts["acquisition"]
     fx = run.fixes
     nav = {"fixes": int(len(fx))}
     if len(fx):
@@ -100,6 +87,44 @@ def run_info(path) -> dict:
     info["systems"] = [SYSTEM_NAMES[c] for c in letters]
     info["config"] = run.attrs.get("config", "")
     return info
+
+
+def _channels_acquisition(rf) -> dict:
+    """The ``channels`` (records, time span, mean C/N0 while tracked) and ``acquisition`` (searches, detected
+    PRNs) entries of :func:`run_info` from an open :class:`receiver.runfile.RunFile`."""
+    ch = {}
+    for name in rf.channel_names():
+        g = rf.channel(name, ("time_s", "cn0_dbhz", "state"))
+        if "time_s" in g and g["time_s"].shape[0]:
+            t = g["time_s"]
+            d = {"records": int(t.shape[0]), "t_first_s": float(t[0]), "t_last_s": float(t[-1])}
+            if "cn0_dbhz" in g and "state" in g:
+                c = g["cn0_dbhz"][g["state"] == 2]
+                if c.size:
+                    d["mean_cn0_dbhz"] = float(np.mean(c))
+            ch[name] = d
+    out = {"channels": ch}
+    acq = rf.acquisition(("prn", "detected"))
+    if "prn" in acq:
+        det = acq["detected"] if "detected" in acq else np.zeros(0, bool)
+        out["acquisition"] = {"searches": int(acq["prn"].shape[0]),
+                              "detected_prns": sorted({int(p) for p in acq["prn"][det]})}
+    return out
+
+
+def run_facts(path) -> dict:
+    """The few entries of :func:`run_info` that say why a run has no fix -- ``channels``, ``acquisition`` and
+    ``ephemerides`` (the satellites with a decoded ephemeris), the same values -- from one opening of the
+    file, without reading its fixes, observables and configuration (the end of every ``gnssrx run``
+    without a fix: receiver.probe.hints)."""
+    from ..gnss.satid import MIXED, sat_key
+    from ..runfile.reader import RunFile
+    with RunFile(path) as rf:
+        out = _channels_acquisition(rf)
+        mixed = rf.system == MIXED
+        out["ephemerides"] = sorted({int(sat_key(getattr(e, "system", "G"), e.prn) if mixed else e.prn)
+                                     for e in rf.ephemerides()})
+    return out
 
 
 def format_info(info: dict, show_config: bool = True) -> str:
@@ -172,4 +197,4 @@ def format_info(info: dict, show_config: bool = True) -> str:
     return "\n".join(L)
 
 
-__all__ = ["run_info", "format_info"]
+__all__ = ["run_info", "run_facts", "format_info"]

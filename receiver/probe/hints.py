@@ -76,8 +76,8 @@ def no_fix_lines(summary) -> list[str]:
     if summary.n_fixes:
         return []
     try:
-        from ..export.info import run_info
-        info = run_info(summary.output)
+        from ..export.info import run_facts
+        info = run_facts(summary.output)
     except Exception:  # noqa: BLE001 - the explanation must never fail the run
         return []
     det = info.get("acquisition", {}).get("detected_prns", [])
@@ -111,8 +111,8 @@ def explain_no_fix(cfg, summary) -> list[str]:
     if lines:
         return lines
     try:
-        from ..export.info import run_info
-        det = run_info(summary.output).get("acquisition", {}).get("detected_prns", [])
+        from ..export.info import run_facts
+        det = run_facts(summary.output).get("acquisition", {}).get("detected_prns", [])
     except Exception:  # noqa: BLE001 - the explanation must never fail the run
         return []
     return [] if det else no_satellite_lines(cfg)

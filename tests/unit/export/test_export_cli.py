@@ -108,3 +108,18 @@ def test_run_writes_enabled_outputs_beside_the_hdf5(tmp_path):
     assert out.exists() and (tmp_path / "short_report.png").exists()
     assert not (tmp_path / "short.kml").exists() and not (tmp_path / "short.obs").exists()
     assert "no KML track written" in res.output and "no RINEX observation file written" in res.output
+
+
+def test_run_facts_are_run_infos_entries_from_one_opening(linked):
+    """The end of a run without a fix reads only these entries (receiver.probe.hints): the same values as
+    ``gnssrx info``'s, and the ephemerides are the satellites of /ephemeris."""
+    import h5py
+    from receiver.export.info import run_facts, run_info
+    info, facts = run_info(linked), run_facts(linked)
+    assert set(facts) == {"channels", "acquisition", "ephemerides"}
+    for k in facts:
+        assert facts[k] == info[k], k
+    with h5py.File(linked) as f:
+        stored = sorted({int(p) for p in f["ephemeris/prn"][:]})
+    assert facts["ephemerides"] == stored and len(stored) >= 4
+    assert any("mean_cn0_dbhz" in c for c in facts["channels"].values())
