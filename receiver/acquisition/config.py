@@ -17,7 +17,9 @@ SIGNAL_PRNS = {name: tuple(get_signal(name).prns) for name in SIGNAL_NAMES}
 SIGNALS_SCHEMA = {
     "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
                                    "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages); gal_e1 (Galileo E1 OS) "
-                                   "is defined (codes, I/NAV) but not yet acquired or tracked",
+                                   "is defined (codes, I/NAV) but not yet acquired or tracked; gps_l5 (GPS L5 Q5 "
+                                   "pilot, 10.23 Mcps, with L1 in `signals` and input.signal_files; docs: Dual "
+                                   "frequency)",
                 choices=SIGNAL_NAMES),
     "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
                              "every signal is acquired and tracked from the same input (input.if_hz is the IF "
@@ -98,7 +100,7 @@ def signal_prns(cfg: Section, name: str) -> list:
 
 
 def _prn_text(name: str) -> str:
-    return {"gps_l1ca": "1-32 (GPS) and 193-202 (QZSS)", "gal_e1": "1-50"}.get(name, "1-63")
+    return {"gps_l1ca": "1-32 (GPS) and 193-202 (QZSS)", "gal_e1": "1-50", "gps_l5": "1-32"}.get(name, "1-63")
 
 
 def check_prns(a: Section):
