@@ -422,7 +422,13 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     if len(set(map(os.path.abspath, paths.values()))) < len(paths):
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
+    if sc.l5.enabled:                    # + an L5 file on the same clock (sim/multiband.py)
+        from .multiband import simulate_l1_l5
+        return simulate_l1_l5(sc, out_path, reads, progress)
     sim = _Simulator(sc)                 # input errors surface here, before any file or directory is made
+    if sc.atmosphere.iono_scale != 1.0:  # the true ionosphere: a multiple of the broadcast model
+        from .multiband import scale_ionosphere
+        scale_ionosphere(sim, sc.atmosphere.iono_scale)
     for kind, p in paths.items():        # missing directories are made (as for every command's outputs)
         check_output(p, reads, what={"if": "output", "truth": "truth file",
                                      "yaml": "receiver-input fragment", "sigmf": "SigMF metadata",
