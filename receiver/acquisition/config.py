@@ -34,6 +34,11 @@ SCHEMA = {
                                     "{bds_b1i: [6, 7, 8]}); a signal not listed searches acquisition.prns "
                                     "when it is the first of `signals`, else all its PRNs"),
     "coherent_ms": P(4, "int", "coherent integration per non-coherent step (ms)", lo=1, hi=10),
+    "band_aiding": P(True, "bool", "second band (gps_l5 in `signals`): search each satellite's L5 signal "
+                                   "around the code phase and Doppler of its L1 channel (false: every code phase, "
+                                   "the full Doppler range; docs: Dual frequency)"),
+    "band_ms": P(10, "int", "second band: 1-ms correlations summed non-coherently per L5 search", lo=1,
+                 hi=200),
     "noncoherent": P(10, "int", "number of non-coherent sums", lo=1, hi=100),
     "doppler_max_hz": P(10000.0, "float", "Doppler search half-range", lo=0.0),
     "doppler_step_hz": P(None, "float", "Doppler bin width (empty: 1/(2 T_coh))", nullable=True,

@@ -40,12 +40,6 @@ def l5_path(out_path) -> str:
     return stem + "_l5" + (ext or ".bin")
 
 
-def scale_ionosphere(sim, factor: float):
-    """The true ionosphere of simulator ``sim`` is ``factor`` times its model (exact no-op for 1.0)."""
-    if factor != 1.0:
-        sim.iono_scale = {p: v * factor for p, v in sim.iono_scale.items()}
-
-
 class _Q5Signs:
     """Per-millisecond signs of the Q5 pilot: NH20, aligned to the satellite's 20-ms epochs."""
 
@@ -74,10 +68,12 @@ def _as_l5(sim, factor: float, cn0_offset_db: float, seed: int):
     sim.rng = np.random.default_rng(np.random.SeedSequence([seed, 1, 5]))      # own noise stream
 
 
-def simulate_l1_l5(sc, out_path, reads, progress) -> dict:
+def simulate_l1_l5(sc, out_path, reads, progress, simulator, remove, output_paths, scale_ionosphere) -> dict:
     """Write the L1 and L5 recordings (and their truth and fragment files) of scenario ``sc`` (l5.enabled).
-    Returns the L1 paths plus ``l5_if`` and ``l5_truth``."""
-    from .simulate import _Simulator, _remove, output_paths
+    ``simulator``, ``remove``, ``output_paths``, ``scale_ionosphere``: receiver.sim.simulate's simulator class
+    and helpers (passed in: that module calls this one).  Returns the L1 paths plus ``l5_if`` and
+    ``l5_truth``."""
+    _Simulator, _remove = simulator, remove
     if sc.signals or sc.signal != "gps_l1ca":
         raise UserError("l5.enabled: the L1 + L5 recording is a GPS L1 C/A scenario (signal: gps_l1ca, "
                         "no signals list)")

@@ -424,11 +424,9 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
                         f"(use a .bin name)")
     if sc.l5.enabled:                    # + an L5 file on the same clock (sim/multiband.py)
         from .multiband import simulate_l1_l5
-        return simulate_l1_l5(sc, out_path, reads, progress)
+        return simulate_l1_l5(sc, out_path, reads, progress, _Simulator, _remove, output_paths, scale_ionosphere)
     sim = _Simulator(sc)                 # input errors surface here, before any file or directory is made
-    if sc.atmosphere.iono_scale != 1.0:  # the true ionosphere: a multiple of the broadcast model
-        from .multiband import scale_ionosphere
-        scale_ionosphere(sim, sc.atmosphere.iono_scale)
+    scale_ionosphere(sim, sc.atmosphere.iono_scale)
     for kind, p in paths.items():        # missing directories are made (as for every command's outputs)
         check_output(p, reads, what={"if": "output", "truth": "truth file",
                                      "yaml": "receiver-input fragment", "sigmf": "SigMF metadata",
@@ -452,6 +450,13 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     finally:
         lock.release()
     return paths
+
+
+def scale_ionosphere(sim, factor: float):
+    """The true ionosphere of simulator ``sim`` is ``factor`` times its model (atmosphere.iono_scale; the
+    broadcast parameters unchanged; exactly no change for 1.0)."""
+    if factor != 1.0:
+        sim.iono_scale = {p: v * factor for p, v in sim.iono_scale.items()}
 
 
 # formats written by the numba quantiser in kernel.py; the others go through source.io.Encoder
