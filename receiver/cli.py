@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
+from dataclasses import dataclass
 
 import click
 
@@ -29,6 +30,23 @@ def _prepare_process() -> None:
     _numba_start.prepare()
 
 
+@dataclass
+class _Invocation:
+    """One call of the ``gnssrx`` command group, owned by that call (the click context's ``obj``):
+    ``process_entry`` -- it is this process's own command line (not click's test runner nor a script
+    calling main(args=...)); ``finished_run`` -- ``gnssrx run`` has written all its outputs (its files are
+    closed and renamed): only then does the process exit without the teardown."""
+    process_entry: bool = False
+    finished_run: bool = False
+
+
+def _invocation() -> _Invocation:
+    """The running command's :class:`_Invocation` (a fresh one when the command runs outside the group)."""
+    ctx = click.get_current_context(silent=True)
+    inv = ctx.find_object(_Invocation) if ctx is not None else None
+    return inv if inv is not None else _Invocation()
+
+
 class _Group(click.Group):
     def main(self, *args, **kwargs):
         # the process's own command line: the console script or ``python -m receiver.cli`` (their __main__
@@ -36,12 +54,11 @@ class _Group(click.Group):
         # args=...), standalone (the exit status is the result); then the exit skips the teardown
         process_entry = not args and "args" not in kwargs and kwargs.get("standalone_mode", True) and \
             getattr(sys.modules.get("__main__"), "main", None) is self
-        global _process_entry
-        _process_entry = bool(process_entry)
+        inv = kwargs.setdefault("obj", _Invocation(process_entry=bool(process_entry)))
         try:
             return self._main(*args, **kwargs)
         except SystemExit as exc:
-            if process_entry and _finished_run:
+            if process_entry and isinstance(inv, _Invocation) and inv.finished_run:
                 _exit_now(exc.code)
             raise
 
@@ -82,12 +99,6 @@ class _Group(click.Group):
             sig = exc if isinstance(exc, interrupt.Interrupted) else interrupt.Interrupted(2)
             click.echo(f"gnssrx: interrupted by {sig.name}; unfinished output files removed", err=True)
             ctx.exit(sig.exit_code)
-
-
-#: set when ``gnssrx run`` has written all its outputs: only then does the process skip the teardown
-_finished_run = False
-#: this process's own command line is running (not click's test runner nor a script calling main(args=...))
-_process_entry = False
 
 
 def _exit_now(code) -> None:
@@ -171,12 +182,24 @@ def _load(config, input_path, sets, output=None):
 @click.option("--timings", is_flag=True, help="print the wall and CPU time of each stage to stderr")
 def run(config, input_path, output, sets, quiet, n_threads, timings):
     """Run the receiver on a recorded IF file and write one HDF5 file."""
-    from . import stagetimes
+    from .stagetimes import StageTimes, recording
+    inv = _invocation()
+    times = StageTimes()                    # this command's stage times (--timings)
+    times.add("start-up", *_since_process_start())
+    with recording(times):
+        _run(config, input_path, output, sets, quiet, n_threads, inv)
+    if timings:
+        import time
+        wall, _ = _since_process_start()
+        click.echo(times.text(wall, time.process_time()), err=True)
+    inv.finished_run = True          # run file closed, standard outputs written: exit without the teardown
+
+
+def _run(config, input_path, output, sets, quiet, n_threads, inv):
+    """``gnssrx run``'s work, inside its stage-time recording."""
     from .stagetimes import stage
-    stagetimes.reset()
-    stagetimes.add("start-up", *_since_process_start())
     import gc
-    own = _process_entry and gc.isenabled()
+    own = inv.process_entry and gc.isenabled()
     if own:
         gc.disable()                # no collection while the imports build their ~10^5 lasting objects
     try:
@@ -199,12 +222,6 @@ def run(config, input_path, output, sets, quiet, n_threads, timings):
     click.echo(summary.text())                   # --quiet silences the progress bar only
     for line in explain_no_fix(cfg, summary):    # what was acquired / tracked, what to check
         click.echo(line)
-    if timings:
-        import time
-        wall, _ = _since_process_start()
-        click.echo(stagetimes.text(wall, time.process_time()), err=True)
-    global _finished_run
-    _finished_run = True            # run file closed, standard outputs written: exit without the teardown
 
 
 def _freeze_gc():
@@ -213,7 +230,7 @@ def _freeze_gc():
     They live as long as the process; otherwise every full collection during the run walks them again,
     40-60 ms each, landing wherever the allocation counts trigger one (in a 1-s run: during the imports
     and in the HDF5 close; 0.11 -> 0.015 s of collections).  Objects created later are collected as
-    usual.  Only for the process's own command line (``_process_entry``): a test runner or a script calling
+    usual.  Only for the process's own command line (``_Invocation.process_entry``): a test runner or a script calling
     ``main`` keeps its collector as it is (freezing would keep its uncollected garbage forever)."""
     import atexit
     import gc

@@ -14,7 +14,7 @@ import logging
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,11 +30,13 @@ from .schema import RECEIVER_SCHEMA, plugins_attr, run_signals, signal_prns
 from .runfile.provenance import provenance_async
 from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
-from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
+from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST
 from .gnss.registry import get_signal
-from .gnss.satid import MIXED, sat_key, sat_label
+from .gnss.satid import MIXED, sat_key
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
+from .tracking.table import ChannelTable
+from .summary import RunSummary
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
@@ -67,78 +69,6 @@ def open_band_input(cfg, name: str) -> SampleReader:
                           encoding=i.encoding)
     reader.if_hz = float(own.get("if_hz", 0.0))
     return reader
-
-
-@dataclass
-class RunSummary:
-    """What :func:`run` returns (and ``gnssrx run`` prints): the output path, the signal duration and wall
-    time, the satellites tracked with their mean C/N0, the number of fixes and the first fix time, the
-    mean position and its east/north/up scatter, and counters (parity failures, re-acquisitions, false
-    locks restarted, non-finite samples, fixes per ionospheric parameter set)."""
-    output: str
-    duration_s: float
-    wall_s: float
-    tracked: list = field(default_factory=list)
-    mean_cn0: dict = field(default_factory=dict)
-    n_fixes: int = 0
-    first_fix_s: float | None = None
-    mean_llh: tuple | None = None
-    scatter_m: tuple | None = None     # (east, north, up) standard deviation
-    parity_failures: int = 0
-    reacquisitions: int = 0
-    false_locks: dict = field(default_factory=dict)     # sat key -> carrier false locks restarted
-    nonfinite_samples: int = 0         # NaN/Inf input samples replaced by zeros
-    system: str = "G"                  # RINEX letter of the signal (labels: G05, J01, C12)
-    # fixes per FIX_DTYPE iono_params code, and the first fix (s after the first sample) with broadcast ones
-    iono_counts: dict = field(default_factory=dict)
-    iono_broadcast_from_s: float | None = None
-    notes: list = field(default_factory=list)   # input conditioning / acquisition lines
-
-    def iono_text(self) -> str:
-        """Which Klobuchar parameters the fixes used (FIX_DTYPE iono_params)."""
-        n = self.iono_counts
-        before = [w for k, w in ((IONO_FALLBACK, "fallback set"), (IONO_NONE, "no correction")) if n.get(k)]
-        if n.get(IONO_BROADCAST):
-            if not before:
-                return "broadcast parameters (every fix)"
-            return f"broadcast parameters from {self.iono_broadcast_from_s:.1f} s, {' / '.join(before)} before"
-        if n.get(IONO_FALLBACK):
-            return "fallback set (no broadcast parameters known; navigation.klobuchar_fallback)"
-        return "no correction (navigation.ionosphere none, or no parameters known)"
-
-    @property
-    def realtime_factor(self) -> float:
-        """Seconds of signal processed per second of wall-clock time (inf for a zero wall time)."""
-        return self.duration_s / self.wall_s if self.wall_s > 0 else float("inf")
-
-    def text(self) -> str:
-        """The run summary as text (one item per line), as ``gnssrx run`` prints it."""
-        lines = [f"output          {self.output}",
-                 f"signal          {self.duration_s:.1f} s processed in {self.wall_s:.1f} s "
-                 f"(real-time factor {self.realtime_factor:.1f}x)",
-                 f"tracked         {len(self.tracked)} satellites: "
-                 + " ".join(f"{sat_label(p, self.system)}({self.mean_cn0[p]:.1f})" for p in self.tracked)]
-        if self.mean_cn0:
-            lines.append(f"mean C/N0       {np.mean(list(self.mean_cn0.values())):.1f} dB-Hz")
-        if self.reacquisitions:
-            lines.append(f"re-acquisitions {self.reacquisitions} (signal lost and found again)")
-        if self.false_locks:
-            lines.append("false locks     " + " ".join(f"{sat_label(p, self.system)} x{n}" for p, n in
-                                                      sorted(self.false_locks.items()))
-                         + " (carrier off the code's Doppler: channel restarted there)")
-        if self.n_fixes:
-            lat, lon, h = self.mean_llh
-            lines += [f"first fix       {self.first_fix_s:.2f} s after the first sample",
-                      f"fixes           {self.n_fixes}",
-                      f"mean position   lat {lat:.7f} lon {lon:.7f} h {h:.2f} m",
-                      "scatter (1 sd)  E {:.2f} N {:.2f} U {:.2f} m".format(*self.scatter_m)]
-        else:
-            lines.append("fixes           none")
-        if self.n_fixes and self.iono_counts:
-            lines.append(f"ionosphere      {self.iono_text()}")
-        if self.nonfinite_samples:
-            lines.append(f"input           {self.nonfinite_samples} non-finite samples replaced by zeros")
-        return "\n".join(lines + self.notes)
 
 
 def default_output_path(cfg, input_path: str) -> str:
@@ -194,18 +124,15 @@ def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None
     return reader
 
 
-def _vector_handover(cfg, parts, nav, fs, quiet=False):
+def _vector_handover(cfg, parts, table, nav, fs, quiet=False):
     """Vector-loop handover state (owned by the run): ``.step(start)`` returns a vector tracker once
     vector.start_s is reached (or 5 s after the first fix), else None.  The tracker's
     ``process(blocks, start)`` (the chunk of every signal's stream, in the order of ``parts``) returns
     ({key: EPOCH_DTYPE records}, FIX_DTYPE fixes, mode 1 or 2 = coast) and drives the channels' NCOs;
-    ``tracker.reinit_needed`` asks for a fall-back to scalar tracking.  Several signals: the tracker sees
-    the channel managers' channels as one dict keyed by satellite key (tracking.vector.tracker.RunChannels)."""
+    ``tracker.reinit_needed`` asks for a fall-back to scalar tracking.  The tracker sees the run's channel
+    table (receiver.tracking.table.ChannelTable: every channel manager's channels by satellite key)."""
     from .tracking.vector import Handover
-    from .tracking.vector.tracker import RunChannels
-    channels = parts[0].manager.channels if len(parts) == 1 else \
-        RunChannels([(p.signal, p.manager.channels) for p in parts])
-    return Handover(cfg, channels, nav, fs, log=(lambda msg: None) if quiet else None,
+    return Handover(cfg, table, nav, fs, log=(lambda msg: None) if quiet else None,
                     signals=[(p.signal, p.reader.if_hz) for p in parts])
 
 
@@ -352,65 +279,17 @@ def _run(cfg, readers, writer, ephemerides, iono, quiet, log, band_reader=None) 
             r.close()
 
 
-class _Keyed:
-    """What one signal's channel manager sees of the run's navigation engine or run writer in a run over
-    several signals: the signal's PRNs become satellite keys (receiver.gnss.satid.sat_key)."""
-
-    def __init__(self, target, system: str):
-        self._t, self._sys = target, system
-
-    def _k(self, prn):
-        return sat_key(self._sys, prn)
-
-    def __getattr__(self, name):
-        return getattr(self._t, name)
-
-    # navigation engine
-    @property
-    def channels(self):
-        return {p - self._k(0): c for p, c in self._t.channels.items()
-                if (p > sat_key("C", 0)) == (self._sys == "C")}
-
-    def add_records(self, prn, recs, bit_offset):
-        self._t.add_records(self._k(prn), recs, bit_offset)
-
-    def suspend(self, prn):
-        self._t.suspend(self._k(prn))
-
-    def resume(self, prn, *a, **k):
-        self._t.resume(self._k(prn), *a, **k)
-
-    def satellite_los(self, prn, s):
-        return self._t.satellite_los(self._k(prn), s)
-
-    def set_noncoherent(self, prn, from_sample):
-        self._t.set_noncoherent(self._k(prn), from_sample)
-
-    # run writer
-    def append_channel(self, prn, recs):
-        self._t.append_channel(self._k(prn), recs)
-
-    def write_acquisition(self, results, attrs=None):
-        import copy
-        out = []
-        for r in results:
-            r = copy.copy(r)
-            r.prn = self._k(r.prn)
-            out.append(r)
-        self._t.write_acquisition(out, attrs)
-
-
 @dataclass
 class _Part:
     """One signal of the run: its input stages and channel manager; ``key`` maps its PRNs to the run's
-    satellite keys (identity in a one-signal run)."""
+    satellite keys (the run's channel table: identity in a one-signal run)."""
     signal: object
     reader: object
-    multi: bool = False
+    table: ChannelTable
     manager: object = None
 
     def key(self, prn: int) -> int:
-        return sat_key(self.signal.system, prn) if self.multi else prn
+        return self.table.key(self.signal.system, prn)
 
 
 def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono, band_reader=None) -> RunSummary:
@@ -449,13 +328,13 @@ class _ChunkLoop:
                 from .navigation.channel import PRESENCE_MARGIN_DB
                 nav.presence_cn0 = pres.min_cn0_dbhz + PRESENCE_MARGIN_DB
         self.parts = []
+        table = self.table = ChannelTable(multi)     # every signal's channels by the run's satellite key
         for sig, rd in zip(sigs, readers):
-            part = _Part(sig, rd, multi)
-            p_nav = _Keyed(nav, sig.system) if multi and nav is not None else nav
-            p_writer = _Keyed(writer, sig.system) if multi else writer
-            part.manager = ChannelManager(cfg, rd, p_nav, fs, rd.if_hz, sig,
-                                          functools.partial(acquire, signal=sig), p_writer,
-                                          prns=signal_prns(cfg, sig.name))
+            part = _Part(sig, rd, table)
+            part.manager = ChannelManager(cfg, rd, table.signal_view(nav, sig.system), fs, rd.if_hz, sig,
+                                          functools.partial(acquire, signal=sig),
+                                          table.signal_view(writer, sig.system), prns=signal_prns(cfg, sig.name))
+            table.add(sig.system, part.manager.channels)
             self.parts.append(part)
         with stage("acquisition"):
             for part in self.parts:
@@ -469,7 +348,7 @@ class _ChunkLoop:
         self.overlap = int(OVERLAP_S * fs)
         self.vector = None
         self.vfixes = None
-        self.handover = _vector_handover(cfg, self.parts, nav, fs, quiet) if cfg.vector.enabled else None
+        self.handover = _vector_handover(cfg, self.parts, table, nav, fs, quiet) if cfg.vector.enabled else None
         self.bar = _progress(reader.duration_s, quiet)
 
     def finish_chunk(self, end):

@@ -1,6 +1,7 @@
-"""RINEX navigation files: GPS broadcast ephemerides (reader 2.x/3.x, writer 3.04).
+"""RINEX navigation files: GPS / QZSS, BeiDou and Galileo broadcast ephemerides (reader 2.x/3.x, writer 3.04).
 
-Only GPS records are used; records of other systems in RINEX 3 mixed files are skipped.
+A reader call takes the records of the systems it asks for (GPS + QZSS, BeiDou, or Galileo); records of other
+systems in RINEX 3 mixed files are skipped.  Galileo records: :mod:`receiver.gnss.rinex_gal`.
 """
 from __future__ import annotations
 
@@ -63,6 +64,9 @@ def _records(lines, is_start):
         yield rec
 
 
+_SYSTEM_NAME = {"C": "BeiDou", "E": "Galileo"}
+
+
 def _eph_from_values(prn, epoch, v, path):
     """v: the 31 values of a record (af0, af1, af2, then 7 broadcast-orbit lines x 4)."""
     y, mo, d, h, mi, s = epoch
@@ -97,14 +101,15 @@ def _bds_from_values(prn, epoch, v):
         tgd2=v[26], tx_time=v[27] if abs(v[27]) < 0.9e9 else float("nan"))
 
 
-def read_rinex_nav(path, systems=("G", "J")):
-    """Read a RINEX 2.x or 3.x navigation file: GPS and QZSS records (QZSS Jnn as PRN 192 + nn), or with
-    ``systems=("C",)`` the BeiDou records of a RINEX 3 file (:class:`BdsEphemeris`, BDT).
 
-    Returns (dict prn -> list of Ephemeris sorted by (week, toe), IonoUtc or None).
-    Raises UserError when the file is missing or has no usable record of those systems.
-    """
-    path = Path(path)
+
+def _wanted_name(systems) -> str:
+    """The name of the system group a reader call asks for, for its messages (GPS for G/J)."""
+    return next((_SYSTEM_NAME[s] for s in systems if s in _SYSTEM_NAME), "GPS")
+
+
+def _nav_lines(path: Path, systems) -> tuple[list, float]:
+    """The lines of a navigation file and its RINEX version, after the checks of its first line."""
     try:
         text = path.read_text(errors="replace")
     except OSError as exc:
@@ -119,7 +124,8 @@ def read_rinex_nav(path, systems=("G", "J")):
     ftype = lines[0][20:21].upper()
     system = lines[0][40:41].upper()
     if version < 3 and "G" not in systems:
-        raise UserError(f"{path}: RINEX {version:g} navigation files hold GPS only (BeiDou needs RINEX 3)")
+        raise UserError(f"{path}: RINEX {version:g} navigation files hold GPS only "
+                        f"({'Galileo' if 'E' in systems else 'BeiDou'} needs RINEX 3)")
     if version < 3:
         if ftype != "N":
             raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a GPS navigation file")
@@ -128,11 +134,18 @@ def read_rinex_nav(path, systems=("G", "J")):
             raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a navigation file")
         if system not in tuple(systems) + ("M", " ", ""):
             raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not "
-                            f"{'BeiDou' if 'C' in systems else 'GPS'}")
+                            f"{_wanted_name(systems)}")
+    return lines, version
 
-    alpha = beta = None
-    a0 = a1 = tot = wnt = None
-    dt_ls = dt_lsf = wn_lsf = dn = None
+
+def _header_values(path: Path, lines, version: float, systems) -> tuple[dict, int]:
+    """The corrections of a navigation file's header and the index of its END OF HEADER line.
+
+    Keys: ``alpha``/``beta`` (Klobuchar: GPS lines, or with ``C`` in ``systems`` the BeiDou ones when the
+    file has no GPS set before them), ``gput`` (a0, a1, tot, wnt), ``leap`` (dt_ls, dt_lsf, wn_lsf, dn), and
+    with ``E`` in ``systems`` ``gal`` (ai0, ai1, ai2), ``gaut`` and ``gpga`` (a0, a1, t, week)."""
+    h: dict = {"alpha": None, "beta": None, "gput": None, "leap": None}
+    gal = "E" in systems
     end = None
     try:
         for i, line in enumerate(lines):
@@ -141,81 +154,124 @@ def read_rinex_nav(path, systems=("G", "J")):
                 end = i
                 break
             if label == "ION ALPHA":
-                alpha = tuple(_fixed(line, 2, 12, 4))
+                h["alpha"] = tuple(_fixed(line, 2, 12, 4))
             elif label == "ION BETA":
-                beta = tuple(_fixed(line, 2, 12, 4))
+                h["beta"] = tuple(_fixed(line, 2, 12, 4))
             elif label == "DELTA-UTC: A0,A1,T,W":
                 a0, a1 = _fixed(line, 3, 19, 2)
-                tot, wnt = int(_num(line[41:50])), int(_num(line[50:59]))
+                h["gput"] = (a0, a1, int(_num(line[41:50])), int(_num(line[50:59])))
             elif label == "IONOSPHERIC CORR":
                 key = line[:4].strip().upper()
-                if key == "GPSA" or (key == "BDSA" and "C" in systems and alpha is None):
-                    alpha = tuple(_fixed(line, 5, 12, 4))
-                elif key == "GPSB" or (key == "BDSB" and "C" in systems and beta is None):
-                    beta = tuple(_fixed(line, 5, 12, 4))
+                if key == "GPSA" or (key == "BDSA" and "C" in systems and h["alpha"] is None):
+                    h["alpha"] = tuple(_fixed(line, 5, 12, 4))
+                elif key == "GPSB" or (key == "BDSB" and "C" in systems and h["beta"] is None):
+                    h["beta"] = tuple(_fixed(line, 5, 12, 4))
+                elif key == "GAL" and gal:
+                    h["gal"] = tuple(_fixed(line, 5, 12, 3))
             elif label == "TIME SYSTEM CORR":
-                if line[:4].strip().upper() == "GPUT":
-                    a0 = _num(line[5:22])
-                    a1 = _num(line[22:38])
-                    tot = int(_num(line[38:45]))
-                    wnt = int(_num(line[45:50]))
+                key = line[:4].strip().upper()
+                if key == "GPUT" or (gal and key in ("GAUT", "GPGA")):
+                    h[key.lower()] = (_num(line[5:22]), _num(line[22:38]), int(_num(line[38:45])),
+                                      int(_num(line[45:50])))
             elif label == "LEAP SECONDS":
-                vals = [line[k * 6:(k + 1) * 6].strip() for k in range(4)]
-                dt_ls = int(vals[0]) if vals[0] else None
-                if version >= 3:
-                    dt_lsf = int(vals[1]) if vals[1] else None
-                    wn_lsf = int(vals[2]) if vals[2] else None
-                    dn = int(vals[3]) if vals[3] else None
+                v = [line[k * 6:(k + 1) * 6].strip() for k in range(4)]
+                h["leap"] = tuple(int(x) if x and (k == 0 or version >= 3) else None for k, x in enumerate(v))
     except ValueError as exc:
         raise UserError(f"{path}: bad RINEX header line {i + 1}: {exc}") from None
     if end is None:
         raise UserError(f"{path}: no 'END OF HEADER' line")
+    return h, end
 
-    iono = None
-    if alpha is not None or beta is not None or a0 is not None:
-        iono = IonoUtc(alpha=alpha or (0.0,) * 4, beta=beta or (0.0,) * 4,
-                       a0=a0 or 0.0, a1=a1 or 0.0, tot=float(tot or 0), wnt=int(wnt or 0),
-                       dt_ls=int(dt_ls or 0), wn_lsf=wn_lsf, dn=dn, dt_lsf=dt_lsf)
 
-    body = lines[end + 1:]
-    out: dict[int, list[Ephemeris]] = {}
+def _iono_utc(h: dict) -> IonoUtc | None:
+    """The GPS-style iono/UTC set of a header (:func:`_header_values`), None when it has none."""
+    if h["alpha"] is None and h["beta"] is None and h["gput"] is None:
+        return None
+    a0, a1, tot, wnt = h["gput"] or (None, None, None, None)
+    dt_ls, dt_lsf, wn_lsf, dn = h["leap"] or (None, None, None, None)
+    return IonoUtc(alpha=h["alpha"] or (0.0,) * 4, beta=h["beta"] or (0.0,) * 4,
+                   a0=a0 or 0.0, a1=a1 or 0.0, tot=float(tot or 0), wnt=int(wnt or 0),
+                   dt_ls=int(dt_ls or 0), wn_lsf=wn_lsf, dn=dn, dt_lsf=dt_lsf)
+
+
+def _record_values(rec, version: float):
+    """(satellite letter, PRN, epoch tuple, the 31 values) of one record of the GPS/BeiDou/Galileo layout
+    (ValueError / IndexError when it is malformed); QZSS Jnn is PRN 192 + nn."""
+    head = rec[0]
     if version < 3:
-        starts = _records(body, lambda ln: ln[:3].strip() != "")
+        letter, prn = "G", int(head[0:2])
+        yy = int(head[3:5])
+        year = yy + (2000 if yy < 80 else 1900)
+        epoch = (year, int(head[6:8]), int(head[9:11]), int(head[12:14]), int(head[15:17]), float(head[17:22]))
+        vals = _fixed(head, 22, 19, 3)
+        orbit_start = 3
     else:
-        starts = _records(body, lambda ln: ln[:1] != " ")
-    for rec in starts:
+        letter = head[0].upper()
+        prn = int(head[1:3]) + (192 if letter == "J" else 0)
+        epoch = (int(head[4:8]), int(head[9:11]), int(head[12:14]), int(head[15:17]),
+                 int(head[18:20]), float(head[21:23]))
+        vals = _fixed(head, 23, 19, 3)
+        orbit_start = 4
+    if len(rec) < 8:
+        raise ValueError(f"record has {len(rec)} lines, expected 8")
+    for ln in rec[1:8]:
+        vals += _fixed(ln.ljust(orbit_start + 76), orbit_start, 19, 4)
+    return letter, prn, epoch, vals
+
+
+def _nav_records(path: Path, body, version: float, systems):
+    """The ephemerides of the records of ``systems`` in a navigation file's body, in file order."""
+    if version < 3:
+        recs = _records(body, lambda ln: ln[:3].strip() != "")
+    else:
+        recs = _records(body, lambda ln: ln[:1] != " ")
+    for rec in recs:
         head = rec[0]
+        if version >= 3 and head[0].upper() not in systems:     # other systems' records (other layouts)
+            continue
         try:
-            if version < 3:
-                prn = int(head[0:2])
-                yy = int(head[3:5])
-                year = yy + (2000 if yy < 80 else 1900)
-                epoch = (year, int(head[6:8]), int(head[9:11]), int(head[12:14]),
-                         int(head[15:17]), float(head[17:22]))
-                vals = _fixed(head, 22, 19, 3)
-                orbit_start = 3
-            else:
-                if head[0].upper() not in systems:     # QZSS J01.. records: PRN 193.., GPS layout
-                    continue
-                prn = int(head[1:3]) + (192 if head[0].upper() == "J" else 0)
-                epoch = (int(head[4:8]), int(head[9:11]), int(head[12:14]), int(head[15:17]),
-                         int(head[18:20]), float(head[21:23]))
-                vals = _fixed(head, 23, 19, 3)
-                orbit_start = 4
-            if len(rec) < 8:
-                raise ValueError(f"record has {len(rec)} lines, expected 8")
-            for ln in rec[1:8]:
-                vals += _fixed(ln.ljust(orbit_start + 76), orbit_start, 19, 4)
-            if version >= 3 and head[0].upper() == "C":
+            letter, prn, epoch, vals = _record_values(rec, version)
+            if letter == "C":
                 eph = _bds_from_values(prn, epoch, vals)
+            elif letter == "E":
+                from .rinex_gal import gal_from_values
+                eph = gal_from_values(prn, epoch, vals)
             else:
                 eph = _eph_from_values(prn, epoch, vals, path)
         except (ValueError, IndexError) as exc:
-            raise UserError(f"{path}: bad GPS navigation record '{head.strip()[:23]}': {exc}") from None
-        out.setdefault(prn, []).append(eph)
+            what = "Galileo" if head[:1].upper() == "E" else "GPS"
+            raise UserError(f"{path}: bad {what} navigation record '{head.strip()[:23]}': {exc}") from None
+        if eph is not None:
+            yield eph
+
+
+def read_rinex_nav(path, systems=("G", "J")):
+    """Read a RINEX 2.x or 3.x navigation file: GPS and QZSS records (QZSS Jnn as PRN 192 + nn), or with
+    ``systems=("C",)`` the BeiDou records of a RINEX 3 file (:class:`BdsEphemeris`, BDT), or with
+    ``systems=("E",)`` its Galileo I/NAV records (:class:`GalEphemeris`, layout and conventions in
+    :mod:`receiver.gnss.rinex_gal`).
+
+    Returns (dict prn -> list of Ephemeris sorted by (week, toe), IonoUtc or None).
+    Raises UserError when the file is missing or has no usable record of those systems.
+    """
+    path = Path(path)
+    lines, version = _nav_lines(path, systems)
+    h, end = _header_values(path, lines, version, systems)
+    iono = _iono_utc(h)
+    out: dict[int, list[Ephemeris]] = {}
+    seen = set()
+    for eph in _nav_records(path, lines[end + 1:], version, systems):
+        if getattr(eph, "system", "G") == "E":         # one record per batch (files repeat I/NAV batches)
+            key = (eph.prn, eph.week, eph.toe, eph.iode)
+            if key in seen:
+                continue
+            seen.add(key)
+        out.setdefault(eph.prn, []).append(eph)
     if not out:
-        if "C" in systems:
-            raise UserError(f"{path}: no usable BeiDou navigation records (RINEX 3 'Cnn' records needed)")
+        if "C" in systems or "E" in systems:
+            letter = "C" if "C" in systems else "E"
+            raise UserError(f"{path}: no usable {_SYSTEM_NAME[letter]} navigation records (RINEX 3 "
+                            f"'{letter}nn' records needed)")
         raise UserError(f"{path}: no usable GPS navigation records (header only, no GPS records, or records "
                         f"not in the RINEX {version:g} layout the header declares)")
     for prn in out:
@@ -255,54 +311,85 @@ def _bds_record(e) -> list:
     return out
 
 
-def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gnssrx", system: str = "G"):
-    """Write a RINEX 3.04 navigation file of L1 C/A satellites (GPS; QZSS PRNs 193.. as J01.., same
-    record layout).
+def _gps_record(e, system: str) -> list:
+    """RINEX 3.04 GPS / QZSS navigation record (epoch = toc, in the week of toc)."""
+    from .satid import sat_label
+    dtoc = e.toc - e.toe
+    toc_week = e.week + (1 if dtoc < -WEEK_S / 2 else -1 if dtoc > WEEK_S / 2 else 0)
+    t = calendar_from_gps_time(toc_week, e.toc)
+    sec = t.second + t.microsecond * 1e-6
+    out = [f"{sat_label(e.prn, system)} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} "
+           f"{t.minute:02d} {int(round(sec)):02d}" + _d19(e.af0) + _d19(e.af1) + _d19(e.af2) + "\n"]
+    tx = e.tx_time if np.isfinite(e.tx_time) else 0.9999e9
+    rows = [
+        (e.iode, e.crs, e.delta_n, e.m0),
+        (e.cuc, e.e, e.cus, e.sqrt_a),
+        (e.toe, e.cic, e.omega0, e.cis),
+        (e.i0, e.crc, e.omega, e.omega_dot),
+        (e.idot, e.code_on_l2, e.week, e.l2p_flag),
+        (ura_m_from_index(e.ura_index), e.health, e.tgd, e.iodc),
+        (tx, 6.0 if e.fit_interval else 4.0),
+    ]
+    for row in rows:
+        out.append("    " + "".join(_d19(float(v)) for v in row) + "\n")
+    return out
 
-    ephs: dict prn -> list of Ephemeris, or a flat iterable of Ephemeris.
+
+def _record_system(e, system: str) -> str:
+    """The RINEX letter of an ephemeris: its class' ``system`` (C, E), else from the PRN (G or J)."""
+    from .satid import sat_system
+    own = getattr(e, "system", "G")
+    return own if own in ("C", "E") else sat_system(e.prn, system)
+
+
+def _header_lines(iono: IonoUtc | None, gal: dict | None) -> list:
+    """The correction lines of a navigation file's header: the GPS Klobuchar / GPS-UTC / leap-second
+    set of ``iono`` and the Galileo lines of ``gal`` (:func:`receiver.gnss.rinex_gal.gal_header_lines`)."""
+    from .rinex_gal import gal_header_lines
+    g = gal_header_lines(gal) if gal else []
+    out = []
+    if iono is not None:
+        out.append(_hdr("GPSA " + "".join(_d12(v) for v in iono.alpha), "IONOSPHERIC CORR"))
+        out.append(_hdr("GPSB " + "".join(_d12(v) for v in iono.beta), "IONOSPHERIC CORR"))
+    out += [ln for ln in g if "IONOSPHERIC CORR" in ln]
+    if iono is not None:
+        out.append(_hdr(f"GPUT {iono.a0:17.10E}{iono.a1:16.9E}{int(iono.tot):7d}{int(iono.wnt):5d}",
+                        "TIME SYSTEM CORR"))
+    out += [ln for ln in g if "IONOSPHERIC CORR" not in ln]
+    if iono is not None:
+        leap = f"{int(iono.dt_ls):6d}"
+        if iono.dt_lsf is not None and iono.wn_lsf is not None and iono.dn is not None:
+            leap += f"{int(iono.dt_lsf):6d}{int(iono.wn_lsf):6d}{int(iono.dn):6d}"
+        out.append(_hdr(leap, "LEAP SECONDS"))
+    elif gal and gal.get("utc") is not None:
+        out.append(_hdr(f"{int(gal['utc'].dt_ls):6d}", "LEAP SECONDS"))
+    return out
+
+
+def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gnssrx", system: str = "G",
+                    gal: dict | None = None):
+    """Write a RINEX 3.04 navigation file: GPS and QZSS records (QZSS PRNs 193.. as J01..), BeiDou
+    (:class:`BdsEphemeris`) and Galileo (:class:`GalEphemeris`) ones; several systems make a mixed file.
+
+    ephs: dict prn -> list of Ephemeris, or a flat iterable of Ephemeris.  gal: the Galileo header
+    parameters ({"nequick", "utc", "ggto", "gst_week"}, :func:`receiver.gnss.rinex_gal.gal_header_lines`),
+    None for none.
     """
-    from .satid import sat_label, sat_system
+    from .rinex_gal import gal_record
     if isinstance(ephs, dict):
         flat = [e for lst in ephs.values() for e in lst]
     else:
         flat = list(ephs)
     flat.sort(key=lambda e: (e.week, e.toc, e.prn))
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d %H%M%S UTC")
-    letters = {"C" if getattr(e, "system", "G") == "C" else sat_system(e.prn, system) for e in flat}
-    kind = {frozenset("G"): "G: GPS", frozenset("J"): "J: QZSS", frozenset("C"): "C: BeiDou"}.get(
-        frozenset(letters), "M: MIXED")
+    letters = {_record_system(e, system) for e in flat}
+    kind = {frozenset("G"): "G: GPS", frozenset("J"): "J: QZSS", frozenset("C"): "C: BeiDou",
+            frozenset("E"): "E: Galileo"}.get(frozenset(letters), "M: MIXED")
     out = [_hdr(f"{3.04:9.2f}" + " " * 11 + f"N: GNSS NAV DATA    {kind}", "RINEX VERSION / TYPE"),
            _hdr(f"{program:<20}{'':<20}{now:<20}", "PGM / RUN BY / DATE")]
-    if iono is not None:
-        out.append(_hdr("GPSA " + "".join(_d12(v) for v in iono.alpha), "IONOSPHERIC CORR"))
-        out.append(_hdr("GPSB " + "".join(_d12(v) for v in iono.beta), "IONOSPHERIC CORR"))
-        out.append(_hdr(f"GPUT {iono.a0:17.10E}{iono.a1:16.9E}{int(iono.tot):7d}{int(iono.wnt):5d}",
-                        "TIME SYSTEM CORR"))
-        leap = f"{int(iono.dt_ls):6d}"
-        if iono.dt_lsf is not None and iono.wn_lsf is not None and iono.dn is not None:
-            leap += f"{int(iono.dt_lsf):6d}{int(iono.wn_lsf):6d}{int(iono.dn):6d}"
-        out.append(_hdr(leap, "LEAP SECONDS"))
+    out += _header_lines(iono, gal)
     out.append(_hdr("", "END OF HEADER"))
     for e in flat:
-        if getattr(e, "system", "G") == "C":
-            out.extend(_bds_record(e))
-            continue
-        dtoc = e.toc - e.toe
-        toc_week = e.week + (1 if dtoc < -WEEK_S / 2 else -1 if dtoc > WEEK_S / 2 else 0)
-        t = calendar_from_gps_time(toc_week, e.toc)
-        sec = t.second + t.microsecond * 1e-6
-        out.append(f"{sat_label(e.prn, system)} {t.year:04d} {t.month:02d} {t.day:02d} {t.hour:02d} "
-                   f"{t.minute:02d} {int(round(sec)):02d}" + _d19(e.af0) + _d19(e.af1) + _d19(e.af2) + "\n")
-        tx = e.tx_time if np.isfinite(e.tx_time) else 0.9999e9
-        rows = [
-            (e.iode, e.crs, e.delta_n, e.m0),
-            (e.cuc, e.e, e.cus, e.sqrt_a),
-            (e.toe, e.cic, e.omega0, e.cis),
-            (e.i0, e.crc, e.omega, e.omega_dot),
-            (e.idot, e.code_on_l2, e.week, e.l2p_flag),
-            (ura_m_from_index(e.ura_index), e.health, e.tgd, e.iodc),
-            (tx, 6.0 if e.fit_interval else 4.0),
-        ]
-        for row in rows:
-            out.append("    " + "".join(_d19(float(v)) for v in row) + "\n")
+        letter = _record_system(e, system)
+        out.extend(_bds_record(e) if letter == "C" else gal_record(e) if letter == "E" else _gps_record(e, system))
     Path(path).write_text("".join(out))

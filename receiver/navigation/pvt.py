@@ -448,23 +448,44 @@ class NavSolver:
         s = self._prepare(rx_tow, observations, ephemerides, week)
         if s is None or len(s) < (4 if aid is None else 3):
             return None
-        n = len(s)
-        active = np.ones(n, dtype=bool)
+        active = np.ones(len(s), dtype=bool)
         rejected = []
+        start = self._initial_state(s, active, x0, iono_utc, rx_tow, rejected)
+        if start is None:
+            return None
+        x, b = start
+        # elevation mask, from the first position
+        _, el0 = azel(x, earth_rotation(s.pos, np.linalg.norm(s.pos - x, axis=1) / C_LIGHT))
+        active &= el0 >= np.radians(self.elevation_mask_deg)
+        sol = self._solve_screened(s, active, x, b, iono_utc, rx_tow, aid, rejected)
+        if sol is None:
+            return None
+        dops = self._dops(sol)
+        if not dops[0] <= self.max_pdop:    # geometry too weak for a usable position (e.g. 4 satellites in a line)
+            return None
+        if aid is not None and not dops[0] <= aid.max_pdop:    # the same for an aided fix (its own limit)
+            return None
+        return self._build_fix(s, sol, dops, week, rx_tow, aid, rejected)
+
+    def _initial_state(self, s: _Sats, active, x0, iono_utc, rx_tow, rejected):
+        """(x, b) to start the corrected iteration from: an uncorrected solution from the Earth's centre when
+        x0 is missing or not a position, else x0 with the median clock bias over the satellites; None when the
+        uncorrected solution fails (also with one satellite left out)."""
         if x0 is None or not np.all(np.isfinite(x0)) or vnorm(x0) < 5e6:
             first = self._wls(s, active, np.zeros(3), 0.0, False, iono_utc, rx_tow)
             if first is None:
                 first = self._leave_one_out(s, active, np.zeros(3), 0.0, False, iono_utc, rx_tow, None, rejected)
             if first is None:
                 return None
-            x, b = first["x"], first["b"]
-        else:
-            x = np.asarray(x0, dtype=float).copy()
-            d = np.linalg.norm(earth_rotation(s.pos, 0.075) - x, axis=1)
-            b = _median_small(s.rho + C_LIGHT * s.clk - d)
-        # elevation mask, from the first position
-        _, el0 = azel(x, earth_rotation(s.pos, np.linalg.norm(s.pos - x, axis=1) / C_LIGHT))
-        active &= el0 >= np.radians(self.elevation_mask_deg)
+            return first["x"], first["b"]
+        x = np.asarray(x0, dtype=float).copy()
+        d = np.linalg.norm(earth_rotation(s.pos, 0.075) - x, axis=1)
+        return x, _median_small(s.rho + C_LIGHT * s.clk - d)
+
+    def _solve_screened(self, s: _Sats, active, x, b, iono_utc, rx_tow, aid, rejected):
+        """The corrected WLS with the residual screening (see the class docstring and :class:`Aiding`): drops
+        the worst satellite (marked inactive, appended to ``rejected``) and solves again until the residuals
+        pass; the final solution dict, or None (no convergence, below the surface, an aided fix refused)."""
         while True:
             sol = self._wls(s, active, x, b, True, iono_utc, rx_tow, aid)
             if sol is None or sol["el"] is None:
@@ -480,23 +501,25 @@ class NavSolver:
                     active[sol["idx"][k]] = False
                     rejected.append(int(s.prn[sol["idx"][k]]))
                     continue
-                break
+                return sol
             # aided: test every row (satellites and constraints); exclude the worst satellite while the fix
             # stays over-determined, else refuse the fix (a bad range or a wrong constraint)
             worst = max(float(np.max(np.abs(sol["norm_res"]))),
                         float(np.max(np.abs(sol["aid_norm_res"]), initial=0.0)))
             if worst <= aid.residual_threshold_m:
-                break
+                return sol
             if sol["redundancy"] >= 2 and np.sum(active) > 3 and \
                     abs(sol["norm_res"][k]) >= float(np.max(np.abs(sol["aid_norm_res"]), initial=0.0)):
                 active[sol["idx"][k]] = False
                 rejected.append(int(s.prn[sol["idx"][k]]))
                 continue
             return None
-        idx = sol["idx"]
 
-        # DOPs (unweighted) in the local ENU frame; an aided fix's include its constraints (Aiding)
-        lat, lon, _ = ecef2lla(x)
+    @staticmethod
+    def _dops(sol):
+        """(pdop, hdop, vdop, gdop), unweighted, in the local ENU frame of the solution's position; an aided
+        fix's include its constraints (:class:`Aiding`)."""
+        lat, lon, _ = ecef2lla(sol["x"])
         rot = enu_matrix(lat, lon)
         q = np.linalg.inv(sol["h_dop"].T @ sol["h_dop"])
         q_enu = rot @ q[:3, :3] @ rot.T
@@ -504,12 +527,14 @@ class NavSolver:
         vdop = float(np.sqrt(q_enu[2, 2]))
         pdop = float(np.sqrt(np.trace(q_enu)))
         gdop = float(np.sqrt(np.trace(q)))
-        if not pdop <= self.max_pdop:       # geometry too weak for a usable position (e.g. 4 satellites in a line)
-            return None
-        if aid is not None and not pdop <= aid.max_pdop:    # the same for an aided fix (its own limit)
-            return None
+        return pdop, hdop, vdop, gdop
 
-        # velocity and clock drift from Doppler
+    @staticmethod
+    def _velocity(s: _Sats, sol, aid):
+        """Velocity and clock drift from Doppler on the solution's satellites: (rate_c corrected pseudorange
+        rates, satellite velocities in the reception frame, v_rx, drift, per-satellite rate residuals); v_rx /
+        drift NaN with fewer than 4 Dopplers (3 with a predicted drift in ``aid``)."""
+        idx = sol["idx"]
         rate_raw = -s.doppler[idx] * LAMBDA_L1          # s.doppler: L1-equivalent Hz (see _prepare)
         rate_c = rate_raw + C_LIGHT * s.drift[idx]
         vel_sat = earth_rotation(s.vel[idx], sol["tau"])
@@ -531,7 +556,13 @@ class NavSolver:
             sv, *_ = np.linalg.lstsq(ha, ya, rcond=None)
             v_rx, drift = sv[:3], float(sv[3])
             v_res[ok] = y - hv @ sv
+        return rate_c, vel_sat, v_rx, drift, v_res
 
+    def _build_fix(self, s: _Sats, sol, dops, week, rx_tow, aid, rejected):
+        """The :class:`Fix` of a screened solution: its DOPs, the Doppler velocity and the GPS time."""
+        idx, x, b = sol["idx"], sol["x"], sol["b"]
+        pdop, hdop, vdop, gdop = dops
+        rate_c, vel_sat, v_rx, drift, v_res = self._velocity(s, sol, aid)
         tow = rx_tow - b / C_LIGHT
         gps_week, tow = normalize_week_tow(int(week), tow)
         return Fix(

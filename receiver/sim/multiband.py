@@ -1,6 +1,7 @@
 """GPS L1 + L5 recordings on one receiver clock: ``simulate_l1_l5`` writes the L1 C/A file as
 :func:`receiver.sim.simulate.simulate` does and, beside it, ``<stem>_l5.bin`` holding the GPS L5 Q5 pilot of
-the same satellites (IS-GPS-705 codes, NH20), each file with its own truth (``<stem>_l5.truth.h5``).
+the same satellites (IS-GPS-705 codes: Q5 + NH20, I5 + NH10), each file with its own truth
+(``<stem>_l5.truth.h5``).
 
 One clock: both files come from the same scenario, so the receiver clock (bias, drift, noise: seeded by
 ``time.seed`` on the same 1-ms grid), the trajectory and the satellite geometry are the same; sample 0 of
@@ -13,11 +14,15 @@ it is (f_L1 / f_L5)^2 = 1.793 times the L1 delay; the code is delayed and the ca
 (the simulator's conventions).  Satellite clock: the L1 C/A clock of the ephemeris (af0.. + relativity -
 TGD) on both bands, i.e. inter-signal corrections ISC_L1CA = ISC_L5Q5 = 0.
 
-Not modelled: the I5 data channel (CNAV), QZSS L5, frequency-dependent scintillation.
+Signal: Q5 (NH20) and I5 (NH10 x pseudo-random 100-sps symbols: CNAV is not modelled) in quadrature, each at
+the pilot C/N0 (L1 C/N0 + ``l5.cn0_offset_db``).  Not modelled: CNAV, QZSS L5, frequency-dependent
+scintillation.
 """
 from __future__ import annotations
 
+import math
 import os
+import types
 
 import numpy as np
 import yaml
@@ -27,6 +32,7 @@ from ..gnss.l5_codes import L5_PRNS, nh_signs
 from ..gnss.signals import L1_HZ
 from ..gnss.signals_l5 import GPS_L5
 from ..safeio import TMP_SUFFIX, OutputLock, check_output, write_error_message
+from .outputs import output_paths, remove_files
 from .scenario import load_scenario
 
 #: L5 group delay / L1 group delay of the same ionosphere
@@ -40,15 +46,40 @@ def l5_path(out_path) -> str:
     return stem + "_l5" + (ext or ".bin")
 
 
-class _Q5Signs:
-    """Per-millisecond signs of the Q5 pilot: NH20, aligned to the satellite's 20-ms epochs."""
+class _L5Signs:
+    """Per-millisecond signs of satellite ``prn``'s L5 components: Q5 (``signs``) NH20, aligned to the
+    satellite's 20-ms epochs; I5 (``signs_i``) NH10 x 100-sps symbols, pseudo-random (a fixed function of PRN,
+    seed and symbol index: CNAV is not modelled)."""
 
-    def __init__(self):
-        self.nh = nh_signs(20)
+    def __init__(self, prn: int, seed: int):
+        self.nh20, self.nh10 = nh_signs(20), nh_signs(10)
+        self.prn, self.seed = prn, seed
 
     def signs(self, ms_abs0, count):
-        """Signs of satellite-time ms ``ms_abs0`` .. ``ms_abs0 + count - 1``."""
-        return self.nh[(np.int64(ms_abs0) + np.arange(count)) % 20]
+        """Q5 signs of satellite-time ms ``ms_abs0`` .. ``ms_abs0 + count - 1``."""
+        return self.nh20[(np.int64(ms_abs0) + np.arange(count)) % 20]
+
+    def signs_i(self, ms_abs0, count):
+        """I5 signs of the same milliseconds."""
+        ms = np.int64(ms_abs0) + np.arange(count, dtype=np.int64)
+        h = ((ms // 10) * np.int64(0x9E3779B1) + np.int64(self.prn) * np.int64(0x85EBCA77)
+             + np.int64(self.seed) * np.int64(0xC2B2AE3D)) & np.int64(0xFFFFFFFF)
+        h = ((h ^ (h >> 15)) * np.int64(0x2C1B3C6D)) & np.int64(0xFFFFFFFF)
+        sym = (1.0 - 2.0 * ((h >> 11) & 1)).astype(np.float32)
+        return sym * self.nh10[ms % 10]
+
+
+def _l5_rows(sim, b, p, s, sig):
+    """The L5 simulator's kernel rows of satellite p: Q5 (the truth's carrier phase) and I5 (a quarter cycle
+    ahead), each at the pilot's amplitude (IS-GPS-705: equal power)."""
+    n0 = len(sig)
+    type(sim)._sat_rows(sim, b, p, s, sig)               # the Q5 row, as for any 1-ms signal
+    if len(sig) == n0:
+        return
+    _, chips_blk, ph, amp, _, _ = sig[-1]
+    ms0 = int(math.floor(s.chips_total[0] / s.code_n))
+    dsign = sim.nav[p].signs_i(sim.m_ref + ms0, int(chips_blk[-1] // s.code_n) + 2)
+    sig.append((p, chips_blk, ph + 0.25, amp, dsign, sim.i5_codes[p]))
 
 
 def _as_l5(sim, factor: float, cn0_offset_db: float, seed: int):
@@ -60,20 +91,20 @@ def _as_l5(sim, factor: float, cn0_offset_db: float, seed: int):
     sim.signals, sim.signal = [GPS_L5], GPS_L5
     sim.sat_sig = {p: (GPS_L5, p, sim.if_hz) for p in sim.prns}
     sim.codes = {p: GPS_L5.code(p) for p in sim.prns}
-    q5 = _Q5Signs()
-    sim.nav = {p: q5 for p in sim.prns}
+    sim.i5_codes = {p: GPS_L5.data_code(p) for p in sim.prns}
+    sim.nav = {p: _L5Signs(p, seed) for p in sim.prns}
+    sim._sat_rows = types.MethodType(_l5_rows, sim)
     sim.iono_scale = {p: factor * GAMMA_15 for p in sim.prns}
     base = sim.cn0
     sim.cn0 = lambda prn, t_rel, el_deg: base(prn, t_rel, el_deg) + cn0_offset_db
     sim.rng = np.random.default_rng(np.random.SeedSequence([seed, 1, 5]))      # own noise stream
 
 
-def simulate_l1_l5(sc, out_path, reads, progress, simulator, remove, output_paths, scale_ionosphere) -> dict:
+def simulate_l1_l5(sc, out_path, reads, progress, simulator, scale_ionosphere) -> dict:
     """Write the L1 and L5 recordings (and their truth and fragment files) of scenario ``sc`` (l5.enabled).
-    ``simulator``, ``remove``, ``output_paths``, ``scale_ionosphere``: receiver.sim.simulate's simulator class
-    and helpers (passed in: that module calls this one).  Returns the L1 paths plus ``l5_if`` and
-    ``l5_truth``."""
-    _Simulator, _remove = simulator, remove
+    ``simulator``, ``scale_ionosphere``: receiver.sim.simulate's simulator class and ionosphere scaling
+    (passed in: that module calls this one).  Returns the L1 paths plus ``l5_if`` and ``l5_truth``."""
+    _Simulator, _remove = simulator, remove_files
     if sc.signals or sc.signal != "gps_l1ca":
         raise UserError("l5.enabled: the L1 + L5 recording is a GPS L1 C/A scenario (signal: gps_l1ca, "
                         "no signals list)")

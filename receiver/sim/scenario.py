@@ -162,14 +162,15 @@ SCENARIO_SCHEMA = {
                                       "single-frequency fix cannot remove (docs: Dual frequency)", lo=0.0, hi=20.0),
     },
     "l5": {
-        "enabled": P(False, "bool", "also write a GPS L5 recording (<stem>_l5.bin, the Q5 pilot of every GPS "
+        "enabled": P(False, "bool", "also write a GPS L5 recording (<stem>_l5.bin, Q5 pilot and I5 of every GPS "
                                     "satellite, own truth <stem>_l5.truth.h5) on the same receiver clock as the "
                                     "L1 file; the receiver fragment names it in input.signal_files"),
         "sample_rate_hz": P(20.46e6, "float", "L5 file sample rate (complex: >= 2 x 10.23 MHz main lobe)",
                             lo=1e6, hi=1e9),
         "if_hz": P(0.0, "float", "L5 file IF (the front end's second channel, its own LO)"),
         "format": P("int8_iq", "str", "L5 file sample format", choices=tuple(FORMATS)),
-        "cn0_offset_db": P(0.0, "float", "Q5 pilot C/N0 minus the L1 C/A C/N0 of the same satellite (dB)"),
+        "cn0_offset_db": P(0.0, "float", "Q5 pilot C/N0 (I5: the same) minus the L1 C/A C/N0 of the "
+                                                "same satellite (dB)"),
     },
     "navigation": {
         "data": P(True, "bool", "modulate the LNAV data bits (false: pilot-like, no data)"),

@@ -39,36 +39,26 @@ class Channel:
         car = trk_cfg.carrier
         dataless = bool(car["dataless"]) if "dataless" in car else False
         nh = sig.secondary(prn)
-        bit_ms = sig.bit_ms(prn)
-        if dataless and nh is None:
-            bit_ms = 1                     # no data symbols: every code period is an "edge"
-        t_coh = car["t_coh_ms"] if "t_coh_ms" in car else None
-        want = int(t_coh) if t_coh else int(trk_cfg.integration_ms)
-        if not dataless:                   # integrate within a data symbol
-            want = max(d for d in range(1, min(want, bit_ms) + 1) if bit_ms % d == 0)
-        elif nh is not None:
-            want = max(d for d in range(1, min(want, len(nh)) + 1) if len(nh) % d == 0)
-        self.max_int_ms = want
-        wk = trk_cfg.weak
-        weak_int = int(wk.integration_ms)
-        if not dataless:
-            weak_int = max(d for d in range(1, min(weak_int, bit_ms) + 1) if bit_ms % d == 0)
-        elif nh is not None:
-            weak_int = max(d for d in range(1, min(weak_int, len(nh)) + 1) if len(nh) % d == 0)
-        code = sig.code(prn)
-        self.code_ext = extend_code(code, 20)
-        nh_base = 0
-        if nh is not None:
-            # overlay-modulated section: 20 periods of code x NH, repeated, CODE_PAD chips of wrap in front
-            mod = np.concatenate([code * s_ for s_ in nh]).astype(np.float32)
-            sec = np.tile(mod, 3)[len(mod) - CODE_PAD:]
-            nh_base = len(self.code_ext)
-            self.code_ext = np.ascontiguousarray(np.concatenate([self.code_ext, sec]), dtype=np.float32)
+        bit_ms, self.max_int_ms, weak_int = integration_plan(sig, prn, trk_cfg, dataless, nh)
+        self.code_ext, nh_base = code_table(sig.code(prn), nh)
         self.hist = np.zeros(20, np.int64)
+        self._carrier_loop(car, weak, trk_cfg)
+        self.cfg = kernel_config(trk_cfg, sig, fs, if_hz, self.max_int_ms, bit_ms, nh_base, dataless, weak_int)
+        self.vector_carrier = self.vector_code = False
+        self.set_external(False, False)
+        self.st = initial_state(sig, doppler_hz, code_phase_chips, sample_index, fs, if_hz,
+                                weak and trk_cfg.weak.enabled)
+        self.loop.start(doppler_hz, 1e-3)
+        self._out = np.zeros((1, K.N_OUT))
+
+    def _carrier_loop(self, car, weak, trk_cfg):
+        """The carrier loop object and, when it has one, its compiled path.
+
+        The loop's compiled path (CarrierLoop.compiled: two compiled functions and their parameter / state
+        arrays) runs inside the compiled epoch loop (loops/runner.py); the Python object steps epoch by
+        epoch when use_compiled_loop is False (the reference, for tests) or the loop has no compiled path.
+        """
         self.loop = make_carrier_loop(channel_variant(car, weak), trk_cfg)
-        # the loop's compiled path (CarrierLoop.compiled: two compiled functions and their parameter / state
-        # arrays) runs inside the compiled epoch loop (loops/runner.py); the Python object steps epoch by
-        # epoch when use_compiled_loop is False (the reference, for tests) or the loop has no compiled path
         twin = None if self.loop.builtin else self.loop.compiled()
         self.use_compiled_loop = twin is not None
         self._start_fn = self._update_fn = self._lp = self._ls = None
@@ -76,67 +66,6 @@ class Channel:
             self._start_fn, self._update_fn, self._lp, self._ls = LR.loop_functions(twin)
         self._cs = np.zeros(LR.N_CS)                 # the channel's side of the hand-over (compiled path)
         self._py_loop_started = False
-        c = np.zeros(K.N_CONFIG)
-        c[K.C_FS] = fs
-        c[K.C_IF] = if_hz
-        c[K.C_CHIP_RATE] = sig.chip_rate
-        c[K.C_CARRIER_HZ] = sig.carrier_hz
-        c[K.C_CODE_LEN] = sig.code_len
-        c[K.C_EL_SPACING] = early_late_spacing(trk_cfg, fs, sig.chip_rate)
-        if not trk_cfg.early_late_snap:       # pull-in and weak channels: whole samples (>= the spacing)
-            c[K.C_EL_SPACING_WIDE] = early_late_spacing(trk_cfg, fs, sig.chip_rate, snap=True)
-        c[K.C_PLL_BW] = trk_cfg.pll_bw_hz
-        c[K.C_PLL_ORDER] = trk_cfg.pll_order
-        c[K.C_FLL_BW] = trk_cfg.fll_bw_hz
-        c[K.C_DLL_BW] = trk_cfg.dll_bw_hz
-        c[K.C_DLL_BW_PULL] = trk_cfg.dll_bw_pull_in_hz
-        c[K.C_DLL_ORDER] = trk_cfg.dll_order
-        c[K.C_PULL_IN_MS] = trk_cfg.pull_in_ms
-        c[K.C_MAX_INT_MS] = self.max_int_ms
-        c[K.C_CN0_WIN_MS] = trk_cfg.cn0_window_ms
-        c[K.C_LOCK_CN0_MIN] = trk_cfg.lock_cn0_min_dbhz
-        c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
-        c[K.C_CN0_EST] = CN0_ESTIMATORS[trk_cfg.cn0_estimator]
-        c[K.C_LOST_MS] = trk_cfg.lost_ms
-        c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
-        set_presence(c, trk_cfg)
-        c[K.C_BIT_MS] = bit_ms
-        c[K.C_NH_BASE] = nh_base
-        c[K.C_NO_DATA] = 1.0 if dataless else 0.0
-        if wk.enabled:                     # weak channels (docs: tracking, weak signals); never stricter than above
-            c[K.C_WEAK_CN0] = wk.cn0_dbhz
-            c[K.C_WEAK_INT_MS] = weak_int
-            c[K.C_WEAK_PLL_BW] = min(wk.pll_bw_hz, trk_cfg.pll_bw_hz)
-            c[K.C_WEAK_LOCK_RATIO] = min(wk.lock_ratio_min, trk_cfg.lock_ratio_min)
-            c[K.C_WEAK_LOCK_CN0] = min(wk.lock_cn0_min_dbhz, trk_cfg.lock_cn0_min_dbhz)
-            c[K.C_WEAK_LOCK_MS] = wk.lock_window_ms
-            c[K.C_ESYNC_MIN_MS] = wk.bit_sync_ms
-            c[K.C_WEAK_DLL_BW] = min(wk.dll_bw_hz, trk_cfg.dll_bw_hz)
-            c[K.C_WEAK_FLL_BW] = min(wk.fll_bw_hz, trk_cfg.fll_bw_hz)
-            c[K.C_WEAK_GRACE_MS] = wk.lost_grace_ms
-            c[K.C_WEAK_DLL_HOLD_MS] = wk.dll_hold_ms
-            c[K.C_WEAK_EXIT_CN0] = max(wk.exit_cn0_dbhz, wk.cn0_dbhz) if wk.exit_cn0_dbhz > 0 else 0.0
-        self.cfg = c
-        self.vector_carrier = self.vector_code = False
-        self.set_external(False, False)
-        s = np.zeros(K.N_STATE)
-        rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz)
-        step = rate / fs
-        # start at the first sample at or after the next code-period start
-        k = int(np.ceil((sig.code_len - code_phase_chips) / step))
-        s[K.S_NEXT_SAMPLE] = sample_index + k
-        s[K.S_CODE_PHASE] = code_phase_chips + k * step - sig.code_len
-        s[K.S_CODE_RATE] = rate
-        s[K.S_CARR_FREQ] = if_hz + doppler_hz
-        s[K.S_PLL_FREQ] = doppler_hz
-        s[K.S_INT_MS] = 1
-        s[K.S_BIT_OFFSET] = -1
-        s[K.S_MODE] = K.MODE_PULL_IN
-        if weak and wk.enabled:            # known weak from acquisition: weak loops from the pull-in on
-            s[K.S_WEAK] = 1.0
-        self.st = s
-        self.loop.start(doppler_hz, 1e-3)
-        self._out = np.zeros((1, K.N_OUT))
 
     # ---------------------------------------------------------------- state
     @property
@@ -278,6 +207,113 @@ class Channel:
             # keep the DLL carrier-aided with the new carrier frequency
             cr, fc = self.signal.chip_rate, self.signal.carrier_hz
             self.st[K.S_CODE_RATE] += cr * (dop - old) / fc
+
+
+def _largest_divisor(n: int, at_most: int) -> int:
+    """The largest divisor of n that is <= at_most (>= 1)."""
+    return max(d for d in range(1, min(at_most, n) + 1) if n % d == 0)
+
+
+def integration_plan(sig, prn, trk_cfg, dataless: bool, nh):
+    """(bit_ms, max_int_ms, weak_int_ms) of a channel: the data-symbol length in code periods (1 without
+    data symbols and overlay) and the longest coherent integrations of the normal and weak loops, which stay
+    within a data symbol (with data) or divide the secondary code (dataless with an overlay)."""
+    car = trk_cfg.carrier
+    bit_ms = sig.bit_ms(prn)
+    if dataless and nh is None:
+        bit_ms = 1                     # no data symbols: every code period is an "edge"
+    t_coh = car["t_coh_ms"] if "t_coh_ms" in car else None
+    want = int(t_coh) if t_coh else int(trk_cfg.integration_ms)
+    weak_int = int(trk_cfg.weak.integration_ms)
+    if not dataless:                   # integrate within a data symbol
+        want = _largest_divisor(bit_ms, want)
+        weak_int = _largest_divisor(bit_ms, weak_int)
+    elif nh is not None:
+        want = _largest_divisor(len(nh), want)
+        weak_int = _largest_divisor(len(nh), weak_int)
+    return bit_ms, want, weak_int
+
+
+def code_table(code: np.ndarray, nh):
+    """(code_ext, nh_base): the code extended for the correlator (receiver.tracking.correlator.extend_code)
+    and, with a secondary code nh, an overlay-modulated section appended at index nh_base (0 without)."""
+    code_ext = extend_code(code, 20)
+    nh_base = 0
+    if nh is not None:
+        # overlay-modulated section: 20 periods of code x NH, repeated, CODE_PAD chips of wrap in front
+        mod = np.concatenate([code * s_ for s_ in nh]).astype(np.float32)
+        sec = np.tile(mod, 3)[len(mod) - CODE_PAD:]
+        nh_base = len(code_ext)
+        code_ext = np.ascontiguousarray(np.concatenate([code_ext, sec]), dtype=np.float32)
+    return code_ext, nh_base
+
+
+def kernel_config(trk_cfg, sig, fs: float, if_hz: float, max_int_ms: int, bit_ms: int, nh_base: int,
+                  dataless: bool, weak_int: int) -> np.ndarray:
+    """The compiled kernel's configuration array (C_* slots) of a channel."""
+    c = np.zeros(K.N_CONFIG)
+    c[K.C_FS] = fs
+    c[K.C_IF] = if_hz
+    c[K.C_CHIP_RATE] = sig.chip_rate
+    c[K.C_CARRIER_HZ] = sig.carrier_hz
+    c[K.C_CODE_LEN] = sig.code_len
+    c[K.C_EL_SPACING] = early_late_spacing(trk_cfg, fs, sig.chip_rate)
+    if not trk_cfg.early_late_snap:       # pull-in and weak channels: whole samples (>= the spacing)
+        c[K.C_EL_SPACING_WIDE] = early_late_spacing(trk_cfg, fs, sig.chip_rate, snap=True)
+    c[K.C_PLL_BW] = trk_cfg.pll_bw_hz
+    c[K.C_PLL_ORDER] = trk_cfg.pll_order
+    c[K.C_FLL_BW] = trk_cfg.fll_bw_hz
+    c[K.C_DLL_BW] = trk_cfg.dll_bw_hz
+    c[K.C_DLL_BW_PULL] = trk_cfg.dll_bw_pull_in_hz
+    c[K.C_DLL_ORDER] = trk_cfg.dll_order
+    c[K.C_PULL_IN_MS] = trk_cfg.pull_in_ms
+    c[K.C_MAX_INT_MS] = max_int_ms
+    c[K.C_CN0_WIN_MS] = trk_cfg.cn0_window_ms
+    c[K.C_LOCK_CN0_MIN] = trk_cfg.lock_cn0_min_dbhz
+    c[K.C_LOCK_RATIO] = trk_cfg.lock_ratio_min
+    c[K.C_CN0_EST] = CN0_ESTIMATORS[trk_cfg.cn0_estimator]
+    c[K.C_LOST_MS] = trk_cfg.lost_ms
+    c[K.C_LOST_GRACE_MS] = trk_cfg.lost_grace_ms
+    set_presence(c, trk_cfg)
+    c[K.C_BIT_MS] = bit_ms
+    c[K.C_NH_BASE] = nh_base
+    c[K.C_NO_DATA] = 1.0 if dataless else 0.0
+    wk = trk_cfg.weak
+    if wk.enabled:                     # weak channels (docs: tracking, weak signals); never stricter than above
+        c[K.C_WEAK_CN0] = wk.cn0_dbhz
+        c[K.C_WEAK_INT_MS] = weak_int
+        c[K.C_WEAK_PLL_BW] = min(wk.pll_bw_hz, trk_cfg.pll_bw_hz)
+        c[K.C_WEAK_LOCK_RATIO] = min(wk.lock_ratio_min, trk_cfg.lock_ratio_min)
+        c[K.C_WEAK_LOCK_CN0] = min(wk.lock_cn0_min_dbhz, trk_cfg.lock_cn0_min_dbhz)
+        c[K.C_WEAK_LOCK_MS] = wk.lock_window_ms
+        c[K.C_ESYNC_MIN_MS] = wk.bit_sync_ms
+        c[K.C_WEAK_DLL_BW] = min(wk.dll_bw_hz, trk_cfg.dll_bw_hz)
+        c[K.C_WEAK_FLL_BW] = min(wk.fll_bw_hz, trk_cfg.fll_bw_hz)
+        c[K.C_WEAK_GRACE_MS] = wk.lost_grace_ms
+        c[K.C_WEAK_DLL_HOLD_MS] = wk.dll_hold_ms
+        c[K.C_WEAK_EXIT_CN0] = max(wk.exit_cn0_dbhz, wk.cn0_dbhz) if wk.exit_cn0_dbhz > 0 else 0.0
+    return c
+
+
+def initial_state(sig, doppler_hz: float, code_phase_chips: float, sample_index: int, fs: float,
+                  if_hz: float, weak: bool) -> np.ndarray:
+    """The kernel's state array (S_* slots) of a channel from an acquisition: pull-in mode, starting at
+    the first sample at or after the next code-period start; weak: weak loops from the pull-in on."""
+    s = np.zeros(K.N_STATE)
+    rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz)
+    step = rate / fs
+    k = int(np.ceil((sig.code_len - code_phase_chips) / step))
+    s[K.S_NEXT_SAMPLE] = sample_index + k
+    s[K.S_CODE_PHASE] = code_phase_chips + k * step - sig.code_len
+    s[K.S_CODE_RATE] = rate
+    s[K.S_CARR_FREQ] = if_hz + doppler_hz
+    s[K.S_PLL_FREQ] = doppler_hz
+    s[K.S_INT_MS] = 1
+    s[K.S_BIT_OFFSET] = -1
+    s[K.S_MODE] = K.MODE_PULL_IN
+    if weak:                           # known weak from acquisition: weak loops from the pull-in on
+        s[K.S_WEAK] = 1.0
+    return s
 
 
 def set_presence(c: np.ndarray, trk_cfg):

@@ -109,8 +109,8 @@ class Handover:
     """Scalar-to-vector handover state of one run (history of scalar fixes, re-initialisations)."""
 
     def __init__(self, cfg, channels, nav, fs, log=None, signals=None):
-        """channels: the pipeline's channel dict (several signals: a tracker.RunChannels view keyed by
-        satellite key); signals: [(SignalDef, IF Hz)] in the order of the blocks the tracker is given
+        """channels: the run's channel table (receiver.tracking.table.ChannelTable, keyed like the
+        navigation engine's channels); signals: [(SignalDef, IF Hz)] in the order of the blocks the tracker is given
         (None: GPS L1 C/A alone)."""
         if nav is None:
             raise UserError("vector tracking needs the navigation solution (navigation.enabled: true)")

@@ -30,8 +30,8 @@ Signals and systems: every channel carries its signal's constants into the compi
 wavelength, code period, the IF and the input block of its stream: ``signals``, the run's SignalDefs in the
 order of the pipeline's input blocks), so GPS and QZSS L1 C/A and BeiDou B1I channels share the filter.  In a
 run over several signals the channels are keyed like the navigation engine's (receiver.gnss.satid.sat_key;
-:class:`RunChannels` joins the channel managers' dicts) and the filter gains one inter-system clock bias
-state per system after the reference one, in the navigation solution's order and grouping (clock group =
+the run's channel table, receiver.tracking.table.ChannelTable) and the filter gains one inter-system clock
+bias state per system after the reference one, in the navigation solution's order and grouping (clock group =
 the signal's system letter: QZSS shares GPS's clock, as in receiver.navigation.pvt), started from the
 handover fix's ``isb_m``.
 
@@ -41,14 +41,13 @@ the compiled epoch loop is receiver.tracking.vector.loop.
 from __future__ import annotations
 
 import math
-from collections.abc import MutableMapping
 
 import numpy as np
 
 from .. import kernel as K
 from ...gnss.geodesy import ecef2lla, enu_matrix
 from ...runfile.record import FIX_DTYPE, VECTOR_ISB_SYSTEMS, VECTOR_LOG_DTYPE
-from ...gnss.satid import MIXED, sat_key, sat_label, split_key
+from ...gnss.satid import MIXED, sat_label, split_key
 from ...gnss.signals import C_LIGHT, GPS_L1CA
 from ..scalar import Channel, to_records
 from . import loop as L
@@ -65,38 +64,6 @@ PROMOTE_LOCKED_S = 1.0        # a scalar channel joins the vector loop after thi
 ISB_Q_M2_S = 1e-3             # random-walk PSD of an inter-system bias state (m^2/s: a hardware delay difference,
                               # constant but for temperature; 0.3 m after 100 s)
 CLOCK_ORDER = "GJCE"          # the reference clock is the first of these (receiver.navigation.pvt._Sats)
-
-
-class RunChannels(MutableMapping):
-    """The channels of a run over several signals as one dict keyed by satellite key (sat_key): a view of
-    the channel managers' own dicts (keyed by the signal's PRN), which stay the owners."""
-
-    def __init__(self, parts):
-        self._by = {sig.system: chans for sig, chans in parts}     # system letter -> {signal PRN: Channel}
-
-    def _dict(self, key):
-        letter, prn = split_key(key)
-        return self._by[letter], prn
-
-    def __getitem__(self, key):
-        d, prn = self._dict(key)
-        return d[prn]
-
-    def __setitem__(self, key, ch):
-        d, prn = self._dict(key)
-        d[prn] = ch
-
-    def __delitem__(self, key):
-        d, prn = self._dict(key)
-        del d[prn]
-
-    def __iter__(self):
-        for letter, d in self._by.items():
-            for prn in list(d):
-                yield sat_key(letter, prn)
-
-    def __len__(self):
-        return sum(len(d) for d in self._by.values())
 
 
 class VectorTracker:
@@ -125,7 +92,7 @@ class VectorTracker:
         self.block_of = {s_.system: i for i, (s_, _) in enumerate(self.signals)}
         self.multi = len(self.signals) > 1
         self.system = MIXED if self.multi else self.signals[0][0].system      # of the channel keys (labels)
-        self.channels = channels            # the pipeline's dict (shared), or a RunChannels view of several
+        self.channels = channels            # the run's channel table (shared with the pipeline)
         self.nav = nav
         self.filt = filt
         self.s_ref = float(s_ref)

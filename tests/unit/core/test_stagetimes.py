@@ -26,25 +26,44 @@ class _Clock:
 def test_nested_stages_count_their_own_time(monkeypatch):
     clock = _Clock()
     monkeypatch.setattr(stagetimes, "time", clock)
-    stagetimes.reset()
-    with stagetimes.stage("outer"):
-        clock.work(0.05, 0.05)
-        with stagetimes.stage("inner"):
-            clock.work(0.1, 0.1)
-        with stagetimes.stage("inner"):
-            clock.work(0.05, 0.0)              # wall without CPU (a sleep)
-        clock.work(0.02, 0.01)
-    t = stagetimes.table()
+    times = stagetimes.StageTimes()
+    with stagetimes.recording(times):
+        with stagetimes.stage("outer"):
+            clock.work(0.05, 0.05)
+            with stagetimes.stage("inner"):
+                clock.work(0.1, 0.1)
+            with stagetimes.stage("inner"):
+                clock.work(0.05, 0.0)              # wall without CPU (a sleep)
+            clock.work(0.02, 0.01)
+    t = times.table()
     assert list(t) == ["inner", "outer"]       # in the order they finished first
     (wi, ci, ni), (wo, co, no) = t["inner"], t["outer"]
     assert ni == 2 and no == 1
     assert wi == pytest.approx(0.15) and ci == pytest.approx(0.1)     # the sleep is wall, not CPU
     assert wo == pytest.approx(0.07) and co == pytest.approx(0.06)    # outer without inner
-    stagetimes.add("x", 1.0, 0.5)
-    assert stagetimes.table()["x"] == (1.0, 0.5, 1)
-    assert "sum of stages" in stagetimes.text()
-    stagetimes.reset()
-    assert stagetimes.table() == {}
+    times.add("x", 1.0, 0.5)
+    assert times.table()["x"] == (1.0, 0.5, 1)
+    assert "sum of stages" in times.text()
+
+
+def test_stages_outside_a_recording_go_nowhere(monkeypatch):
+    """Each recording owns its times: a stage outside any recording, or inside another one, does not add
+    to them."""
+    clock = _Clock()
+    monkeypatch.setattr(stagetimes, "time", clock)
+    a, b = stagetimes.StageTimes(), stagetimes.StageTimes()
+    with stagetimes.stage("loose"):
+        clock.work(1.0, 1.0)
+    with stagetimes.recording(a):
+        with stagetimes.stage("s"):
+            clock.work(0.5, 0.5)
+        with stagetimes.recording(b):
+            with stagetimes.stage("s"):
+                clock.work(0.25, 0.25)
+        with stagetimes.stage("s"):
+            clock.work(0.5, 0.5)
+    assert a.table() == {"s": (pytest.approx(1.0), pytest.approx(1.0), 2)}
+    assert b.table() == {"s": (pytest.approx(0.25), pytest.approx(0.25), 1)}
 
 
 def test_cli_timings_table_accounts_for_the_run(tmp_path):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from receiver.gnss.l5_codes import NH20, l5_code
+from receiver.gnss.l5_codes import NH10, NH20, l5_code
 from receiver.sim.multiband import GAMMA_15
 from receiver.sim.simulate import simulate
 
@@ -61,9 +61,9 @@ def test_truth_ionosphere_and_clock(pair):
             assert np.allclose(ratio, 1176.45 / 1575.42, rtol=1e-5)
 
 
-def test_l5_samples_carry_q5_with_nh20(pair):
-    """Correlate the L5 file with a Q5 replica built from its truth (1-ms rows): full amplitude in every
-    period and the NH20 sign pattern at the satellite's 20-ms epochs."""
+def test_l5_samples_carry_q5_and_i5(pair):
+    """Correlate the L5 file with Q5 and I5 replicas built from its truth (1-ms rows): full amplitude in every
+    period, the NH20 sign pattern at the satellite's 20-ms epochs on Q5, NH10 under 10-ms symbols on I5."""
     paths, _ = pair
     x = np.fromfile(paths["l5_if"], np.complex64)
     with h5py.File(paths["l5_truth"]) as f:
@@ -91,6 +91,15 @@ def test_l5_samples_carry_q5_with_nh20(pair):
     nh = 1 - 2 * np.array(NH20)[ms % 20]
     s = np.sign(p.real) * nh
     assert np.all(s == s[0])
+    # I5, a quarter cycle ahead, the same power: NH10 x a symbol constant over each 10 ms
+    rep_i = l5_code(PRN, "I")[np.floor(chips).astype(np.int64) % 10230] * \
+        np.exp(2j * np.pi * (if_hz * t + np.interp(t, ts, ph) + 0.25))
+    c = np.concatenate(([0], np.cumsum(x * np.conj(rep_i))))
+    pi = c[edges[1:]] - c[edges[:-1]]
+    assert np.allclose(np.abs(pi) / w, amp, rtol=5e-2)    # (+ the Q5 and PRN 24 cross-correlations)
+    sym = np.sign(pi.real) * (1 - 2 * np.array(NH10)[ms % 10])
+    for k in np.unique(ms // 10):
+        assert np.all(sym[ms // 10 == k] == sym[ms // 10 == k][0])
 
 
 def test_l1_file_unchanged_by_the_l5_file(pair, tmp_path):
