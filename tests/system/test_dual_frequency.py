@@ -59,10 +59,12 @@ def test_ionofree_fix_removes_the_residual_ionosphere(runs):
         up = {}
         for grp in ("navigation", "navigation_ionofree"):
             g = h[grp]
-            keep = g["time_s"][:] >= 3.0
-            assert keep.sum() >= 30
+            keep = g["time_s"][:] >= 5.0           # (the carrier smoothing converged over a few seconds)
+            assert keep.sum() >= 15
             up[grp] = ecef2enu(g["ecef"][:][keep], truth)
-        # the broadcast model leaves a third of the true delay: the L1-only fix is metres high
-        assert np.mean(up["navigation"][:, 2]) > 2.5
-        e = up["navigation_ionofree"]
-        assert abs(np.mean(e[:, 2])) < 1.5 and np.sqrt(np.mean(np.sum(e ** 2, axis=1))) < 2.5
+        # the broadcast model leaves a third of the true delay: the L1-only fix is metres high; the
+        # ionosphere-free one is not (its noise: 2.26 x the L1 code's, smoothing for a few seconds only here)
+        rms = {k: np.sqrt(np.mean(np.sum(v ** 2, axis=1))) for k, v in up.items()}
+        u1, u_if = np.mean(up["navigation"][:, 2]), np.mean(up["navigation_ionofree"][:, 2])
+        assert u1 > 2.5 and abs(u_if) < u1 - 2.0
+        assert rms["navigation_ionofree"] < 2.5 and rms["navigation_ionofree"] < rms["navigation"] - 1.5
