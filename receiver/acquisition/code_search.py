@@ -13,8 +13,8 @@ Then (receiver/pipeline.py ``acquire``): a verification dwell on the next indepe
 (:func:`verify`) and the rejection of cross-correlation images of stronger satellites at the same
 Doppler or at whole-kHz offsets (:func:`reject_cross_correlations`).
 
-Search, verification dwell and fine Doppler refinement stay in one module: they share the code spectra, the
-compiled power kernels and the detection statistic's helpers.
+Why this module is long: search, verification dwell and fine Doppler refinement stay in one module; they
+share the code spectra, the compiled power kernels and the detection statistic's helpers.
 """
 from __future__ import annotations
 

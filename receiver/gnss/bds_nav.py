@@ -26,8 +26,8 @@ the ICD tables).  Scale factors (LSBs) are the ICD's.
 Time: BDT = GPST - 14 s; BDT week 0 began at GPS week 1356 (2006-01-01).  Decoded SOW values are turned
 into GPS time of week for the navigation engine.
 
-D1 and D2 stay in one module: their BCH coding, interleaving, page layouts and scale factors are one ICD
-chapter, shared by the encoder (the simulator's) and the decoder.
+Why this module is long: D1 and D2 stay in one module; their BCH coding, interleaving, page layouts and
+scale factors are one ICD chapter, shared by the encoder (the simulator's) and the decoder.
 """
 from __future__ import annotations
 

@@ -10,8 +10,9 @@ Bit conventions
 * Words 2 (HOW) and 10 of every subframe end with D29 = D30 = 0 (the two "t" bits solved),
   so the TLM word of the next subframe is always sent with D30* = 0.
 
-The whole LNAV message stays in one module: the parity, the encoder (the simulator's) and the decoder share
-the word layouts and scale factors of IS-GPS-200, and each would import the others' tables.
+Why this module is long: the whole LNAV message stays in one module; the parity, the encoder (the
+simulator's) and the decoder share the word layouts and scale factors of IS-GPS-200, and each would import
+the others' tables.
 """
 from __future__ import annotations
 

@@ -276,14 +276,7 @@ def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float =
     """Name the format, sample rate and IF that find satellites in ``path`` (module docstring)."""
     t0 = time.perf_counter()
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise UserError(f"input file not found: {path}")
-    if os.path.getsize(path) <= header_bytes:
-        raise UserError(f"input file {path} holds no samples ({os.path.getsize(path)} bytes)")
-    with open(path, "rb") as fh:
-        head = fh.read(1 << 16)
-    if not looks_binary(head) and head.strip():
-        raise UserError(f"{path} is text (a config?), not a recording of samples")
+    _check_input(path, header_bytes)
     st = byte_stats(path, header_bytes)
     result = ProbeResult(path, st, None, header_bytes=header_bytes)
     meta = {}
@@ -292,56 +285,129 @@ def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float =
         meta, _ = read_metadata(path, L1_HZ)
     except UserError:
         meta = {}
-    rates = []
+    rates, n_hinted = _rates(path, rate, meta)
+    run = _Search(path, header_bytes, rates, t0, max_s, result, log)
+    run.order_candidates(st, meta)
+    best = run.search(n_hinted)
+    if best is None:
+        weak = [t for t in run.found.values() if t.found]
+        if weak:
+            best_weak = max(weak, key=lambda t: t.score)
+            result.notes.append(f"weak hint: {best_weak.cand.label()} at {best_weak.fs / 1e6:g} MS/s found "
+                                f"{' '.join(str(r.prn) for r in best_weak.found)} without confirmation")
+        result.elapsed_s = time.perf_counter() - t0
+        return result
+    best = run.refine(best)
+    src = run.src_of(best.cand)
+    coh = COHERENT_MS if best.confirmed or src.n_file / best.fs >= 2 * COHERENT_MS * 1e-3 else 1
+    best.found = [r for r in reject_cross_correlations(best.found, coh, fs=BB_FS) if r.detected]
+    result.best = best
+    result.offset_hz = float(np.median([r.doppler_hz for r in best.found]))
+    result.duration_s = src.n_file / best.fs
+    _swap_test(src, best, result)
+    result.notes += component_stats(src.head[:1 << 18], not src.real)
+    result.elapsed_s = time.perf_counter() - t0
+    return result
+
+
+def _check_input(path: str, header_bytes: int) -> None:
+    """A clear UserError for a missing, empty or text file."""
+    if not os.path.isfile(path):
+        raise UserError(f"input file not found: {path}")
+    if os.path.getsize(path) <= header_bytes:
+        raise UserError(f"input file {path} holds no samples ({os.path.getsize(path)} bytes)")
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    if not looks_binary(head) and head.strip():
+        raise UserError(f"{path} is text (a config?), not a recording of samples")
+
+
+def _rates(path, rate, meta) -> tuple[list, int]:
+    """(sample rates to try, most likely first; how many of them are hinted: --rate, the metadata file,
+    the file name)."""
     if rate:
-        rates = [float(rate)]
-    else:
-        if meta.get("sample_rate_hz"):
-            rates.append(float(meta["sample_rate_hz"]))
-        rates += rate_hints(path)
-        hinted = len(rates)
-        rates += [r for r in RATES if all(abs(r - q) > 1.0 for q in rates)]
-    cands = list(st.candidates)
-    if meta.get("format") in FORMATS:
-        cands.sort(key=lambda c: c.fmt != meta["format"])
-    max_rate = max(rates)
-    sources = {}
-    def src_of(c):
+        return [float(rate)], 1
+    rates = []
+    if meta.get("sample_rate_hz"):
+        rates.append(float(meta["sample_rate_hz"]))
+    rates += rate_hints(path)
+    hinted = len(rates)
+    rates += [r for r in RATES if all(abs(r - q) > 1.0 for q in rates)]
+    return rates, hinted
+
+
+class _Search:
+    """One probe's search: the candidate readings (format, bit order, encoding), their sample sources,
+    the trials found so far, the time budget."""
+
+    def __init__(self, path, header_bytes, rates, t0, max_s, result, log):
+        self.path, self.header_bytes, self.rates = path, header_bytes, rates
+        self.t0, self.max_s, self.result, self.log = t0, max_s, result, log
+        self.max_rate = max(rates)
+        self.sources = {}
+        self.found: dict = {}
+        self.cands = []
+
+    def src_of(self, c):
+        """The sample source of candidate c (one per format / bit order / encoding)."""
         key = (c.fmt, c.bit_order, c.encoding)
-        if key not in sources:
-            sources[key] = _Source(path, c, header_bytes, int(max_rate * 2 * BLOCK_MS * 1e-3) + 16)
-        return sources[key]
+        if key not in self.sources:
+            self.sources[key] = _Source(self.path, c, self.header_bytes,
+                                        int(self.max_rate * 2 * BLOCK_MS * 1e-3) + 16)
+        return self.sources[key]
 
-    hint = iq_hint(path)
-    if hint is None and any(FORMATS[c.fmt].complex for c in cands) and not all(FORMATS[c.fmt].complex for c in cands):
-        # read as I/Q, a real IF recording puts its band at the edges of the spectrum (+/- fs/2)
-        first_iq = next(c for c in cands if FORMATS[c.fmt].complex)
-        _, width = spectrum_centre(src_of(first_iq).head[:1 << 17])
-        hint = "real" if width > 0.6 else "iq"
-        why = "> 0.6: the band sits at +/- fs/2, a real IF recording" if width > 0.6 else "a band about 0 Hz: I/Q"
-        result.notes.append(f"read as I/Q the spectrum's spread is {width:.2f} of the sample rate ({why})")
-    if hint:
-        cands.sort(key=lambda c: FORMATS[c.fmt].complex != (hint == "iq"))
+    def order_candidates(self, st, meta):
+        """The byte statistics' candidates, the metadata's format first, then I/Q or real as the spectrum
+        (or the file name) suggests."""
+        cands = list(st.candidates)
+        if meta.get("format") in FORMATS:
+            cands.sort(key=lambda c: c.fmt != meta["format"])
+        hint = iq_hint(self.path)
+        if hint is None and any(FORMATS[c.fmt].complex for c in cands) and \
+                not all(FORMATS[c.fmt].complex for c in cands):
+            # read as I/Q, a real IF recording puts its band at the edges of the spectrum (+/- fs/2)
+            first_iq = next(c for c in cands if FORMATS[c.fmt].complex)
+            _, width = spectrum_centre(self.src_of(first_iq).head[:1 << 17])
+            hint = "real" if width > 0.6 else "iq"
+            why = "> 0.6: the band sits at +/- fs/2, a real IF recording" if width > 0.6 else "a band about 0 Hz: I/Q"
+            self.result.notes.append(f"read as I/Q the spectrum's spread is {width:.2f} of the sample rate ({why})")
+        if hint:
+            cands.sort(key=lambda c: FORMATS[c.fmt].complex != (hint == "iq"))
+        self.cands = cands
 
-    rest = tuple(p for p in range(1, 33) if p not in FIRST_PRNS)
-    n_hinted = 1 if rate else hinted
-    stages = []
-    if n_hinted:
-        stages.append((rates[:n_hinted], tuple(range(1, 33)), DOPPLER_MAX_HZ, (0.0,)))
-    stages += [(rates, FIRST_PRNS, DOPPLER_MAX_HZ, (0.0,)), (rates, rest, DOPPLER_MAX_HZ, (0.0,)),
-               (rates, tuple(range(1, 33)), 6000.0, (-14000.0, 14000.0)),
-               (rates, tuple(range(1, 33)), DOPPLER_MAX_HZ, (0.0,), False)]
-    found: dict = {}
-    best = None
+    def _late(self) -> bool:
+        return time.perf_counter() - self.t0 > self.max_s
 
-    def run_stage(rlist, prns, dmax, centres, primary=True):
-        for c in cands:
-            src = src_of(c)
+    def search(self, n_hinted):
+        """The stages (hinted rates; spread PRNs; the other PRNs; the wide Doppler pass; the secondary
+        IFs) until a confident trial (returned) or the time budget ends (None)."""
+        rates = self.rates
+        rest = tuple(p for p in range(1, 33) if p not in FIRST_PRNS)
+        stages = []
+        if n_hinted:
+            stages.append((rates[:n_hinted], tuple(range(1, 33)), DOPPLER_MAX_HZ, (0.0,)))
+        stages += [(rates, FIRST_PRNS, DOPPLER_MAX_HZ, (0.0,)), (rates, rest, DOPPLER_MAX_HZ, (0.0,)),
+                   (rates, tuple(range(1, 33)), 6000.0, (-14000.0, 14000.0)),
+                   (rates, tuple(range(1, 33)), DOPPLER_MAX_HZ, (0.0,), False)]
+        for stage in stages:
+            best = self.run_stage(*stage)
+            if best is not None:
+                return best
+            if self._late():
+                self.result.notes.append(f"stopped after {self.max_s:.0f} s of searching (--max-seconds)")
+                return None
+        return None
+
+    def run_stage(self, rlist, prns, dmax, centres, primary=True):
+        """Try every candidate at the rates rlist and their IFs; the first confident trial, else None."""
+        result, found, log = self.result, self.found, self.log
+        for c in self.cands:
+            src = self.src_of(c)
             if len(centres) > 1 and src.real:
                 continue                       # the wide pass: complex files' oscillator offsets
             for fs in rlist:
                 for if_hz in _ifs(src, fs, primary):
-                    if time.perf_counter() - t0 > max_s:
+                    if self._late():
                         return None
                     key = (c.fmt, c.bit_order, c.encoding, fs, if_hz)
                     trial = _try(src, c, fs, if_hz, prns, dmax, centres)
@@ -363,54 +429,31 @@ def probe(path, rate: float | None = None, header_bytes: int = 0, max_s: float =
                         return trial
         return None
 
-    for stage in stages:
-        best = run_stage(*stage)
-        if best is not None:
-            break
-        if time.perf_counter() - t0 > max_s:
-            result.notes.append(f"stopped after {max_s:.0f} s of searching (--max-seconds)")
-            break
-    if best is None:
-        weak = [t for t in found.values() if t.found]
-        if weak:
-            best_weak = max(weak, key=lambda t: t.score)
-            result.notes.append(f"weak hint: {best_weak.cand.label()} at {best_weak.fs / 1e6:g} MS/s found "
-                                f"{' '.join(str(r.prn) for r in best_weak.found)} without confirmation")
-        result.elapsed_s = time.perf_counter() - t0
-        return result
-    # the winner: the other PRNs, then neighbouring rates (within 0.1 %: indistinguishable over 10 ms)
-    src = src_of(best.cand)
-    missing = tuple(p for p in range(1, 33) if p not in best.prns)
-    wide = WIDE_DOPPLER_HZ if abs(np.median([r.doppler_hz for r in best.found])) > 4000 else DOPPLER_MAX_HZ
-    if missing:
-        t = _try(src, best.cand, best.fs, best.if_hz, missing, wide)
-        result.tried += 1
-        if t is not None:
-            best.found = sorted(best.found + t.found, key=lambda r: -r.metric)
-            best.prns = tuple(range(1, 33))
-    f = FORMATS[best.cand.fmt]
-    if f.kind == "packed" and not f.integer:            # the other bit order: real samples in a wrong order
-        other = Candidate(best.cand.fmt, "lsb_first" if best.cand.bit_order == "msb_first" else "msb_first",
-                          best.cand.encoding)         # still correlate in part: keep the better one
-        t = _try(src_of(other), other, best.fs, best.if_hz, range(1, 33), wide)
-        result.tried += 1
-        if t is not None and t.score > best.score:
-            best, src = t, src_of(other)
-    for fs in rates:
-        if fs != best.fs and abs(fs / best.fs - 1) < 1e-3:
-            t = _try(src, best.cand, fs, best.if_hz, range(1, 33), wide)
+    def refine(self, best):
+        """The winner: the other PRNs, the other bit order of a packed format, then neighbouring rates
+        (within 0.1 %: indistinguishable over 10 ms)."""
+        result = self.result
+        src = self.src_of(best.cand)
+        missing = tuple(p for p in range(1, 33) if p not in best.prns)
+        wide = WIDE_DOPPLER_HZ if abs(np.median([r.doppler_hz for r in best.found])) > 4000 else DOPPLER_MAX_HZ
+        if missing:
+            t = _try(src, best.cand, best.fs, best.if_hz, missing, wide)
             result.tried += 1
-            if t is not None and t.score > 1.3 * best.score:      # else the more common rate (listed first)
-                best = t
-    src = src_of(best.cand)
-    coh = COHERENT_MS if best.confirmed or src.n_file / best.fs >= 2 * COHERENT_MS * 1e-3 else 1
-    best.found = [r for r in reject_cross_correlations(best.found, coh, fs=BB_FS) if r.detected]
-    result.best = best
-    result.offset_hz = float(np.median([r.doppler_hz for r in best.found]))
-    result.duration_s = src.n_file / best.fs
-    _swap_test(src, best, result)
-    result.notes += component_stats(src.head[:1 << 18], not src.real)
-    result.elapsed_s = time.perf_counter() - t0
-    return result
-
-
+            if t is not None:
+                best.found = sorted(best.found + t.found, key=lambda r: -r.metric)
+                best.prns = tuple(range(1, 33))
+        f = FORMATS[best.cand.fmt]
+        if f.kind == "packed" and not f.integer:            # the other bit order: real samples in a wrong order
+            other = Candidate(best.cand.fmt, "lsb_first" if best.cand.bit_order == "msb_first" else "msb_first",
+                              best.cand.encoding)         # still correlate in part: keep the better one
+            t = _try(self.src_of(other), other, best.fs, best.if_hz, range(1, 33), wide)
+            result.tried += 1
+            if t is not None and t.score > best.score:
+                best, src = t, self.src_of(other)
+        for fs in self.rates:
+            if fs != best.fs and abs(fs / best.fs - 1) < 1e-3:
+                t = _try(src, best.cand, fs, best.if_hz, range(1, 33), wide)
+                result.tried += 1
+                if t is not None and t.score > 1.3 * best.score:      # else the more common rate (listed first)
+                    best = t
+        return best

@@ -135,6 +135,16 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
         st.evidence.append(f"only {len(raw)} bytes: too few for statistics")
         st.candidates = [Candidate("int8_iq"), Candidate("int8_real")]
         return st
+    tried = []
+    if _float32(st, raw) or _int16(st, raw) or _bytes(st, raw) or _packed(st, raw, tried) or _packed1(st, raw):
+        return st
+    st.evidence.append("the bytes fit no format's statistics (" + "; ".join(tried[-3:]) + ")")
+    st.candidates = [Candidate("int8_iq"), Candidate("int8_real")]
+    return st
+
+
+def _float32(st: Stats, raw: np.ndarray) -> bool:
+    """float32 samples: nearly every 4-byte word a finite float of plausible size (fills st)."""
     frac, v = _float_test(raw)
     if frac > 0.99:
         st.family = "float32"
@@ -142,7 +152,12 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
         st.evidence.append(f"{100 * frac:.1f} % of the 4-byte words are finite float32 of plausible size "
                            f"(RMS {np.sqrt(np.mean(v.astype(np.float64) ** 2)):.3g}): float32 samples")
         st.candidates = [Candidate("complex64"), Candidate("float32_real")]
-        return st
+        return True
+    return False
+
+
+def _int16(st: Stats, raw: np.ndarray) -> bool:
+    """Little-endian 16-bit samples: the high bytes vary far less than the low ones (fills st)."""
     even, odd = raw[0::2], raw[1::2]
     h_even, h_odd = _entropy(np.bincount(even, minlength=256)), _entropy(np.bincount(odd, minlength=256))
     hi = odd.view(np.int8).astype(np.float64)
@@ -157,7 +172,13 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
                            f"histograms differ by {tv:.2f}): little-endian 16-bit samples "
                            f"(RMS {np.sqrt(np.mean(s16 ** 2)):.0f})")
         st.candidates = [Candidate("int16_iq"), Candidate("int16_real")]
-        return st
+        return True
+    return False
+
+
+def _bytes(st: Stats, raw: np.ndarray) -> bool:
+    """int8 or uint8 samples: one hump in the byte histogram as signed or as unsigned bytes, not two
+    4-bit fields per byte (fills st)."""
     s = raw.view(np.int8).astype(np.float64)
     u = raw.astype(np.float64)
     sd_s, sd_u = s.std(), u.std()
@@ -189,17 +210,23 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
                            f"{np.sqrt(np.mean(s ** 2)):.1f}; {what}): int8 samples (offset binary uint8 would be "
                            f"centred on 127.5)")
         st.candidates = [Candidate("int8_iq"), Candidate("int8_real")]
-        return st
+        return True
     if sd_u < 0.6 * sd_s and (few or smooth(hist)) and not nibbles:
         st.family = "uint8"
         st.clip_fraction = float(((u == 0) | (u == 255)).mean())
         st.evidence.append(f"the byte histogram is centred on {u.mean():.1f} as unsigned bytes (RMS about it "
                            f"{sd_u:.1f}): uint8 offset binary (value - 127.5; int8 would be centred on 0)")
         st.candidates = [Candidate("uint8_iq")]
-        return st
+        return True
+    return False
+
+
+def _packed(st: Stats, raw: np.ndarray, tried: list) -> bool:
+    """Packed 4- or 2-bit fields (or int4 I/Q) whose values look like a quantiser's output (fills st);
+    the readings that did not fit are appended to ``tried``."""
     # packed fields: the width / encoding whose field values look most like a quantiser's output (1 bit
     # only when no 2- or 4-bit reading fits: every bit pattern is symmetric at one bit)
-    fits, tried = [], []
+    fits = []
     for bits, enc, integer in ((4, "sign_magnitude", False), (4, "twos_complement", False),
                                (4, "offset_binary", False), (4, "twos_complement", True),
                                (2, "sign_magnitude", False), (2, "twos_complement", False),
@@ -216,7 +243,7 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
             st.candidates = [Candidate("int4_iq")]
             st.evidence.append("the bytes use all 256 values; as two 4-bit two's-complement integers per byte "
                                "both nibbles are symmetric about 0 and peaked there: int4_iq")
-            return st
+            return True
         st.family = f"packed{bits}"
         st.candidates = [Candidate(f"packed{bits}_{kind}", o, enc) for kind in ("iq", "real")
                          for o in ("msb_first", "lsb_first")]
@@ -229,17 +256,20 @@ def byte_stats(path, header_bytes: int = 0) -> Stats:
                            f"at +/-1): {bits}-bit samples packed {8 // bits} to a byte")
         if tried:
             st.evidence.append("(not " + "; not ".join(tried[:3]) + ")")
-        return st
+        return True
+    return False
+
+
+def _packed1(st: Stats, raw: np.ndarray) -> bool:
+    """1-bit samples packed 8 to a byte: about half the bits set (fills st)."""
     p1 = np.unpackbits(raw).mean()
     if abs(p1 - 0.5) < 0.05:
         st.family = "packed1"
         st.candidates = [Candidate(f"packed1_{kind}", o) for kind in ("iq", "real") for o in ("msb_first", "lsb_first")]
         st.evidence.append(f"the bytes use all 256 values, {100 * p1:.0f} % of the bits are 1 and no 2- or 4-bit "
                            "reading looks like a quantiser's output: 1-bit samples packed 8 to a byte")
-        return st
-    st.evidence.append("the bytes fit no format's statistics (" + "; ".join(tried[-3:]) + ")")
-    st.candidates = [Candidate("int8_iq"), Candidate("int8_real")]
-    return st
+        return True
+    return False
 
 
 def component_stats(x: np.ndarray, complex_fmt: bool) -> list[str]:

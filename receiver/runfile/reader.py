@@ -17,8 +17,8 @@ GPS week/seconds become UTC with the leap seconds broadcast in the message (or t
 :mod:`receiver.gnss.time` when they were not decoded).  The simulator's truth file has its own reader,
 :mod:`receiver.runfile.truth`.
 
-The module is the one place that opens run files for reading (every consumer goes through :class:`RunFile`),
-so its size follows the file's layout.
+Why this module is long: it is the one place that opens run files for reading (every consumer goes through
+:class:`RunFile`), so its size follows the file's layout.
 """
 from __future__ import annotations
 

@@ -42,8 +42,8 @@ Per satellite (:class:`SatTrack`)::
 The pipeline calls ``start`` once, then per chunk ``note(prn, recs)`` for every channel's records and
 ``after_chunk(start, next_start)``.  ``channels`` (prn -> Channel) is the dict the vector tracker shares.
 
-The channel lifecycle's states and transitions stay in one module, so the whole state machine reads in one
-place.
+Why this module is long: the channel lifecycle's states and transitions stay in one module, so the whole
+state machine reads in one place.
 """
 from __future__ import annotations
 

@@ -7,7 +7,8 @@ vector loop or a Python carrier loop steps the kernel one epoch at a time and re
 (S_CARR_FREQ, S_CODE_RATE, S_CODE_PHASE) between epochs.  ``C_CARRIER_EXTERNAL`` / ``C_CODE_EXTERNAL``
 stop the kernel from touching the carrier / code NCO itself.
 
-The compiled channel kernel is one function by design (numba compiles one epoch loop).
+Why this module is long: the compiled channel kernel is one function by design (numba compiles one epoch
+loop), with its state and configuration slot tables beside it.
 """
 import math
 

@@ -35,8 +35,9 @@ bias state per system after the reference one, in the navigation solution's orde
 the signal's system letter: QZSS shares GPS's clock, as in receiver.navigation.pvt), started from the
 handover fix's ``isb_m``.
 
-The tracker's Python bookkeeping (channels joining and leaving, geometry, diagnostics, fixes) is one class;
-the compiled epoch loop is receiver.tracking.vector.loop.
+Why this module is long: the tracker's Python bookkeeping (channels joining and leaving, geometry,
+diagnostics, fixes) is one class over one shared state (the filter, the channel arrays); the compiled epoch
+loop is receiver.tracking.vector.loop.
 """
 from __future__ import annotations
 
