@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .acquisition.config import BAND_SIGNALS
 from .acquisition.stage import acquire
 from . import interrupt, threads
 from .stagetimes import stage
@@ -40,9 +41,6 @@ from .summary import RunSummary
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
-#: signals tracked as a second band of the first signal's satellites, from a file of their own with its own rate
-#: (input.signal_files), aided by the first signal's channels (receiver.tracking.aided; docs: Dual frequency)
-BAND_SIGNALS = ("gps_l5",)
 
 
 def core_signals(cfg) -> list:

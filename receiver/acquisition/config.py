@@ -9,6 +9,9 @@ from ..gnss.registry import SIGNAL_NAMES, get_signal
 
 #: signals defined in receiver.gnss (codes, messages) that the receiver stages do not process yet
 UNTRACKED_SIGNALS = ("gal_e1",)
+#: signals tracked as a second band of the first signal's satellites, from a file of their own
+#: (input.signal_files), aided by the first signal's channels (receiver/dualband.py; docs: Dual frequency)
+BAND_SIGNALS = ("gps_l5",)
 
 #: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns)
 SIGNAL_PRNS = {name: tuple(get_signal(name).prns) for name in SIGNAL_NAMES}
@@ -116,6 +119,12 @@ def check_prns(a: Section):
 
 def check_signals(cfg: Section, sigs: list):
     """The run's signals are ones the receiver stages process."""
+    key = "signals" if cfg.signals else "signal"
+    if sigs[0] in BAND_SIGNALS or sum(s in BAND_SIGNALS for s in sigs) > 1 or \
+            (any(s in BAND_SIGNALS for s in sigs) and sigs[0] != "gps_l1ca"):
+        raise UserError(f"config key '{key}': {', '.join(b for b in sigs if b in BAND_SIGNALS)} is tracked as "
+                        f"the second band of GPS L1 C/A: use signals: [gps_l1ca, gps_l5] with the L5 file in "
+                        f"input.signal_files (docs: Dual frequency)")
     for s in sigs:
         if s in UNTRACKED_SIGNALS:
             key = "signals" if cfg.signals else "signal"

@@ -13,7 +13,7 @@ from .io import ALIASES, BIT_ORDERS, ENCODINGS, FORMATS
 REAL_FORMAT_ALIASES = tuple(a for a, f in ALIASES.items() if not FORMATS[f].complex)
 FORMATS_ALL = tuple(FORMATS) + tuple(ALIASES)
 #: signals whose file (input.signal_files) may have its own format and sample rate: they are read by their own
-#: input stage (receiver.tracking.aided), not on the first signal's sample clock
+#: input stage (receiver.tracking.aided), not on the first signal's sample clock (acquisition.config.BAND_SIGNALS)
 OWN_RATE_SIGNALS = ("gps_l5",)
 
 SCHEMA = {
