@@ -45,6 +45,7 @@ def test_strong_signal_found_by_both():
     assert not search(x, FS, 0.0, GPS_L5, 8, 820.0, 0.0, 4320.0, 5.0).detected
 
 
+@pytest.mark.slow
 def test_aiding_detects_where_the_full_search_fails():
     """35 dB-Hz, 10 ms: the aided search (a few cells) detects every trial, the full search (every code
     phase, +/- 2 kHz) most rarely: the same statistic, a threshold for 10^5 times more cells."""
