@@ -3,7 +3,7 @@
 Parses (ast) every module under receiver/, collects every import of another receiver module -- at module
 level and inside functions alike -- and checks
   * the layer rule: a module imports only from its own layer or lower ones (LAYERS, bottom first; the same
-    order is written in README "How it works" / Layers);
+    order is written in docs/how-it-works/index.md, "Layers");
   * no import cycle between modules (Tarjan's strongly connected components over the import graph);
   * the extra rules below (the simulator does not depend on the receiver stages; batch metrics do not
     depend on the simulator).
@@ -18,7 +18,7 @@ import pytest
 PKG = ROOT / "receiver"
 
 #: bottom -> top; a module's layer is that of the longest prefix listed here (``receiver`` itself: the
-#: package's __init__ only).  A new top-level module must be placed here (and in the README) explicitly.
+#: package's __init__ only).  A new top-level module must be placed here (and in docs/how-it-works/index.md) explicitly.
 LAYERS: list[tuple[str, ...]] = [
     ("receiver", "receiver.errors", "receiver.config", "receiver.plugins", "receiver.logs", "receiver.safeio",
      "receiver.threads", "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start", "receiver.suggest"),
@@ -90,7 +90,7 @@ def layer_of(name: str) -> int:
         for p in prefixes:
             if (name == p or (p != "receiver" and name.startswith(p + "."))) and len(p) > best_len:
                 best, best_len = i, len(p)
-    assert best is not None, f"{name} is in no layer: add it to LAYERS (and to the README)"
+    assert best is not None, f"{name} is in no layer: add it to LAYERS (and to docs/how-it-works/index.md)"
     return best
 
 
