@@ -12,9 +12,39 @@ The L1 part of the run is that of an L1-only run: the band only reads the L1 cha
 """
 from __future__ import annotations
 
+from .acquisition.config import BAND_SIGNALS
+from .errors import UserError
 from .gnss.registry import get_signal
 from .navigation.ionofree import DualFrequency
+from .schema import run_signals
+from .source.io import SampleReader
 from .tracking.aided import AidedBand
+
+
+def core_signals(cfg) -> list:
+    """The run's signals acquired, tracked and navigated on the first signal's sample clock (all but
+    BAND_SIGNALS)."""
+    return [n for n in run_signals(cfg) if n not in BAND_SIGNALS]
+
+
+def band_signal(cfg):
+    """The run's second-band signal name (one of BAND_SIGNALS), or None."""
+    return next((n for n in run_signals(cfg) if n in BAND_SIGNALS), None)
+
+
+def open_band_input(cfg, name: str) -> SampleReader:
+    """The input stage of second-band signal ``name``: its own file of input.signal_files with its own format,
+    rate and IF (no decimation or conditioning stage), spanning the same time as input.path."""
+    i = cfg.input
+    own = (i.signal_files or {}).get(name)
+    if not own:
+        raise UserError(f"config key 'input.signal_files.{name}': signal {name} is read from a file of its own "
+                        f"(e.g. {{{name}: {{path: l5.bin, format: int8_iq, sample_rate_hz: 20.46e6, if_hz: 0}}}})")
+    reader = SampleReader(own["path"], own.get("format", i.format), own.get("sample_rate_hz", i.sample_rate_hz),
+                          i.skip_s, i.duration_s, i.iq_swap, header_bytes=i.header_bytes, bit_order=i.bit_order,
+                          encoding=i.encoding)
+    reader.if_hz = float(own.get("if_hz", 0.0))
+    return reader
 
 
 class DualBand:

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .acquisition.config import BAND_SIGNALS
 from .acquisition.stage import acquire
 from . import interrupt, threads
 from .stagetimes import stage
@@ -27,11 +26,12 @@ from .source.io import SampleReader
 from .source.prefetch import PrefetchingReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
-from .schema import RECEIVER_SCHEMA, plugins_attr, run_signals, signal_prns
+from .schema import RECEIVER_SCHEMA, plugins_attr, run_signals, signal_prns  # noqa: F401 (run_signals: re-exported)
 from .runfile.provenance import provenance_async
 from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST
+from .dualband import DualBand, band_signal, core_signals, open_band_input
 from .gnss.registry import get_signal
 from .gnss.satid import MIXED, sat_key
 from .tracking.carrier import make_carrier_loop
@@ -41,32 +41,6 @@ from .summary import RunSummary
 
 CHUNK_S = 0.5
 OVERLAP_S = 0.03
-
-
-def core_signals(cfg) -> list:
-    """The run's signals acquired, tracked and navigated on the first signal's sample clock (all but
-    BAND_SIGNALS)."""
-    return [n for n in run_signals(cfg) if n not in BAND_SIGNALS]
-
-
-def band_signal(cfg):
-    """The run's second-band signal name (one of BAND_SIGNALS), or None."""
-    return next((n for n in run_signals(cfg) if n in BAND_SIGNALS), None)
-
-
-def open_band_input(cfg, name: str) -> SampleReader:
-    """The input stage of second-band signal ``name``: its own file of input.signal_files with its own format,
-    rate and IF (no decimation or conditioning stage), spanning the same time as input.path."""
-    i = cfg.input
-    own = (i.signal_files or {}).get(name)
-    if not own:
-        raise UserError(f"config key 'input.signal_files.{name}': signal {name} is read from a file of its own "
-                        f"(e.g. {{{name}: {{path: l5.bin, format: int8_iq, sample_rate_hz: 20.46e6, if_hz: 0}}}})")
-    reader = SampleReader(own["path"], own.get("format", i.format), own.get("sample_rate_hz", i.sample_rate_hz),
-                          i.skip_s, i.duration_s, i.iq_swap, header_bytes=i.header_bytes, bit_order=i.bit_order,
-                          encoding=i.encoding)
-    reader.if_hz = float(own.get("if_hz", 0.0))
-    return reader
 
 
 def default_output_path(cfg, input_path: str) -> str:
@@ -293,7 +267,6 @@ class _Part:
 def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono, band_reader=None) -> RunSummary:
     run = _ChunkLoop(cfg, readers, writer, quiet, acq_start, ephemerides, iono)
     if band_reader is not None:
-        from .dualband import DualBand
         run.dual = DualBand(cfg, band_signal(cfg), band_reader, run)
     run.loop()
     return run.summary(t_wall)

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from receiver.errors import UserError
-from receiver.pipeline import band_signal, core_signals, open_band_input
+from receiver.dualband import band_signal, core_signals, open_band_input
 from receiver.schema import load_receiver_config
 
 
