@@ -120,11 +120,10 @@ def check_prns(a: Section):
 def check_signals(cfg: Section, sigs: list):
     """The run's signals are ones the receiver stages process."""
     key = "signals" if cfg.signals else "signal"
-    if sigs[0] in BAND_SIGNALS or sum(s in BAND_SIGNALS for s in sigs) > 1 or \
-            (any(s in BAND_SIGNALS for s in sigs) and sigs[0] != "gps_l1ca"):
+    if any(s in BAND_SIGNALS for s in sigs) and list(sigs) != ["gps_l1ca", "gps_l5"]:
         raise UserError(f"config key '{key}': {', '.join(b for b in sigs if b in BAND_SIGNALS)} is tracked as "
-                        f"the second band of GPS L1 C/A: use signals: [gps_l1ca, gps_l5] with the L5 file in "
-                        f"input.signal_files (docs: Dual frequency)")
+                        f"the second band of GPS L1 C/A: use signals: [gps_l1ca, gps_l5] (no third signal yet) with "
+                        f"the L5 file in input.signal_files (docs: Dual frequency)")
     for s in sigs:
         if s in UNTRACKED_SIGNALS:
             key = "signals" if cfg.signals else "signal"
