@@ -3,9 +3,9 @@
 project's simulator, static, an ionosphere ``--iono-scale`` times the broadcast Klobuchar model.
 
     python scripts/bench/accuracy_dual.py --out /tmp/dual_acc [--duration 12] [--iono-scale 1.5] [--seed 1]
-                                          [--cn0 45] [--reuse]
+                                          [--cn0 45] [--l5-fs 21e6] [--reuse]
 
-Simulates configs/scenarios/l1l5_static_tokyo.yaml (L1 4.092 MS/s + L5 20.46 MS/s, int8 I/Q, one clock),
+Simulates configs/scenarios/l1l5_static_tokyo.yaml (L1 4.092 MS/s + L5 21 MS/s, int8 I/Q, one clock),
 runs the receiver on the fragment it writes (signals [gps_l1ca, gps_l5], assisted with the scenario's RINEX
 navigation file for a fix within seconds) and prints the 3D / horizontal / vertical RMS and mean errors of
 /navigation (L1 only, broadcast Klobuchar) and /navigation_ionofree, and the L5 pseudorange error against
@@ -47,6 +47,7 @@ def main():
     ap.add_argument("--iono-scale", type=float, default=1.5)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--cn0", type=float, default=45.0)
+    ap.add_argument("--l5-fs", type=float, default=21e6, help="L5 file sample rate")
     ap.add_argument("--skip-s", type=float, default=3.0, help="fixes before this time are not scored")
     ap.add_argument("--reuse", action="store_true", help="keep an existing recording")
     a = ap.parse_args()
@@ -56,7 +57,7 @@ def main():
     if not (a.reuse and rec.exists()):
         simulate(ROOT / "configs/scenarios/l1l5_static_tokyo.yaml", str(rec), progress=False, overrides=[
             f"time.duration_s={a.duration}", f"atmosphere.iono_scale={a.iono_scale}", f"time.seed={a.seed}",
-            f"cn0.dbhz={a.cn0}", f"constellation.rinex={RINEX}"])
+            f"cn0.dbhz={a.cn0}", f"constellation.rinex={RINEX}", f"l5.sample_rate_hz={a.l5_fs}"])
     cfg = load_receiver_config(out / "l1l5.yaml", [("navigation.ephemeris", str(RINEX)),
                                                   ("output.path", str(out / "run.h5"))])
     s = run(cfg, quiet=True)
@@ -84,8 +85,8 @@ def l5_pr_errors(h, truth_path):
     for e in np.unique(tm):
         k = tm == e
         d[k] -= np.mean(d[k])
-    rows = [f"G{p:02d} {np.sqrt(np.mean(d[prn == p] ** 2)):.2f}" for p in np.unique(prn)]
-    print("L5 pseudorange error RMS (m, epoch mean removed): " + ", ".join(rows))
+    rows = [f"G{p:02d} {np.mean(d[prn == p]):+.2f}/{np.std(d[prn == p]):.2f}" for p in np.unique(prn)]
+    print("L5 pseudorange error mean/sd (m, epoch mean removed): " + ", ".join(rows))
 
 
 if __name__ == "__main__":
