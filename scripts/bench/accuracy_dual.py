@@ -5,7 +5,7 @@ project's simulator, static, an ionosphere ``--iono-scale`` times the broadcast 
     python scripts/bench/accuracy_dual.py --out /tmp/dual_acc [--duration 12] [--iono-scale 1.5] [--seed 1]
                                           [--cn0 45] [--l5-fs 21e6] [--reuse]
 
-Simulates configs/scenarios/l1l5_static_tokyo.yaml (L1 4.092 MS/s + L5 21 MS/s, int8 I/Q, one clock),
+Simulates configs/scenarios/l1l5_static_tokyo.yaml (L1 4 MS/s + L5 21 MS/s, int8 I/Q, one clock),
 runs the receiver on the fragment it writes (signals [gps_l1ca, gps_l5], assisted with the scenario's RINEX
 navigation file for a fix within seconds) and prints the 3D / horizontal / vertical RMS and mean errors of
 /navigation (L1 only, broadcast Klobuchar) and /navigation_ionofree, and the L5 pseudorange error against

@@ -19,7 +19,7 @@ pytestmark = [needs_shared, pytest.mark.slow]
 def runs(tmp_path_factory):
     d = tmp_path_factory.mktemp("dual")
     simulate(CONFIGS / "scenarios/l1l5_static_tokyo.yaml", str(d / "x.bin"), progress=False, overrides=[
-        "time.duration_s=7.0", f"constellation.rinex={TOKYO_NAV}", "l5.sample_rate_hz=10.23e6"])
+        "time.duration_s=7.0", f"constellation.rinex={TOKYO_NAV}", "l5.sample_rate_hz=10.5e6"])
     common = [("navigation.ephemeris", str(TOKYO_NAV))]
     both = load_receiver_config(d / "x.yaml", common + [("output.path", str(d / "both.h5"))])
     l1 = load_receiver_config(d / "x.yaml", common + [("output.path", str(d / "l1.h5")), ("signals", []),
