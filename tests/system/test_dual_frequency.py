@@ -8,6 +8,7 @@ import pytest
 from receiver.gnss.geodesy import ecef2enu
 from receiver.pipeline import run
 from receiver.schema import load_receiver_config
+from receiver.sim.multiband import GAMMA_15
 from receiver.sim.simulate import simulate
 
 from repo_paths import CONFIGS, TOKYO_NAV, needs_shared
@@ -53,18 +54,35 @@ def test_l5_aided_acquisition_and_pseudoranges(runs):
             assert np.sqrt(np.mean(err ** 2)) < 3.0, p       # (receiver clock: the recording's time stamp)
 
 
-def test_ionofree_fix_removes_the_residual_ionosphere(runs):
+def test_ionosphere_measured_by_the_two_bands(runs):
+    """P5 - P1 is the ionosphere's (gamma - 1) I1 (the truth's delays: 1.5 x the broadcast model, 4.5-9 m
+    here) within the code noise, satellite by satellite."""
+    with h5py.File(runs / "both.h5") as h, h5py.File(runs / "x.truth.h5") as t1:
+        o1, o5 = h["observables"], h["observables_l5"]
+        t_1, p_1, r_1 = o1["time_s"][:], o1["prn"][:], o1["pseudorange_m"][:]
+        t_5, p_5, r_5 = o5["time_s"][:], o5["prn"][:], o5["pseudorange_m"][:]
+        err = []
+        for p in np.unique(p_5):
+            k5 = (p_5 == p) & (t_5 >= 3.0)
+            k1 = (p_1 == p) & np.isin(t_1, t_5[k5])
+            assert k5.sum() >= 30 and np.array_equal(t_1[k1], t_5[k5])
+            g = t1[f"satellites/G{p:02d}"]
+            i1 = np.interp(t_5[k5], g["time_s"][:], g["iono_delay_m"][:])
+            expect = (GAMMA_15 - 1.0) * i1
+            assert np.min(expect) > 3.0
+            err.append(np.mean(r_5[k5] - r_1[k1] - expect))
+        # (each: the L1 code noise after a few seconds of smoothing; together: no common bias)
+        assert np.max(np.abs(err)) < 1.5 and abs(np.mean(err)) < 0.5
+
+
+def test_ionofree_fixes(runs):
+    """An ionosphere-free fix at every L1 epoch once L5 is tracked; the short run's noise (2.26 x the L1
+    code's; scripts/bench/accuracy_dual.py measures the accuracy over longer runs) within a few metres."""
     with h5py.File(runs / "both.h5") as h, h5py.File(runs / "x.truth.h5") as t:
         truth = t["receiver/ecef"][0]
-        up = {}
-        for grp in ("navigation", "navigation_ionofree"):
-            g = h[grp]
-            keep = g["time_s"][:] >= 5.0           # (the carrier smoothing converged over a few seconds)
-            assert keep.sum() >= 15
-            up[grp] = ecef2enu(g["ecef"][:][keep], truth)
-        # the broadcast model leaves a third of the true delay: the L1-only fix is metres high; the
-        # ionosphere-free one is not (its noise: 2.26 x the L1 code's, smoothing for a few seconds only here)
-        rms = {k: np.sqrt(np.mean(np.sum(v ** 2, axis=1))) for k, v in up.items()}
-        u1, u_if = np.mean(up["navigation"][:, 2]), np.mean(up["navigation_ionofree"][:, 2])
-        assert u1 > 2.5 and abs(u_if) < u1 - 2.0
-        assert rms["navigation_ionofree"] < 2.5 and rms["navigation_ionofree"] < rms["navigation"] - 1.5
+        n1 = np.sum(h["navigation/time_s"][:] >= 3.0)
+        g = h["navigation_ionofree"]
+        keep = g["time_s"][:] >= 3.0
+        assert keep.sum() >= 0.9 * n1 and np.all(g["n_sats"][:][keep] >= 6)
+        e = ecef2enu(g["ecef"][:][keep], truth)
+        assert np.sqrt(np.mean(np.sum(e ** 2, axis=1))) < 5.0
