@@ -33,9 +33,10 @@ from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST
 from .dualband import DualBand, band_signal, core_signals, open_band_input
 from .gnss.registry import get_signal
-from .gnss.satid import MIXED, sat_key
+from .gnss.satid import MIXED
 from .tracking.carrier import make_carrier_loop
 from .tracking.channels import ChannelManager
+from .tracking.gal_channels import GalChannelManager
 from .tracking.table import ChannelTable
 from .summary import RunSummary
 
@@ -110,23 +111,11 @@ def _vector_handover(cfg, parts, table, nav, fs, quiet=False):
 
 def _assisted_ephemerides(path, sigs):
     """navigation.ephemeris (assisted mode): the RINEX records of the run's systems, keyed like its channels
-    (one signal: its PRNs -- a BeiDou B1I run the BeiDou records, BDT; several signals: satellite keys,
+    (one signal: its PRNs -- a BeiDou B1I run the BeiDou records, BDT, a Galileo E1 run the Galileo I/NAV
+    ones; several signals: satellite keys,
     receiver.gnss.satid.sat_key, from a mixed RINEX 3 file), and the header's Klobuchar set (GPS's first)."""
-    from .gnss.rinex import read_rinex_nav
-    letters = [get_signal(n).system for n in sigs]
-    if len(letters) == 1:
-        return read_rinex_nav(path, systems=("C",) if letters[0] == "C" else ("G", "J"))
-    ephs, iono = {}, None
-    for i, letter in enumerate(letters):
-        try:
-            e, io = read_rinex_nav(path, systems=("C",) if letter == "C" else ("G", "J"))
-        except UserError:
-            if i == 0:
-                raise
-            continue            # no records of a further system: its satellites decode their own ephemerides
-        ephs.update({sat_key(letter, p): lst for p, lst in e.items()})
-        iono = iono if iono is not None else io
-    return ephs, iono
+    from .gnss.rinex import read_rinex_nav_for
+    return read_rinex_nav_for(path, [get_signal(n).system for n in sigs])
 
 
 @interrupt.deferred()      # SIGINT/SIGTERM only set a flag; the chunk loop stops at the next chunk
@@ -302,9 +291,10 @@ class _ChunkLoop:
         table = self.table = ChannelTable(multi)     # every signal's channels by the run's satellite key
         for sig, rd in zip(sigs, readers):
             part = _Part(sig, rd, table)
-            part.manager = ChannelManager(cfg, rd, table.signal_view(nav, sig.system), fs, rd.if_hz, sig,
-                                          functools.partial(acquire, signal=sig),
-                                          table.signal_view(writer, sig.system), prns=signal_prns(cfg, sig.name))
+            manager = GalChannelManager if sig.system == "E" else ChannelManager     # Galileo E1: 4-ms codes
+            part.manager = manager(cfg, rd, table.signal_view(nav, sig.system), fs, rd.if_hz, sig,
+                                   functools.partial(acquire, signal=sig), table.signal_view(writer, sig.system),
+                                   prns=signal_prns(cfg, sig.name))
             table.add(sig.system, part.manager.channels)
             self.parts.append(part)
         with stage("acquisition"):

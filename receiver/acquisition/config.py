@@ -8,7 +8,7 @@ from ..errors import UserError, warn
 from ..gnss.registry import SIGNAL_NAMES, get_signal
 
 #: signals defined in receiver.gnss (codes, messages) that the receiver stages do not process yet
-UNTRACKED_SIGNALS = ("gal_e1",)
+UNTRACKED_SIGNALS = ()
 #: signals tracked as a second band of the first signal's satellites, from a file of their own
 #: (input.signal_files), aided by the first signal's channels (receiver/dualband.py; docs: Dual frequency)
 BAND_SIGNALS = ("gps_l5",)
@@ -19,12 +19,11 @@ SIGNAL_PRNS = {name: tuple(get_signal(name).prns) for name in SIGNAL_NAMES}
 #: the top-level keys naming the run's signals (choices: receiver.gnss.registry)
 SIGNALS_SCHEMA = {
     "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
-                                   "L1 C/A, LNAV) or bds_b1i (BeiDou B1I, D1/D2 messages); gal_e1 (Galileo E1 OS) "
-                                   "is defined (codes, I/NAV) but not yet acquired or tracked; gps_l5 (GPS L5 Q5 "
-                                   "pilot, 10.23 Mcps, with L1 in `signals` and input.signal_files; docs: Dual "
-                                   "frequency)",
+                                   "L1 C/A, LNAV), bds_b1i (BeiDou B1I, D1/D2 messages) or gal_e1 (Galileo E1 OS, "
+                                   "I/NAV; docs: Galileo E1); gps_l5 (GPS L5 Q5 pilot, only as signals: [gps_l1ca, "
+                                   "gps_l5] with input.signal_files; docs: Dual frequency)",
                 choices=SIGNAL_NAMES),
-    "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, bds_b1i]; empty: `signal` alone): "
+    "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, gal_e1, bds_b1i]; empty: `signal` alone): "
                              "every signal is acquired and tracked from the same input (input.if_hz is the IF "
                              "of the first; the others sit at if_hz + their carrier - the first's), and the "
                              "fixes use all systems with an inter-system clock bias (docs: BeiDou and multi-GNSS)"),
@@ -32,7 +31,7 @@ SIGNALS_SCHEMA = {
 
 SCHEMA = {
     "prns": P(list(range(1, 33)), "list_int", "PRNs searched (gps_l1ca: GPS 1-32 and QZSS 193-202 = "
-                                              "J01-J10; bds_b1i: 1-63)", lo=1, hi=202),
+                                              "J01-J10; bds_b1i: 1-63; gal_e1: 1-50)", lo=1, hi=202),
     "prns_by_signal": P({}, "dict", "runs over several signals: PRNs searched per signal name (e.g. "
                                     "{bds_b1i: [6, 7, 8]}); a signal not listed searches acquisition.prns "
                                     "when it is the first of `signals`, else all its PRNs"),

@@ -38,6 +38,8 @@ class GalAcqResult:
     metric: float               # peak-to-floor / threshold
     cn0_dbhz_est: float
     side_peak_fixed: bool = False
+    reason: str = ""            # why not detected (receiver.runfile.record.ACQ_REASONS)
+    verified: int = -1          # no verification dwell
 
 
 def _replica_fft(prn: int, fs: float, n: int, component: str) -> np.ndarray:

@@ -45,6 +45,8 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
     fs, if_hz = reader.fs, reader.if_hz
     sig = signal if signal is not None else get_signal(run_signals(cfg)[0])
     notes = [] if notes is None else notes
+    if sig.name == "gal_e1":
+        return acquire_galileo(cfg, reader, start, prns, doppler_window)
     # the search needs T_coh x K (the verification dwell another T_coh x K); the fine Doppler estimate
     # uses up to 200 ms (20 blocks of 10 ms) where the file has them
     m, k, pfa = a.coherent_ms, a.noncoherent, a.pfa
@@ -111,3 +113,31 @@ def acquire(cfg, reader: SampleReader, start: int, prns, widen: bool = False, no
         reader.doppler_centre_hz = round(med / 100.0) * 100.0     # re-acquisitions search around it
     return res
 
+
+
+#: 4-ms blocks summed non-coherently by the Galileo E1 search (20 ms: 45 dB-Hz signals at ~19 dB, 38 at ~12 dB
+#: above the noise floor of the grid's largest noise cell)
+GAL_NONCOHERENT = 5
+
+
+def acquire_galileo(cfg, reader: SampleReader, start: int, prns, doppler_window=None) -> list:
+    """Galileo E1 search (receiver.acquisition.galileo.search: E1-B + E1-C BOC(1,1), BOC side peak resolved) of
+    ``prns`` from file index ``start`` over acquisition.doppler_max_hz (or ``doppler_window``: centre, half
+    width) at acquisition.pfa; results not detected get reason ``threshold``."""
+    from .galileo import search as gal_search
+    a = cfg.acquisition
+    fs = reader.fs
+    n = int(round(fs * 4e-3)) * GAL_NONCOHERENT
+    block = reader.read(start, n)
+    if len(block) < n:
+        raise UserError(f"input too short for Galileo acquisition ({len(block) / fs * 1e3:.1f} ms available, "
+                        f"{n / fs * 1e3:.0f} needed)")
+    centre = getattr(reader, "doppler_centre_hz", 0.0)
+    dmax = a.doppler_max_hz
+    if doppler_window is not None:
+        centre, dmax = doppler_window
+    res = gal_search(block, start, fs, reader.if_hz, prns, noncoherent=GAL_NONCOHERENT, doppler_max_hz=dmax,
+                     doppler_center_hz=centre, pfa=a.pfa, threshold=a.threshold)
+    for r in res:
+        r.reason = "" if r.detected else "threshold"
+    return res

@@ -1,9 +1,10 @@
 """NMEA 0183 sentences (GGA, RMC, GSA, GSV) for every fix of a run.
 
-* Talker: GP for a GPS-only fix, GB for BeiDou only, GN when the fix mixes systems (GPS + QZSS on L1
-  C/A); GSV sentences carry the satellites' own system's talker (GP for GPS and QZSS, whose PRNs
-  193..202 are their NMEA IDs; GB for BeiDou, IDs = PRN); a mixed fix has one GSA per system with the
-  NMEA 4.10 system ID (1 GPS, 4 BeiDou) appended.
+* Talker: GP for a GPS-only fix, GB for BeiDou only, GA for Galileo only, GN when the fix mixes systems
+  (GPS + QZSS on L1 C/A, GPS + Galileo + BeiDou); GSV sentences carry the satellites' own system's talker
+  (GP for GPS and QZSS, whose PRNs 193..202 are their NMEA IDs; GB for BeiDou, IDs = PRN 1..63; GA for
+  Galileo, IDs = PRN 1..36 as NMEA 4.10 numbers them); a mixed fix has one GSA per system with the NMEA
+  4.10 system ID (1 GPS, 3 Galileo, 4 BeiDou) appended.
 
 * Times are UTC (GPS time of the fix minus the leap seconds broadcast in the LNAV message, or the built-in
   table), to 0.01 s.
@@ -21,7 +22,7 @@ import math
 import numpy as np
 
 from ..gnss.geodesy import enu_matrix
-from ..gnss.satid import sat_system
+from ..gnss.satid import sat_label, sat_system
 from ..runfile.reader import RunData
 
 KNOTS_PER_MPS = 3600.0 / 1852.0
@@ -30,9 +31,10 @@ _NMEA_SYS = {"G": "G", "J": "G", "C": "C", "E": "E"}     # QZSS satellites are r
 _NMEA_SYS_ID = {"G": 1, "E": 3, "C": 4}                  # NMEA 4.10 GNSS system ID of GSA
 
 
-def _nmea_id(prn: int) -> int:
-    """NMEA satellite ID: the PRN (QZSS 193..202; BeiDou 1..63, also when keyed 400 + PRN)."""
-    return prn - 400 if prn > 400 else prn
+def _nmea_id(prn: int, system: str = "G") -> int:
+    """NMEA satellite ID of a run's satellite ``prn`` (key of a run over several signals): the PRN of its own
+    system (GPS 1..32, QZSS 193..202, BeiDou 1..63, Galileo 1..36)."""
+    return int(sat_label(prn, system)[1:]) if sat_system(prn, system) in ("C", "E") else prn
 
 
 def checksum(body: str) -> str:
@@ -146,8 +148,9 @@ def nmea_lines(run: RunData) -> list:
         # GSA: one per system when several (NMEA 4.10, system ID appended); GSV: per system, own talker
         groups = {}
         for p in used:
-            groups.setdefault(_NMEA_SYS.get(sat_system(p, run.system), "G"), []).append(_nmea_id(p))
-        for letter, ids in sorted(groups.items()) if len(groups) > 1 else [(None, [_nmea_id(p) for p in used])]:
+            groups.setdefault(_NMEA_SYS.get(sat_system(p, run.system), "G"), []).append(_nmea_id(p, run.system))
+        for letter, ids in (sorted(groups.items()) if len(groups) > 1
+                            else [(None, [_nmea_id(p, run.system) for p in used])]):
             line = gsa(ids, float(f["pdop"]), float(f["hdop"]), float(f["vdop"]), talker)
             if letter is not None:
                 line = sentence(line[1:line.index("*")] + f",{_NMEA_SYS_ID[letter]}")
@@ -156,7 +159,8 @@ def nmea_lines(run: RunData) -> list:
         for r in rows:
             p = int(obs["prn"][r])
             by_sys.setdefault(_NMEA_SYS.get(sat_system(p, run.system), "G"), []).append(
-                (_nmea_id(p), float(obs["elevation_deg"][r]), float(obs["azimuth_deg"][r]), float(obs["cn0_dbhz"][r])))
+                (_nmea_id(p, run.system), float(obs["elevation_deg"][r]), float(obs["azimuth_deg"][r]),
+                 float(obs["cn0_dbhz"][r])))
         for letter in sorted(by_sys):
             lines.extend(gsv(by_sys[letter], _TALKER[letter]))
     return lines

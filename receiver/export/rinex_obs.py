@@ -2,8 +2,11 @@
 
 Observation types: C1C (pseudorange, m), L1C (carrier phase, cycles), D1C (Doppler, Hz), S1C (C/N0,
 dB-Hz) for GPS and QZSS (L1 C/A; QZSS PRN 193.. is J01..); C2I, L2I, D2I, S2I for BeiDou B1I (RINEX 3
-band 2).  A file with more than one system is a mixed ('M') file with one SYS / # / OBS TYPES line per
-system.  Conventions:
+band 2); C1C, L1C, D1C, S1C for Galileo E1 (band 1, attribute C: the E1-C pilot, which gnssrx's Galileo
+channel tracks for code and carrier; E1-B only gives the I/NAV symbols, so the RINEX 3 code of a B+C tracker,
+1X, would claim power the measurements do not use).  A file with more than one system is a mixed ('M') file
+with one SYS / # / OBS TYPES line per system; the time system is GPS in every file (TIME OF FIRST OBS says
+so, also in a Galileo-only file whose default would be GAL).  Conventions:
 
 * Epochs are the receiver clock readings of the measurements: GPS time of the fix plus its clock bias / c
   (the pseudoranges are the raw ones, c (receiver time - transmit time)), so another program estimates
@@ -14,7 +17,9 @@ system.  Conventions:
 * Loss-of-lock indicator (on L1C): bit 0 when the carrier loop's lock time is shorter than the time since
   the satellite's previous observation (lock was lost and regained in between), or when the satellite
   appears after the first epoch with a lock time shorter than the gap; bit 1 while the half-cycle
-  ambiguity is not resolved (no LNAV preamble seen yet).
+  ambiguity is not resolved (no LNAV / D1 preamble seen yet; the Galileo pilot, whose secondary code is
+  known, has none once the channel tracks).
+* SYS / PHASE SHIFT: no cycle shift is applied to any phase (0.00000 written for each system's phase code).
 * Signal strength indicator (C1C and L1C): 1..9 from C/N0 in 6 dB-Hz steps (RINEX 3 table).
 """
 from __future__ import annotations
@@ -27,6 +32,7 @@ import numpy as np
 from .. import __version__
 from ..gnss.satid import sat_label, sat_system
 from ..gnss.time import split_gps_time
+from ..errors import UserError
 from ..runfile.reader import RunData
 
 OBS_TYPES = ("C1C", "L1C", "D1C", "S1C")
@@ -174,6 +180,48 @@ def nav_ephemerides(run: RunData) -> list:
     return run.used_ephemerides()
 
 
+def decoded_gal_params(path) -> dict:
+    """The Galileo system parameters of a run, decoded again from the E1-B prompts (``prompt1_i``, one I/NAV
+    symbol per 4-ms record) of its stored Galileo channels: {"nequick", "utc", "ggto", "gst_week"} as far as
+    some channel decoded them (empty without Galileo channels)."""
+    from ..gnss.gal_inav import InavDecoder
+    from ..runfile.reader import RunFile
+    out: dict = {}
+    with RunFile(path) as rf:
+        for name in rf.channel_names():
+            if name[:1] != "E":
+                continue
+            ch = rf.channel(name, ("code_period", "prompt1_i"))
+            if len(ch.get("code_period", ())) < 500:
+                continue
+            dec = InavDecoder(rf.channel_prn(name))
+            cp, sym = ch["code_period"], ch["prompt1_i"]
+            for r in np.split(np.arange(len(cp)), np.nonzero(np.diff(cp) != 1)[0] + 1):
+                if len(r):
+                    dec.feed(sym[r], int(cp[r[0]]))
+            for key in ("nequick", "utc", "ggto", "gst_week"):
+                if key not in out and getattr(dec, key) is not None:
+                    out[key] = getattr(dec, key)
+            if len(out) == 4:
+                break
+    return out
+
+
+def gal_header_params(run: RunData, ephs) -> dict | None:
+    """The Galileo header parameters of the navigation file (:func:`receiver.gnss.rinex_gal.gal_header_lines`)
+    when it has Galileo ephemerides: :func:`decoded_gal_params` of the run (the GST week of the first Galileo
+    ephemeris when no channel decoded one); None otherwise."""
+    gal = [e for e in ephs if getattr(e, "system", "G") == "E"]
+    if not gal:
+        return None
+    try:
+        params = decoded_gal_params(run.path)
+    except UserError:                      # no run file behind the data (tests): no parameters
+        return None
+    params.setdefault("gst_week", gal[0].gst_week)
+    return params if len(params) > 1 else None
+
+
 def write_nav(path, run: RunData) -> dict:
     """Write the RINEX 3.04 navigation file of the ephemerides the fixes used, with the iono/UTC parameters; returns
     {"ephemerides": count, "satellites": keys, "iono": written}.  ValueError when the run has none."""
@@ -181,7 +229,7 @@ def write_nav(path, run: RunData) -> dict:
     ephs = nav_ephemerides(run)
     if not ephs:
         raise ValueError("the run has no ephemerides")
-    write_rinex_nav(path, ephs, run.iono(), system=run.system)
+    write_rinex_nav(path, ephs, run.iono(), system=run.system, gal=gal_header_params(run, ephs))
     return {"ephemerides": len(ephs), "satellites": sorted({run.eph_key(e) for e in ephs}),
             "iono": run.iono() is not None}
 

@@ -203,17 +203,20 @@ def _bds_split(eph):
 
 
 def _mixed_state(eph, t_tx, mask):
+    """sat_state of ephemerides of which ``mask`` marks those with a ``state`` of their own: each class's
+    satellites through its own function (BeiDou, Galileo), the rest through the GPS one."""
     if mask is True:
         return type(eph).state(eph, t_tx)
     ephs = list(eph)
-    other = type(ephs[int(np.flatnonzero(mask)[0])]).state
-    if mask.all():
-        return other(ephs, t_tx)
+    fns = [type(x).state if m else sat_state for x, m in zip(ephs, mask.tolist())]
+    groups = list(dict.fromkeys(fns))
+    if len(groups) == 1:
+        return groups[0](ephs, t_tx)
     t = np.broadcast_to(np.asarray(t_tx, float), (len(ephs),))
     pos, vel = np.empty((len(ephs), 3)), np.empty((len(ephs), 3))
     bias, drift = np.empty(len(ephs)), np.empty(len(ephs))
-    for sel, fn in ((mask, other), (~mask, sat_state)):
-        idx = np.flatnonzero(sel)
+    for fn in groups:
+        idx = np.array([i for i, f in enumerate(fns) if f is fn], int)
         r = fn([ephs[i] for i in idx], t[idx])
         pos[idx], vel[idx], bias[idx], drift[idx] = r
     return pos, vel, bias, drift

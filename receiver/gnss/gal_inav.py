@@ -383,6 +383,15 @@ class InavDecoder:
         self._words: dict = {}          # word type -> (fields, reception number)
         self._seq = 0
         self._held = HeldSet()
+        # the navigation engine's decoder interface (receiver.navigation.channel): I/NAV carries no Klobuchar
+        # set (NeQuick-G instead: ``nequick``); first_check is set by the engine, not used here (CRC-24Q)
+        self.iono_utc = None
+        self.first_check = None
+
+    @property
+    def parity_failures(self) -> int:
+        """Pages whose CRC-24Q failed (the navigation engine's name for corrupted words)."""
+        return self.crc_failures
 
     @property
     def week(self) -> int | None:

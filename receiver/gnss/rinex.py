@@ -12,6 +12,9 @@ import numpy as np
 
 from ..errors import UserError
 from .ephemeris import Ephemeris, IonoUtc
+from .rinex_gal import gal_from_values, gal_header_lines, gal_record
+from .rinex_text import (_SYSTEM_NAME, _d12, _d19, _fixed, _hdr, _header_values, _nav_lines, _num,  # noqa: F401
+                         _records)
 from .time import WEEK_S, calendar_from_gps_time, gps_time_from_calendar
 
 # URA index -> upper bound of the URA (m), IS-GPS-200 20.3.3.3.1.3
@@ -35,36 +38,6 @@ def ura_index_from_m(ura_m: float) -> int:
 def ura_m_from_index(idx: int) -> float:
     """Nominal URA (m) of a 4-bit URA index (clipped to 0..15), the value written to RINEX."""
     return _URA_NOMINAL[min(max(int(idx), 0), 15)]
-
-
-def _num(text: str) -> float:
-    """Fortran-style number (D or E exponent, blank = 0)."""
-    text = text.strip().replace("D", "E").replace("d", "E")
-    if not text:
-        return 0.0
-    return float(text)
-
-
-def _fixed(line: str, start: int, width: int, count: int):
-    return [_num(line[start + k * width:start + (k + 1) * width]) for k in range(count)]
-
-
-def _records(lines, is_start):
-    rec = []
-    for line in lines:
-        if not line.strip():
-            continue
-        if is_start(line):
-            if rec:
-                yield rec
-            rec = [line]
-        elif rec:
-            rec.append(line)
-    if rec:
-        yield rec
-
-
-_SYSTEM_NAME = {"C": "BeiDou", "E": "Galileo"}
 
 
 def _eph_from_values(prn, epoch, v, path):
@@ -101,86 +74,6 @@ def _bds_from_values(prn, epoch, v):
         tgd2=v[26], tx_time=v[27] if abs(v[27]) < 0.9e9 else float("nan"))
 
 
-
-
-def _wanted_name(systems) -> str:
-    """The name of the system group a reader call asks for, for its messages (GPS for G/J)."""
-    return next((_SYSTEM_NAME[s] for s in systems if s in _SYSTEM_NAME), "GPS")
-
-
-def _nav_lines(path: Path, systems) -> tuple[list, float]:
-    """The lines of a navigation file and its RINEX version, after the checks of its first line."""
-    try:
-        text = path.read_text(errors="replace")
-    except OSError as exc:
-        raise UserError(f"cannot read RINEX navigation file {path}: {exc.strerror or exc}") from None
-    lines = text.splitlines()
-    if not lines or "RINEX VERSION / TYPE" not in lines[0]:
-        raise UserError(f"{path}: not a RINEX file (no 'RINEX VERSION / TYPE' header line)")
-    try:
-        version = float(lines[0][:9])
-    except ValueError:
-        raise UserError(f"{path}: unreadable RINEX version in first line") from None
-    ftype = lines[0][20:21].upper()
-    system = lines[0][40:41].upper()
-    if version < 3 and "G" not in systems:
-        raise UserError(f"{path}: RINEX {version:g} navigation files hold GPS only "
-                        f"({'Galileo' if 'E' in systems else 'BeiDou'} needs RINEX 3)")
-    if version < 3:
-        if ftype != "N":
-            raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a GPS navigation file")
-    else:
-        if ftype != "N":
-            raise UserError(f"{path}: RINEX {version:g} file of type '{ftype}' is not a navigation file")
-        if system not in tuple(systems) + ("M", " ", ""):
-            raise UserError(f"{path}: RINEX {version:g} navigation file for system '{system}', not "
-                            f"{_wanted_name(systems)}")
-    return lines, version
-
-
-def _header_values(path: Path, lines, version: float, systems) -> tuple[dict, int]:
-    """The corrections of a navigation file's header and the index of its END OF HEADER line.
-
-    Keys: ``alpha``/``beta`` (Klobuchar: GPS lines, or with ``C`` in ``systems`` the BeiDou ones when the
-    file has no GPS set before them), ``gput`` (a0, a1, tot, wnt), ``leap`` (dt_ls, dt_lsf, wn_lsf, dn), and
-    with ``E`` in ``systems`` ``gal`` (ai0, ai1, ai2), ``gaut`` and ``gpga`` (a0, a1, t, week)."""
-    h: dict = {"alpha": None, "beta": None, "gput": None, "leap": None}
-    gal = "E" in systems
-    end = None
-    try:
-        for i, line in enumerate(lines):
-            label = line[60:].strip()
-            if label == "END OF HEADER":
-                end = i
-                break
-            if label == "ION ALPHA":
-                h["alpha"] = tuple(_fixed(line, 2, 12, 4))
-            elif label == "ION BETA":
-                h["beta"] = tuple(_fixed(line, 2, 12, 4))
-            elif label == "DELTA-UTC: A0,A1,T,W":
-                a0, a1 = _fixed(line, 3, 19, 2)
-                h["gput"] = (a0, a1, int(_num(line[41:50])), int(_num(line[50:59])))
-            elif label == "IONOSPHERIC CORR":
-                key = line[:4].strip().upper()
-                if key == "GPSA" or (key == "BDSA" and "C" in systems and h["alpha"] is None):
-                    h["alpha"] = tuple(_fixed(line, 5, 12, 4))
-                elif key == "GPSB" or (key == "BDSB" and "C" in systems and h["beta"] is None):
-                    h["beta"] = tuple(_fixed(line, 5, 12, 4))
-                elif key == "GAL" and gal:
-                    h["gal"] = tuple(_fixed(line, 5, 12, 3))
-            elif label == "TIME SYSTEM CORR":
-                key = line[:4].strip().upper()
-                if key == "GPUT" or (gal and key in ("GAUT", "GPGA")):
-                    h[key.lower()] = (_num(line[5:22]), _num(line[22:38]), int(_num(line[38:45])),
-                                      int(_num(line[45:50])))
-            elif label == "LEAP SECONDS":
-                v = [line[k * 6:(k + 1) * 6].strip() for k in range(4)]
-                h["leap"] = tuple(int(x) if x and (k == 0 or version >= 3) else None for k, x in enumerate(v))
-    except ValueError as exc:
-        raise UserError(f"{path}: bad RINEX header line {i + 1}: {exc}") from None
-    if end is None:
-        raise UserError(f"{path}: no 'END OF HEADER' line")
-    return h, end
 
 
 def _iono_utc(h: dict) -> IonoUtc | None:
@@ -234,7 +127,6 @@ def _nav_records(path: Path, body, version: float, systems):
             if letter == "C":
                 eph = _bds_from_values(prn, epoch, vals)
             elif letter == "E":
-                from .rinex_gal import gal_from_values
                 eph = gal_from_values(prn, epoch, vals)
             else:
                 eph = _eph_from_values(prn, epoch, vals, path)
@@ -279,17 +171,29 @@ def read_rinex_nav(path, systems=("G", "J")):
     return out, iono
 
 
-def _d19(x: float) -> str:
-    """Number in a 19-character field, scientific notation with 12 decimals."""
-    return f"{x: .12E}".rjust(19)
-
-
-def _d12(x: float) -> str:
-    return f"{x: .4E}".rjust(12)
-
-
-def _hdr(content: str, label: str) -> str:
-    return content.ljust(60)[:60] + label.ljust(20) + "\n"
+def read_rinex_nav_for(path, letters):
+    """The records of a navigation file for a run over the signals whose RINEX letters are ``letters``
+    (``["G"]``, ``["E"]``, ``["G", "E", "C"]``, ...): one letter gives that system's records keyed by PRN
+    (G: GPS + QZSS); several give each system's records keyed by satellite key
+    (:func:`receiver.gnss.satid.sat_key`: Galileo 300 + p, BeiDou 400 + p), a further system without records
+    contributing none.  Returns (ephemerides, the Klobuchar set of the first system that has one).
+    UserError as :func:`read_rinex_nav` (for the first system)."""
+    from .satid import sat_key
+    letters = list(letters)
+    pick = [(letter,) if letter in ("C", "E") else ("G", "J") for letter in letters]
+    if len(letters) == 1:
+        return read_rinex_nav(path, systems=pick[0])
+    ephs, iono = {}, None
+    for i, (letter, systems) in enumerate(zip(letters, pick)):
+        try:
+            e, io = read_rinex_nav(path, systems=systems)
+        except UserError:
+            if i == 0:
+                raise
+            continue
+        ephs.update({sat_key(letter, p): lst for p, lst in e.items()})
+        iono = iono if iono is not None else io
+    return ephs, iono
 
 
 def _bds_record(e) -> list:
@@ -345,7 +249,6 @@ def _record_system(e, system: str) -> str:
 def _header_lines(iono: IonoUtc | None, gal: dict | None) -> list:
     """The correction lines of a navigation file's header: the GPS Klobuchar / GPS-UTC / leap-second
     set of ``iono`` and the Galileo lines of ``gal`` (:func:`receiver.gnss.rinex_gal.gal_header_lines`)."""
-    from .rinex_gal import gal_header_lines
     g = gal_header_lines(gal) if gal else []
     out = []
     if iono is not None:
@@ -375,7 +278,6 @@ def write_rinex_nav(path, ephs, iono: IonoUtc | None = None, program: str = "gns
     parameters ({"nequick", "utc", "ggto", "gst_week"}, :func:`receiver.gnss.rinex_gal.gal_header_lines`),
     None for none.
     """
-    from .rinex_gal import gal_record
     if isinstance(ephs, dict):
         flat = [e for lst in ephs.values() for e in lst]
     else:

@@ -24,9 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .gal_inav import GST_WEEK_OFFSET, GalEphemeris, Ggto, GstUtc, NequickG
-from .rinex import (_d12, _d19, _hdr, _header_values, _nav_lines, calendar_from_gps_time,
-                    gps_time_from_calendar)
-from .time import WEEK_S
+from .rinex_text import _d12, _d19, _hdr, _header_values, _nav_lines
+from .time import WEEK_S, calendar_from_gps_time, gps_time_from_calendar
 
 #: I/NAV E1-B data with the (E1, E5b) clock: RINEX 3 Galileo "data sources" bits 0 and 9
 GAL_INAV_E1B_SOURCE = (1 << 0) | (1 << 9)

@@ -5,6 +5,10 @@ and presence tests a measurement needs, and the carrier-smoothed code observable
 Time keeping of a record's transmit time: frame sync ties bit ``b`` of a channel to GPS TOW, so the code
 period ``bit_offset + 20 b`` started at that TOW; a record then transmits
 ``tow_ref + (code_period - cp_ref) * 1 ms + code_phase_chips / 1.023 MHz`` (satellite clock).
+Galileo E1 (4-ms code periods, one I/NAV symbol each): ``code_period`` counts 4-ms periods, the E1-B symbol
+of a record is its ``prompt1_i`` (receiver.tracking.gal_channels), and ``cp_ref`` / ``tx_offset`` stay in
+milliseconds (``bit_ms`` = 4: symbol ``b`` starts at millisecond ``4 b``); the decoder's page events give
+the GST of a page start, converted to GPS time (receiver.gnss.gal_inav).
 """
 from __future__ import annotations
 
@@ -74,7 +78,10 @@ class ChannelNav:
         self.sig_prn = prn if sig_prn is None else sig_prn     # the signal's PRN (code, message type)
         sig = signal if signal is not None else GPS_L1CA
         self.signal = sig
-        self.bit_ms = sig.bit_ms(self.sig_prn)    # LNAV / BeiDou D1: 20 ms; BeiDou D2: 2 ms
+        self.bit_ms = sig.bit_ms(self.sig_prn)    # LNAV / BeiDou D1: 20 ms; BeiDou D2: 2 ms; Galileo E1-B 4 ms
+        self.galileo = sig.system == "E"
+        # duration of one code period (records' code_period unit): 1 ms, Galileo E1 4 ms
+        self.period_s = 1e-3 * round(sig.code_period_s * 1e3)
         self.chip_rate = sig.chip_rate
         self.wavelength = C_LIGHT / sig.carrier_hz
         self.decoder = self._new_decoder(week_hint)
@@ -110,7 +117,11 @@ class ChannelNav:
         self.resumed_with_time = 0  # re-acquisitions that kept the transmit-time reference
 
     def _new_decoder(self, week_hint):
-        """LNAV for L1 C/A (GPS, QZSS); D1/D2 for BeiDou B1I (receiver.gnss.bds_nav)."""
+        """LNAV for L1 C/A (GPS, QZSS); D1/D2 for BeiDou B1I (receiver.gnss.bds_nav); I/NAV for Galileo E1
+        (receiver.gnss.gal_inav)."""
+        if self.signal.system == "E":
+            from ..gnss.gal_inav import InavDecoder
+            return InavDecoder(self.sig_prn, week_hint=week_hint)
         if self.signal.system == "C":
             from ..gnss.bds_nav import BdsDecoder
             return BdsDecoder(self.sig_prn, week_hint=week_hint, geo=self.bit_ms != BIT_MS)
@@ -158,10 +169,20 @@ class ChannelNav:
             self.bit_offset = -1
             old = self.decoder              # bit indices restart: new frame sync, same decoded data
             self.decoder = self._new_decoder(old.week_hint)
+            if self.galileo:
+                self._carry_inav(old)
+                return
             self.decoder.ephemeris, self.decoder.iono_utc, self.decoder.week = \
                 old.ephemeris, old.iono_utc, old.week
             self.decoder.parity_failures = old.parity_failures
             self.decoder.first_check = getattr(old, "first_check", None)
+
+    def _carry_inav(self, old):
+        """A new I/NAV decoder (symbol indices restart) keeps what the old one decoded."""
+        d = self.decoder
+        d.ephemeris, d.nequick, d.utc, d.ggto, d.gst_week = old.ephemeris, old.nequick, old.utc, old.ggto, \
+            old.gst_week
+        d.crc_failures, d.pages_ok, d.first_check = old.crc_failures, old.pages_ok, old.first_check
 
     def set_assisted_offset(self, tx_offset: float):
         """Transmit-time offset found by the assisted ambiguity search (until frame sync confirms)."""
@@ -209,6 +230,9 @@ class ChannelNav:
         if bit_offset < 0:
             return
         self.bit_offset = bit_offset
+        if self.galileo:
+            self._add_symbols(recs)
+            return
         sync = recs["state"] == STATE_BIT_SYNC
         nc_from = self.noncoherent_from
         if nc_from is not None:
@@ -250,6 +274,18 @@ class ChannelNav:
         if out_bits:
             self._feed(out_bits, first)
 
+    def _add_symbols(self, recs):
+        """Galileo E1: every record past the pull-in is one E1-B symbol (its prompt1_i); runs of consecutive
+        code periods go to the I/NAV decoder (a gap restarts its page synchronisation)."""
+        sel = recs["state"] == STATE_BIT_SYNC
+        if not sel.any():
+            return
+        cp = recs["code_period"][sel]
+        sym = recs["prompt1_i"][sel].astype(np.float64)
+        cuts = np.flatnonzero(np.diff(cp) != 1) + 1
+        for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(cp)]):
+            self._feed(sym[a:b].tolist(), int(cp[a]))
+
     def set_noncoherent(self, from_sample):
         """The channel's carrier is frequency-locked (vector loop) from this sample on (None: phase-locked).
 
@@ -289,7 +325,8 @@ class ChannelNav:
                     self.time_mismatches += 1          # the assisted guess was wrong: frame sync wins
                 self.cp_ref = cp_ref
                 self.tow_ref = ev.tow_s
-                self.polarity = ev.polarity
+                # (Galileo: the PLL tracks the pilot, whose phase has no half-cycle ambiguity)
+                self.polarity = 1 if self.galileo else ev.polarity
                 self.time_assisted = False
 
     @property
@@ -340,7 +377,7 @@ class ChannelNav:
             if k >= len(si) - 1 and s - si[-1] > 0.03 * self.fs:
                 return None
             dt = (s - float(si[k])) / self.fs
-            txrel = (c[2][k] * 1e-3 + c[3][k] / self.chip_rate + dt * c[4][k] / self.chip_rate)
+            txrel = (c[2][k] * self.period_s + c[3][k] / self.chip_rate + dt * c[4][k] / self.chip_rate)
             dop = c[5][k]
             phase = c[6][k] + dt * (dop + self.if_hz) - self.if_hz * s / self.fs
             if self.polarity < 0:

@@ -4,6 +4,7 @@ file's records in assisted mode, else what each channel's decoder has decoded; t
 file header, a decoder, or the fallback set; the GPS week."""
 from __future__ import annotations
 
+from ..gnss.signals import L1_HZ
 from ..runfile.record import IONO_BROADCAST, IONO_FALLBACK, IONO_NONE
 
 
@@ -58,14 +59,22 @@ class EphemerisStore:
     def broadcast_iono(self):
         """The broadcast Klobuchar / GPS-UTC set: the RINEX header's (assisted mode; not when the header has
         GPS-UTC terms but no ION ALPHA / BETA: the reader leaves alpha and beta zero), else the first decoded
-        by any channel; None while none is known."""
+        by any channel; None while none is known.
+
+        A run over several signals with GPS among them applies one GPS set to every satellite (scaled to each
+        carrier, receiver.navigation.pvt): a BeiDou D1/D2 set (reference carrier B1I) counts only while no GPS
+        set is known and no fallback set is configured.  The solver evaluates every set with the GPS
+        (IS-GPS-200) Klobuchar formula, for which the BeiDou coefficients are not made; with the GPS set for
+        all, the GPS satellites of a combined fix get the same correction as in a GPS-only fix."""
         if self.iono_utc is not None and (any(self.iono_utc.alpha) or any(self.iono_utc.beta)):
             return self.iono_utc
         # (several signals: GPS keys first, so the GPS set wins over BeiDou's once both are decoded)
+        gps_first = bool(self.signals) and "G" in self.signals and self.iono_fallback is not None
         for ch in (self.channels.values() if not self.signals else
                    (c for _, c in sorted(self.channels.items()))):
-            if ch.decoder.iono_utc is not None:
-                return ch.decoder.iono_utc
+            io = ch.decoder.iono_utc
+            if io is not None and not (gps_first and float(getattr(io, "ref_hz", L1_HZ)) != L1_HZ):
+                return io
         return None
 
     def iono(self):

@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..gnss.geodesy import azel, ecef2lla, enu_matrix
-from ..gnss.signals import C_LIGHT, L1_HZ, LAMBDA_L1
-from ..gnss.signals_bds import B1I_HZ
+from ..gnss.signals import C_LIGHT, CA_CHIP_RATE, L1_HZ, LAMBDA_L1
+from ..gnss.signals_bds import B1I_CHIP_RATE, B1I_HZ
 from ..gnss.atmosphere import klobuchar_delay_s, saastamoinen_m
 from ..gnss.ephemeris import earth_rotation, sat_state, select
 from ..gnss.ephemeris_jit import sat_states
@@ -171,6 +171,19 @@ _ZERO4 = np.zeros(4)
 # URA index -> nominal URA (m), IS-GPS-200 20.3.3.3.1.3 (upper bounds; 15: no accuracy prediction)
 URA_M = (2.40, 3.40, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0, 1536.0, 3072.0,
          6144.0, 6144.0)
+#: the accuracy (m) RTKLIB's error model gives a Galileo satellite without an accuracy prediction (NAPA)
+SISA_NAPA_M = 500.0
+
+
+def broadcast_accuracy_m(eph) -> float:
+    """The broadcast range accuracy (m) of an ephemeris, the URA term of RTKLIB's error model (weighting
+    rtklib): a Galileo SISA index through the ICD's SISA table (NAPA and spare indices: SISA_NAPA_M), a GPS /
+    QZSS / BeiDou URA index through the URA table."""
+    if getattr(eph, "system", "G") == "E":
+        from ..gnss.rinex_gal import sisa_m_from_index
+        m = sisa_m_from_index(eph.ura_index)
+        return m if m >= 0.0 else SISA_NAPA_M
+    return URA_M[min(max(int(eph.ura_index), 0), 15)]
 
 
 class _Sats:
@@ -192,6 +205,10 @@ class _Sats:
         self.doppler = np.asarray(doppler, float)
         # carrier of each satellite's signal (the Klobuchar delay is scaled from the model's reference carrier)
         self.carrier_hz = np.array([B1I_HZ if c == "C" else L1_HZ for c in sy], float)
+        # code-noise variance of each satellite's signal relative to L1 C/A at the same C/N0 and elevation:
+        # the code tracking error in metres scales with the chip length (same DLL bandwidth and spacing in
+        # chips), so B1I (2.046 Mcps) ranges have (1.023 / 2.046)^2 = 1/4 of the C/A variance
+        self.code_var = np.array([(CA_CHIP_RATE / B1I_CHIP_RATE) ** 2 if c == "C" else 1.0 for c in sy], float)
 
     def __len__(self):
         return len(self.prn)
@@ -250,10 +267,19 @@ class NavSolver:
         rho = C_LIGHT * wrap_week_seconds(rx_tow - tx)
         return _Sats([o.prn for o in obs], rho, pos, vel, clk, drift,
                      [o.cn0_dbhz for o in obs], [o.doppler_hz * o.wavelength_m / LAMBDA_L1 for o in obs],
-                     ura_m=[URA_M[min(max(int(e.ura_index), 0), 15)] for e in ephs],
+                     ura_m=[broadcast_accuracy_m(e) for e in ephs],
                      systems=[o.system for o in obs])
 
-    def _weights(self, el, cn0, iono=None, ura_m=None):
+    def _weights(self, el, cn0, iono=None, ura_m=None, code_var=None):
+        """Relative weights of the satellites (largest 1).  code_var (elevation and cn0 weightings): the code
+        variance of each satellite's signal relative to L1 C/A (_Sats.code_var); a fix mixing signals of
+        different chip rates weights each by its inverse (None or all equal: no change)."""
+        w = self._base_weights(el, cn0, iono, ura_m)
+        if code_var is not None and self.weighting in ("elevation", "cn0") and np.ptp(code_var) > 0.0:
+            w = w / code_var
+        return w / np.max(w)
+
+    def _base_weights(self, el, cn0, iono=None, ura_m=None):
         if self.weighting == "rtklib" and el is not None:
             # RTKLIB's single-point error model with its default settings (code/phase error ratio 100,
             # a = b = 3 mm, code bias 0.3 m, URA, half the Klobuchar delay, 3 m unmodelled troposphere when
@@ -269,7 +295,7 @@ class NavSolver:
             w = 10.0 ** (cn0 / 10.0)
         else:
             w = np.ones(len(cn0))
-        return w / np.max(w)
+        return w
 
     def _atmosphere(self, x, az, el, iono_utc, tow):
         lat, lon, h = ecef2lla(x)
@@ -312,7 +338,7 @@ class NavSolver:
         return known, tau, los, az, el, iono, tropo, w, resid, hm
 
     def _linearise_numpy(self, pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow,
-                         iono_scale=None):
+                         iono_scale=None, code_var=None):
         """(known, tau, los, az, el, iono, tropo, w, resid, h) at position x, clock b (numpy; any number
         of clock groups: e_cols / isb)."""
         n = len(pos_tx)
@@ -332,7 +358,7 @@ class NavSolver:
                 iono = iono * iono_scale
         else:
             iono = tropo = np.zeros(n)
-        w = self._weights(el if (corrections and known) else None, cn0, iono, ura)
+        w = self._weights(el if (corrections and known) else None, cn0, iono, ura, code_var)
         resid = rho_c - iono - tropo - (rng + b + e_cols @ isb)
         h = np.hstack([-los, np.ones((n, 1)), e_cols])
         return known, tau, los, az, el, iono, tropo, w, resid, h
@@ -368,7 +394,8 @@ class NavSolver:
                     pos_tx, x, b, rho_c, cn0, ura, corrections, iono_utc, tow)
             else:
                 known, tau, los, az, el, iono, tropo, w, resid, h = self._linearise_numpy(
-                    pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow, iono_scale)
+                    pos_tx, x, b, rho_c, cn0, ura, e_cols, isb, corrections, iono_utc, tow, iono_scale,
+                    s.code_var[idx])
             if n_aid:
                 if not known:
                     return None

@@ -185,9 +185,10 @@ class RunFile(H5Input):
         return self.columns("acquisition", names)
 
     def ephemerides(self) -> list:
-        """The decoded ephemerides stored in ``/ephemeris`` (and ``/ephemeris_bds``: the BeiDou ones of a run
-        over several signals)."""
-        return [e for g in ("ephemeris", "ephemeris_bds") if g in self.f for e in _ephemerides(self.f[g])]
+        """The decoded ephemerides stored in ``/ephemeris`` (and ``/ephemeris_bds`` / ``/ephemeris_gal``: the
+        BeiDou / Galileo ones of a run over several signals)."""
+        return [e for g in ("ephemeris", "ephemeris_bds", "ephemeris_gal") if g in self.f
+                for e in _ephemerides(self.f[g])]
 
     def iono_utc_attrs(self) -> dict | None:
         """Attributes of the ``/iono_utc`` group (named like the IonoUtc fields), or None when the file has none."""
@@ -284,7 +285,8 @@ class RunData:
             return None
 
     def assisting_rinex(self):
-        """(ephemerides dict, iono) of the assisted run's RINEX navigation file, or None when unreadable."""
+        """(ephemerides dict, iono) of the assisted run's RINEX navigation file, or None when unreadable: the
+        records of the run's systems, keyed like its observables (:func:`receiver.gnss.rinex.read_rinex_nav_for`)."""
         p = self.cfg("navigation.ephemeris")
         if not p:
             return None
@@ -296,14 +298,23 @@ class RunData:
             cands += [os.path.join(here, p), os.path.join(os.path.dirname(here), p)]
         if self.attrs.get("input_path"):
             cands.append(os.path.join(os.path.dirname(str(self.attrs["input_path"])), os.path.basename(p)))
-        from ..gnss.rinex import read_rinex_nav
+        from ..gnss.rinex import read_rinex_nav_for
         for c in cands:
             if os.path.isfile(c):
                 try:
-                    return read_rinex_nav(c)
+                    return read_rinex_nav_for(c, self.signal_letters())
                 except UserError:
                     return None
         return None
+
+    def signal_letters(self) -> list:
+        """The RINEX letters of the run's signals (``signals``, else ``signal``; G when the config has neither)."""
+        from ..gnss.registry import get_signal
+        names = self.cfg("signals") or [self.cfg("signal") or "gps_l1ca"]
+        try:
+            return [get_signal(n).system for n in names]
+        except (ValueError, TypeError):
+            return [self.system if self.system != "M" else "G"]
 
     def decoded(self):
         """(ephemerides prn -> Ephemeris, IonoUtc or None) decoded again from the stored channel records."""
@@ -444,6 +455,8 @@ def _ephemerides(group) -> list:
     cls = Ephemeris
     if "tgd2" in cols:                       # BeiDou ephemerides (BDT toe/toc/week)
         from ..gnss.bds_ephemeris import BdsEphemeris as cls
+    elif "bgd_e1e5a" in cols:                # Galileo I/NAV ephemerides (GST toe/toc, week = GPS week)
+        from ..gnss.gal_inav import GalEphemeris as cls
     out = []
     for i in range(n):
         kw = {}

@@ -7,6 +7,14 @@ file) and ``code_phase_chips`` the replica code phase at that sample (a small fr
 fractional-sample remainder).  The transmit time of that sample is therefore
 ``t_code_period_start + code_phase_chips / chip_rate``, which the navigation stage turns into
 pseudoranges once frame sync has tied ``code_period`` to GPS time.
+
+Galileo E1 channels (``gal_e1``, receiver.tracking.gal_channels) write the same record per 4-ms code period:
+``code_period`` counts 4-ms periods, ``integration_ms`` is 4, ``prompt_i`` / ``prompt_q`` / ``early`` / ``late``
+are the E1-C pilot's (CS25 wiped), ``prompt1_i`` / ``prompt1_q`` the E1-B (data) prompt -- one I/NAV symbol;
+with the carrier locked on the pilot (transmitted as -e_C, ICD Eq. 11) a logic-0 symbol reads negative --,
+``prompt2_*`` zero; ``state`` is pull-in, then bit_sync (every period is a symbol).
+Their observables (OBS_DTYPE) and fixes are those of every signal; in a run over several signals Galileo PRN p
+is satellite 300 + p (receiver.gnss.satid.sat_key) and its ephemerides are in ``/ephemeris_gal``.
 """
 import numpy as np
 

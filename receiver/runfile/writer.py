@@ -314,13 +314,16 @@ class RunWriter:
     def write_ephemerides(self, ephs: dict):
         """ephs: prn -> Ephemeris (dataclass); stored as one compound-free table of fields.  A run over
         several signals (system M) keeps the BeiDou ones (BDT, field tgd2) in a table of their own,
-        ``/ephemeris_bds``, the GPS/QZSS ones in ``/ephemeris``."""
+        ``/ephemeris_bds``, the Galileo ones (field bgd_e1e5a; tgd = BGD(E1,E5b)) in ``/ephemeris_gal``, the
+        GPS/QZSS ones in ``/ephemeris``; a Galileo-only run (system E) keeps its own in ``/ephemeris``."""
         if not ephs:
             return
         if self.system == "M":
             bds = {k: e for k, e in ephs.items() if getattr(e, "system", "G") == "C"}
-            self._write_ephemeris_table("ephemeris", {k: e for k, e in ephs.items() if k not in bds})
+            gal = {k: e for k, e in ephs.items() if getattr(e, "system", "G") == "E"}
+            self._write_ephemeris_table("ephemeris", {k: e for k, e in ephs.items() if k not in bds and k not in gal})
             self._write_ephemeris_table("ephemeris_bds", bds)
+            self._write_ephemeris_table("ephemeris_gal", gal)
         else:
             self._write_ephemeris_table("ephemeris", ephs)
 

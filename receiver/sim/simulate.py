@@ -57,8 +57,8 @@ from .impairments import Impairments
 from .kernel import quantize_fast, synth_block
 from .outputs import TruthWriter, files_read, output_paths, remove_files, write_companions
 from .scenario import clock_h, load_scenario, noise_sigma, resolve_path
-from .sources import (Cn0Model, Overlap, broadcast_iono, chosen_ephemerides, load_ephemerides, nav_sources,
-                      scintillation_streams, select_signals)
+from .sources import (Cn0Model, Overlap, broadcast_iono, chosen_ephemerides, load_ephemerides, multi_gal_content,
+                      nav_sources, scintillation_streams, select_signals)
 from .trajectory import CsvTrajectory, make_trajectory
 
 GRID_S = 1e-3                     # truth / interpolation grid of the kernel (receiver time)
@@ -132,7 +132,7 @@ class _Simulator:
         self._models(sc, el_scan)
         self._signal_plan()
         self.nav = nav_sources(sc, self.prns, self.sat_sig, self.ephs, self.gal_content, self.iono_b, self.week,
-                               self.gal, bds_src, self.multi)
+                               self.gal, bds_src, self.multi, self.gal_multi)
         self._codes()
         self.amp_k = (2.0 if self.cplx else 4.0) * self.sigma ** 2 / self.fs     # A^2 = amp_k * C/N0
         self.node_step = math.gcd(NODE_STEPS, self.decim)   # geometry nodes (grid steps), on truth rows
@@ -181,6 +181,8 @@ class _Simulator:
         atm = sc.atmosphere
         cons, self.gal_content = load_ephemerides(sc.constellation, self.week, self.t_ref, self.duration,
                                                   self.gal, bds_src)
+        # a recording of several signals with gal_e1: the nominal Galileo constellation beside GPS
+        self.gal_multi = multi_gal_content(sc.constellation, self.signals, self.multi, self.week, self.t_ref)
         self.source = cons.source
         self.iono_b = broadcast_iono(atm, cons.iono_utc, self.week, self.t_ref)   # what the messages carry
         self.iono = self.iono_b if atm.ionosphere == "klobuchar" else None       # what delays the signals
@@ -190,7 +192,7 @@ class _Simulator:
     def _satellites(self, sc, cons):
         """The chosen satellites that rise above the horizon during the run; returns the elevation scan."""
         con = sc.constellation
-        ephs = chosen_ephemerides(con, cons, self.multi, self.week, self.t_ref)
+        ephs = chosen_ephemerides(con, cons, self.multi, self.week, self.t_ref, self.signals, self.gal_multi)
         self.mask = con.elevation_mask_deg
         el_scan = scan_elevations(ephs, self.traj, self.t0_true, self.duration)
         self.prns = sorted(p for p, e in el_scan[1].items() if np.max(e) >= min(self.mask, 0.0) - 1.0)
@@ -219,7 +221,7 @@ class _Simulator:
         self.sat_sig = {}
         for p in self.prns:
             letter, q = split_key(p) if self.multi else (first.system, p)
-            sig = next(g for g in self.signals if g.system == ("C" if letter == "C" else "G")) if self.multi \
+            sig = next(g for g in self.signals if g.system == (letter if letter in "CE" else "G")) if self.multi \
                 else first
             self.sat_sig[p] = (sig, q, self.if_hz + (sig.carrier_hz - first.carrier_hz))
         for sig in self.signals[1:]:
@@ -236,10 +238,12 @@ class _Simulator:
     def _codes(self):
         """The spreading code of each satellite (Galileo: the E1-B and E1-C BOC(1,1) rows)."""
         self.codes = {p: self.sat_sig[p][0].code(self.sat_sig[p][1]) for p in self.prns}
-        if self.gal:                            # E1-B and E1-C rows: BOC(1,1) half-chips, each half the power
+        gal = [p for p in self.prns if self.sat_sig[p][0].system == "E"]
+        if gal:                                 # E1-B and E1-C rows: BOC(1,1) half-chips, each half the power
             from ..gnss.gal_codes import boc11, e1b_code, e1c_code
             k = np.float32(1.0 / math.sqrt(2.0))
-            self.gal_codes = {p: (k * boc11(e1b_code(p)), -k * boc11(e1c_code(p))) for p in self.prns}
+            self.gal_codes = {p: (k * boc11(e1b_code(self.sat_sig[p][1])), -k * boc11(e1c_code(self.sat_sig[p][1])))
+                              for p in gal}
 
     def attrs(self) -> dict:
         """The truth file's attributes (scenario, time base, format, conventions)."""
@@ -407,7 +411,7 @@ class _Simulator:
         cn0_db = self.cn0(p, t_rel, b.el_deg[i])
         amp = np.sqrt(self.amp_k * 10.0 ** (cn0_db / 10.0)) * s_amp * b.visible[i]
         carr = -sig_p.carrier_hz * d_carr + s_ph / (2.0 * np.pi)
-        if self.gal:                                     # chips since a 4-ms period boundary
+        if sig_p.system == "E":                          # Galileo: chips since a 4-ms period boundary
             chips_total = (self.r_ref_gal + t_rel - d_code) * sig_p.chip_rate
         return SimpleNamespace(sig=sig_p, if_hz=if_p, f_carr=sig_p.carrier_hz, code_n=float(sig_p.code_len),
                                d_code=d_code, gp_dot=gp_dot, chips_total=chips_total, carr=carr, amp=amp,
@@ -419,7 +423,7 @@ class _Simulator:
         if not (b.n_samp > 0 and np.any(s.amp > 0)):
             return
         code_n, chips_total, t_rel = s.code_n, s.chips_total, b.t_rel
-        if self.gal:
+        if s.sig.system == "E":
             per0 = int(math.floor(chips_total[0] / code_n))
             chips_blk = 2.0 * (chips_total - per0 * code_n)          # BOC(1,1) half-chips
             count = int(chips_blk[-1] // (2 * code_n)) + 2

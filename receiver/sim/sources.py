@@ -152,10 +152,11 @@ def select_signals(sc):
     con, atm = sc.constellation, sc.atmosphere
     names = list(sc.signals or []) or [sc.signal]
     multi = len(names) > 1
-    if multi and (sorted(names) != ["bds_b1i", "gps_l1ca"] or con.source not in ("embedded", "rinex")):
-        raise UserError("config key 'signals': a recording of several signals is [gps_l1ca, bds_b1i] (either "
-                        "order) with constellation.source embedded or rinex (GPS; BeiDou: "
-                        "constellation.bds_file)")
+    if multi and (len(set(names)) < len(names) or "gps_l1ca" not in names or
+                  not set(names) <= {"gps_l1ca", "bds_b1i", "gal_e1"} or con.source not in ("embedded", "rinex")):
+        raise UserError("config key 'signals': a recording of several signals is gps_l1ca with bds_b1i and/or "
+                        "gal_e1 (any order) with constellation.source embedded or rinex (GPS; BeiDou: "
+                        "constellation.bds_file; Galileo: constellation.gal_file)")
     if not multi and names[0] not in ("gps_l1ca", "bds_b1i", "gal_e1"):
         raise UserError(f"config key 'signals': unknown signal {names[0]!r}")
     signals = [get_signal(n) for n in names]
@@ -217,14 +218,25 @@ def broadcast_iono(atm, iono_b, week, t_ref):
     return iono_b
 
 
-def chosen_ephemerides(con, cons, multi, week, t_ref) -> dict:
+def multi_gal_content(con, signals, multi, week, t_ref):
+    """The Galileo I/NAV content per PRN of a recording of several signals with gal_e1 (else None)."""
+    if not multi or "gal_e1" not in [g.name for g in signals]:
+        return None
+    from .gal_constellation import gal_nominal_content
+    return gal_nominal_content(resolve_path(con.gal_file, "constellation file"), week, t_ref)
+
+
+def chosen_ephemerides(con, cons, multi, week, t_ref, signals=(), gal_multi=None) -> dict:
     """{key: ephemeris} of the satellites the scenario asks for (constellation.prns / exclude_prns); a
-    GPS + BeiDou recording adds the nominal BeiDou constellation, keyed 400 + PRN."""
+    recording of several signals adds the nominal BeiDou constellation (with bds_b1i), keyed 400 + PRN, and
+    the nominal Galileo one (``gal_multi``: with gal_e1), keyed 300 + PRN."""
     ephs = dict(cons.ephemerides)
-    if multi:
+    if multi and (not signals or "bds_b1i" in [g.name for g in signals]):
         from .bds_constellation import bds_nominal_ephemerides
         b_multi, _ = bds_nominal_ephemerides(resolve_path(con.bds_file, "constellation file"), week, t_ref)
         ephs.update({sat_key("C", p): e for p, e in b_multi.items()})
+    if gal_multi:
+        ephs.update({sat_key("E", p): c.eph for p, c in gal_multi.items()})
     if con.prns:
         missing = [p for p in con.prns if p not in ephs]
         if missing:
@@ -264,14 +276,17 @@ def scintillation_streams(sci, prns, seed, grid_s) -> dict:
     return out
 
 
-def nav_sources(sc, prns, sat_sig, ephs, gal_content, iono_b, week, gal, bds_src, multi) -> dict:
+def nav_sources(sc, prns, sat_sig, ephs, gal_content, iono_b, week, gal, bds_src, multi, gal_multi=None) -> dict:
     """{key: navigation-data source} per satellite: ``signs(period0, count)`` gives its data symbols
-    (Galileo: E1-B symbols and E1-C secondary chips) per code period of satellite time."""
+    (Galileo: E1-B symbols and E1-C secondary chips) per code period of satellite time; ``gal_multi``: the
+    Galileo content of a recording of several signals (:func:`multi_gal_content`)."""
     nav = {}
     for p in prns:
         sig, q, _ = sat_sig[p]
         if gal:
             nav[p] = GalSymbols(gal_content[p], week, sc.navigation.data)
+        elif sig.system == "E":                 # a Galileo satellite of a recording of several signals
+            nav[p] = GalSymbols(gal_multi[q], week, sc.navigation.data)
         elif bds_src or (multi and sig.system == "C"):
             from ..gnss.bds_nav import BdsNavBits
             from ..gnss.signals_bds import is_geo

@@ -63,6 +63,39 @@ def _correlate(x, start, n, code_phase, code_step, carr_phase, carr_step, rep_c,
     return complex(er, ei), complex(pr, pi), complex(lr, li), complex(br, bi)
 
 
+@njit(cache=True, nogil=True)
+def _correlate_block(x, start, n, code_phase, code_step, carr_phase, carr_step, rep_c, rep_b, half_d):
+    """:func:`_correlate` on a complex sample block (the pipeline's chunk): samples start .. start+n-1 of x."""
+    er = ei = pr = pi = lr = li = br = bi = 0.0
+    nrep = rep_c.size
+    two_pi = 2.0 * math.pi
+    for k in range(n):
+        v = x[start + k]
+        xr = float(v.real)
+        xi = float(v.imag)
+        ph = two_pi * (carr_phase + k * carr_step)
+        c, sn = math.cos(ph), math.sin(ph)
+        yr = xr * c + xi * sn
+        yi = xi * c - xr * sn
+        cp = code_phase + k * code_step
+        ip = int(math.floor(2.0 * cp)) % nrep
+        ie = int(math.floor(2.0 * (cp + half_d))) % nrep
+        il = int(math.floor(2.0 * (cp - half_d))) % nrep
+        vc = rep_c[ip]
+        pr += yr * vc
+        pi += yi * vc
+        ve = rep_c[ie]
+        er += yr * ve
+        ei += yi * ve
+        vl = rep_c[il]
+        lr += yr * vl
+        li += yi * vl
+        vb = rep_b[ip]
+        br += yr * vb
+        bi += yi * vb
+    return complex(er, ei), complex(pr, pi), complex(lr, li), complex(br, bi)
+
+
 @dataclass
 class GalEpochs:
     """Per 4-ms epoch of one channel: first sample, replica code phase there (chips, ~0: epochs start at code
@@ -112,50 +145,54 @@ class GalChannel:
         self._nb = 0.0
         self._ns = 0.0
 
+    def _epoch_length(self):
+        """(samples, code step chips/sample) of the next epoch: up to the next code-period boundary."""
+        rate = E1_CHIP_RATE * (1.0 + (self.carr_hz - self.if_hz) / E1_HZ) + self.dll_rate
+        step = rate / self.fs
+        return int(math.ceil((E1_CODE_LEN - self.code_phase) / step - 1e-9)), step
+
+    def _update(self, e, p, l, b, n, step):
+        """Loop filters of one epoch from its correlations (E, P, L of E1-C, P of E1-B; n samples): the
+        epoch's values (sample, code phase, period, E1-B prompt, E1-C prompt with CS25 wiped, NCO Hz, C/N0,
+        carrier cycles, |E|, |L|, carrier and code errors), the state advanced to the next epoch."""
+        s = self.cs25[(self.period + self.cs25_offset) % 25]
+        p, e, l = p * s, e * s, l * s
+        T = n / self.fs
+        # PLL (the pilot: four-quadrant arctangent)
+        err = math.atan2(p.imag, p.real) / (2.0 * math.pi)            # cycles
+        self.freq_int += self.pll_b * T * err
+        new_hz = self.freq_int + self.pll_a * err
+        # carrier phase at the next epoch start (the NCO ran at carr_hz over this epoch)
+        self.carr_phase = (self.carr_phase + self.carr_hz * T) % 1.0
+        # DLL (envelope discriminator on the pilot)
+        ae, al = abs(e), abs(l)
+        tau = (ae - al) / max(ae + al, 1e-30) * (2.0 - 3.0 * self.d) / 6.0
+        self.dll_rate = self.k_dll * tau
+        # C/N0 by the narrow-band / wide-band power ratio of the prompt (per epoch, low-passed)
+        self._nb = 0.95 * self._nb + 0.05 * p.real ** 2
+        self._ns = 0.95 * self._ns + 0.05 * p.imag ** 2
+        snr = self._nb / max(self._ns, 1e-30) - 1.0
+        row = (self.next_sample, self.code_phase, self.period, b, p, self.carr_hz,
+               10.0 * math.log10(max(snr, 1e-3) / (2.0 * T)), self.carr_cycles, ae, al, err, tau)
+        self.carr_cycles += self.carr_hz * T
+        self.code_phase = self.code_phase + n * step - E1_CODE_LEN
+        self.next_sample += n
+        self.period += 1
+        self.carr_hz = new_hz
+        return row
+
     def run(self, x, n_epochs: int) -> GalEpochs:
         """Track ``n_epochs`` 4-ms epochs of the samples ``x`` from the channel's current state; returns the
         epochs' records (sample index, code phase, code period, E1-B and E1-C prompts, Doppler, C/N0)."""
-        out = {k: [] for k in ("sample", "code_phase", "period", "pb", "pc", "f", "cn0", "cyc")}
-        fs = self.fs
+        rows = []
         for _ in range(n_epochs):
-            rate = E1_CHIP_RATE * (1.0 + (self.carr_hz - self.if_hz) / E1_HZ) + self.dll_rate
-            step = rate / fs
-            n = int(math.ceil((E1_CODE_LEN - self.code_phase) / step - 1e-9))
+            n, step = self._epoch_length()
             if 2 * (self.next_sample + n) > len(x):
                 break
             e, p, l, b = _correlate(x, self.next_sample, n, self.code_phase, step, self.carr_phase,
-                                    self.carr_hz / fs, self.rep_c, self.rep_b, 0.5 * self.d)
-            s = self.cs25[(self.period + self.cs25_offset) % 25]
-            p, e, l = p * s, e * s, l * s
-            T = n / fs
-            # PLL (the pilot: four-quadrant arctangent)
-            err = math.atan2(p.imag, p.real) / (2.0 * math.pi)            # cycles
-            self.freq_int += self.pll_b * T * err
-            new_hz = self.freq_int + self.pll_a * err
-            # carrier phase at the next epoch start (the NCO ran at carr_hz over this epoch)
-            self.carr_phase = (self.carr_phase + self.carr_hz * T) % 1.0
-            # DLL (envelope discriminator on the pilot)
-            ae, al = abs(e), abs(l)
-            tau = (ae - al) / max(ae + al, 1e-30) * (2.0 - 3.0 * self.d) / 6.0
-            self.dll_rate = self.k_dll * tau
-            # C/N0 by the narrow-band / wide-band power ratio of the prompt (per epoch, low-passed)
-            self._nb = 0.95 * self._nb + 0.05 * p.real ** 2
-            self._ns = 0.95 * self._ns + 0.05 * p.imag ** 2
-            snr = self._nb / max(self._ns, 1e-30) - 1.0
-            out["sample"].append(self.next_sample)
-            out["code_phase"].append(self.code_phase)
-            out["period"].append(self.period)
-            out["pb"].append(b)
-            out["pc"].append(p)
-            out["f"].append(self.carr_hz)
-            out["cn0"].append(10.0 * math.log10(max(snr, 1e-3) / (2.0 * T)))
-            out["cyc"].append(self.carr_cycles)
-            self.carr_cycles += self.carr_hz * T
-            self.code_phase = self.code_phase + n * step - E1_CODE_LEN
-            self.next_sample += n
-            self.period += 1
-            self.carr_hz = new_hz
-        return GalEpochs(np.array(out["sample"], np.int64), np.array(out["code_phase"]),
-                         np.array(out["period"], np.int64), np.array(out["pb"], np.complex128),
-                         np.array(out["pc"], np.complex128), np.array(out["f"]), np.array(out["cn0"]),
-                         np.array(out["cyc"]))
+                                    self.carr_hz / self.fs, self.rep_c, self.rep_b, 0.5 * self.d)
+            rows.append(self._update(e, p, l, b, n, step))
+        col = list(zip(*rows)) if rows else [()] * 8
+        return GalEpochs(np.array(col[0], np.int64), np.array(col[1], float), np.array(col[2], np.int64),
+                         np.array(col[3], np.complex128), np.array(col[4], np.complex128),
+                         np.array(col[5], float), np.array(col[6], float), np.array(col[7], float))

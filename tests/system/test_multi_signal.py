@@ -26,7 +26,9 @@ def test_signals_config():
     cfg = load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["acquisition.prns_by_signal={bds_b1i: [6, 7]}"])
     assert signal_prns(cfg, "bds_b1i") == [6, 7]
     assert run_signals(load_receiver_config(None)) == ["gps_l1ca"]          # `signals` empty: `signal`
-    for bad, msg in ((["signals=[gps_l1ca, gal_e1]"], "signals"), (["signals=[gps_l1ca, gps_l1ca]"], "twice"),
+    assert run_signals(load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["signals=[gps_l1ca, gal_e1]"])) \
+        == ["gps_l1ca", "gal_e1"]
+    for bad, msg in ((["signals=[gps_l1ca, gal_e5a]"], "signals"), (["signals=[gps_l1ca, gps_l1ca]"], "twice"),
                      (["acquisition.prns_by_signal={bds_b1i: [64]}"], "prns_by_signal.bds_b1i"),
                      (["acquisition.prns_by_signal={gal_e1: [1]}"], "not one of the run's signals")):
         with pytest.raises(UserError, match=msg):

@@ -62,11 +62,13 @@ def test_cboc_approximation_cost():
     assert -0.05 < _boc11_loss_db(8e6) < _boc11_loss_db(4e6)
 
 
-def test_config_accepts_the_name_but_says_it_is_not_tracked():
-    from receiver.schema import load_receiver_config
-    with pytest.raises(UserError, match="config key .signal.: gal_e1 is not acquired or tracked yet"):
-        load_receiver_config(None, [("signal", "gal_e1"), ("acquisition.prns", [11, 12])])
-    with pytest.raises(UserError, match="config key .signals.: gal_e1"):
-        load_receiver_config(None, [("signals", ["gps_l1ca", "gal_e1"])])
+def test_config_accepts_gal_e1_but_not_with_the_vector_loop():
+    from receiver.schema import load_receiver_config, run_signals
+    cfg = load_receiver_config(None, [("signal", "gal_e1"), ("acquisition.prns", [11, 12])])
+    assert run_signals(cfg) == ["gal_e1"] and cfg.acquisition.prns == [11, 12]
+    assert run_signals(load_receiver_config(None, [("signals", ["gps_l1ca", "gal_e1", "bds_b1i"])])) == \
+        ["gps_l1ca", "gal_e1", "bds_b1i"]
+    with pytest.raises(UserError, match="config key .vector.enabled.: .* not gal_e1"):
+        load_receiver_config(None, [("signal", "gal_e1"), ("vector.enabled", True)])
     cfg = load_receiver_config(None, [])
     assert cfg.signal == "gps_l1ca"

@@ -122,3 +122,114 @@ def test_klobuchar_delay_scaled_to_the_signal_carrier(sky):
     assert np.linalg.norm(fix.ecef - X) < 0.05
     wrong = NavSolver(cfg).fix(WEEK, T, only_c, ephs, gps_set, x0=X + 100.0)     # L1 set: 1.8 % too much
     assert np.linalg.norm(wrong.ecef - X) > 0.07                                   # (0.09 m; right: 0.02 m)
+
+
+def test_combined_fix_weights_each_signal_by_its_code_noise(sky):
+    """B1I (2.046 Mcps) ranges are twice as precise as L1 C/A ones at the same C/N0 and elevation: a fix mixing
+    them weights each satellite by the inverse of its code variance, (1.023 / 2.046)^2 = 1/4 for B1I.  With
+    seeded noise of those standard deviations the combined fix is better than the better system alone, and
+    better than with the one-signal weights; one-system fixes are unchanged (all weights scaled alike)."""
+    g, c, ephs = sky
+    rng = np.random.default_rng(5)
+    err = {"G": [], "C": [], "GC": [], "GC equal": []}
+    solver = NavSolver(CFG)
+    equal = NavSolver(CFG)
+    equal._weights = lambda el, cn0, iono=None, ura_m=None, code_var=None: NavSolver._weights(equal, el, cn0, iono,
+                                                                                                 ura_m)
+    for _ in range(100):
+        obs = [Observation(prn=o.prn, tx_tow=o.tx_tow - rng.normal(0.0, 1.0 if o.system == "G" else 0.5) / C_LIGHT,
+                           system=o.system) for _, o in g + c]
+        for name, sy, sv in (("G", "G", solver), ("C", "C", solver), ("GC", "GC", solver), ("GC equal", "GC", equal)):
+            fix = sv.fix(WEEK, T, [o for o in obs if o.system in sy], ephs, x0=X)
+            err[name].append(np.sum((fix.ecef - X) ** 2))
+    rms = {k: float(np.sqrt(np.mean(v))) for k, v in err.items()}
+    assert rms["GC"] < min(rms["G"], rms["C"]) and rms["GC"] < rms["GC equal"]
+    w = solver._weights(np.radians([30.0, 30.0, 60.0]), np.full(3, 45.0), code_var=np.array([1.0, 0.25, 1.0]))
+    assert w[1] == pytest.approx(4.0 * w[0]) and w[2] == pytest.approx(w[1] * np.sin(np.radians(60)) ** 2 / 4
+                                                                      / np.sin(np.radians(30)) ** 2)
+    one = solver._weights(np.radians([30.0, 60.0]), np.full(2, 45.0), code_var=np.array([0.25, 0.25]))
+    np.testing.assert_array_equal(one, solver._weights(np.radians([30.0, 60.0]), np.full(2, 45.0)))
+
+
+def test_combined_run_applies_the_gps_klobuchar_set_to_every_satellite():
+    """A GPS + BeiDou run: the GPS set (decoded, else the fallback set) corrects every satellite; a decoded
+    BeiDou D1/D2 set (B1I reference) only while neither is there.  BeiDou-only runs keep their own set."""
+    from receiver.gnss.ephemeris import IonoUtc
+    from receiver.gnss.signals_bds import B1I_HZ
+    from receiver.navigation.ephemeris_store import EphemerisStore
+    from receiver.runfile.record import IONO_BROADCAST, IONO_FALLBACK
+
+    def ch(io):
+        return types.SimpleNamespace(decoder=types.SimpleNamespace(iono_utc=io))
+    gps_set = IonoUtc(alpha=(1e-8, 0, 0, 0), beta=(9e4, 0, 0, 0))
+    bds_set = IonoUtc(alpha=(2e-8, 0, 0, 0), beta=(0, 0, 0, 0), ref_hz=B1I_HZ)
+    fallback = IonoUtc(alpha=(3e-8, 0, 0, 0), beta=(8e4, 0, 0, 0))
+    st = EphemerisStore()
+    st.iono_utc, st.solver = None, types.SimpleNamespace(ionosphere="klobuchar")
+    st.signals, st.iono_fallback = {"G": None, "C": None}, fallback
+    st.channels = {5: ch(None), 406: ch(bds_set)}
+    assert st.iono() is fallback and st.iono_params() == IONO_FALLBACK
+    st.channels[7] = ch(gps_set)
+    assert st.iono() is gps_set and st.iono_params() == IONO_BROADCAST
+    del st.channels[7]
+    st.iono_fallback = None                      # no fallback: the BeiDou set rather than none
+    assert st.iono() is bds_set
+    st.signals, st.iono_fallback, st.channels = None, fallback, {6: ch(bds_set)}     # BeiDou-only run
+    assert st.iono() is bds_set and st.iono_params() == IONO_BROADCAST
+
+
+@pytest.fixture(scope="module")
+def gal_sky():
+    """The nominal Galileo constellation seen from X (satellite keys 300 + PRN), with BGD(E1,E5b) = 7 ns."""
+    from dataclasses import replace
+    from receiver.gnss.satid import sat_key
+    from receiver.sim.gal_constellation import gal_nominal_content
+    content = gal_nominal_content(REPO / "data/gal_nominal_constellation.yaml", WEEK, T)
+    e, ephs = [], {}
+    for p, cont in content.items():
+        eph = replace(cont.eph, tgd=7e-9)
+        o, el = _obs(eph, sat_key("E", p), "E", 0.0)
+        if el > 15:
+            e.append((el, o))
+            ephs[sat_key("E", p)] = eph
+    return sorted(e, key=lambda t: -t[0]), ephs
+
+
+def test_gps_galileo_beidou_fix_estimates_one_bias_per_extra_system(sky, gal_sky):
+    g, c, ephs = sky
+    e, gal_ephs = gal_sky
+    assert len(e) >= 4
+    ephs = {**ephs, **gal_ephs}
+    bias, isb_c, isb_e = 800.0, -34.5, 12.25
+    obs = [o for _, o in g] + _shift([o for _, o in c], isb_c) + _shift([o for _, o in e], isb_e)
+    fix = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, obs, ephs)
+    assert fix is not None and fix.n_sats == len(g) + len(c) + len(e)
+    assert np.linalg.norm(fix.ecef - X) < 0.05 and fix.clock_bias_m == pytest.approx(bias, abs=0.05)
+    assert fix.isb_m["C"] == pytest.approx(isb_c, abs=0.05) and fix.isb_m["E"] == pytest.approx(isb_e, abs=0.05)
+    # Galileo alone: its own clock, no bias column
+    gal_only = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, _shift([o for _, o in e], isb_e), ephs)
+    assert gal_only.isb_m == {} and np.linalg.norm(gal_only.ecef - X) < 0.05
+    assert gal_only.clock_bias_m == pytest.approx(bias + isb_e, abs=0.05)
+    gps_gal = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, [o for _, o in g] + _shift([o for _, o in e], isb_e), ephs)
+    gps_only = NavSolver(CFG).fix(WEEK, T + bias / C_LIGHT, [o for _, o in g], ephs)
+    assert gps_gal.pdop < gps_only.pdop and gps_gal.pdop < gal_only.pdop
+
+
+def test_three_gps_satellites_fix_with_galileo(sky, gal_sky):
+    g, _, ephs = sky
+    e, gal_ephs = gal_sky
+    three = [o for _, o in g[:3]]
+    fix = NavSolver(CFG).fix(WEEK, T, three + _shift([o for _, o in e], -8.0), {**ephs, **gal_ephs})
+    assert fix is not None and fix.n_sats == 3 + len(e)
+    assert np.linalg.norm(fix.ecef - X) < 0.05 and fix.isb_m["E"] == pytest.approx(-8.0, abs=0.05)
+
+
+def test_galileo_clock_uses_bgd_e1e5b(gal_sky):
+    """ICD Eq. 15: the single-frequency E1 user's satellite clock is the E1,E5b clock minus BGD(E1,E5b)."""
+    from dataclasses import replace
+    _, ephs = gal_sky
+    eph = next(iter(ephs.values()))
+    t = eph.toe + 100.0
+    c0 = sat_state(replace(eph, tgd=0.0), t)[2]
+    c1 = sat_state(eph, t)[2]
+    assert float(c0 - c1) == pytest.approx(7e-9, abs=1e-13)
