@@ -26,11 +26,12 @@ from .source.io import SampleReader
 from .source.prefetch import PrefetchingReader
 from .source.metadata import apply_metadata
 from .source.decimate import DecimatingReader, plan
-from .schema import RECEIVER_SCHEMA, plugins_attr, run_signals, signal_prns
+from .schema import RECEIVER_SCHEMA, plugins_attr, run_signals, signal_prns  # noqa: F401 (run_signals: re-exported)
 from .runfile.provenance import provenance_async
 from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST
+from .dualband import DualBand, band_signal, core_signals, open_band_input
 from .gnss.registry import get_signal
 from .gnss.satid import MIXED
 from .tracking.carrier import make_carrier_loop
@@ -67,7 +68,7 @@ def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None
     i = cfg.input
     if not i.path:
         raise UserError("no input file: set input.path in the config or pass --input")
-    sigs = run_signals(cfg)
+    sigs = core_signals(cfg)
     first, sig = get_signal(sigs[0]), get_signal(name or sigs[0])
     apply_metadata(i, {k: v.default for k, v in RECEIVER_SCHEMA["input"].items() if hasattr(v, "default")},
                    first.carrier_hz)                            # SigMF .sigmf-meta beside the file
@@ -134,9 +135,11 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         make_filter(cfg.vector.variant, cfg.vector)                    # (the vector filter too)
     prov = provenance_async()           # git / package versions on a thread while the input opens
     with stage("open input"):
-        sigs = run_signals(cfg)
+        sigs = core_signals(cfg)
         plan_chip = max(get_signal(n).chip_rate for n in sigs)
         readers = [open_input(cfg, n, plan_chip if len(sigs) > 1 else None) for n in sigs]
+        band = band_signal(cfg)
+        band_reader = open_band_input(cfg, band) if band else None
         reader = readers[0]
         out_path = default_output_path(cfg, cfg.input.path)
         check_meaning(cfg, reader)
@@ -150,7 +153,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         writer = BackgroundWriter(writer)      # HDF5 appends overlap tracking (same file, same order)
     ok = False
     try:
-        summary = _run(cfg, readers, writer, ephemerides, iono, quiet, log)
+        summary = _run(cfg, readers, writer, ephemerides, iono, quiet, log, band_reader)
         summary.output = out_path
         _nonfinite(reader, writer, summary)
         ok = True
@@ -166,7 +169,8 @@ def _writer(cfg, reader, out_path, fs, if_hz, reads, prov):
         "first_sample": reader.first, "n_samples": reader.n_samples,
         "resample": getattr(reader, "resample", "1/1"), "input_sample_rate_hz": cfg.input.sample_rate_hz,
         "input_if_hz": cfg.input.if_hz,
-        "command": " ".join(sys.argv), "system": _run_system(cfg), "signals": ",".join(run_signals(cfg)),
+        "command": " ".join(sys.argv), "system": _run_system(cfg), "signals": ",".join(core_signals(cfg)),
+        **({"band_signal": band_signal(cfg)} if band_signal(cfg) else {}),
         **_plugins(cfg), **prov(reader.path)}, reads=_reads(cfg, out_path, reader, reads),
         compression=cfg.output.compression, channel_rate_hz=cfg.output.channel_rate_hz,
         round_columns=cfg.output.round_columns,
@@ -183,7 +187,7 @@ def _plugins(cfg) -> dict:
 def _run_system(cfg) -> str:
     """Run-file ``system``: the RINEX letter of the run's signal, or M for several signals (satellite keys,
     receiver.gnss.satid.sat_key)."""
-    sigs = run_signals(cfg)
+    sigs = core_signals(cfg)
     return get_signal(sigs[0]).system if len(sigs) == 1 else MIXED
 
 
@@ -223,14 +227,14 @@ def _nonfinite(reader, writer, summary):
         warn(f"{reader.n_nonfinite} non-finite input samples (NaN/Inf) were replaced by zeros")
 
 
-def _run(cfg, readers, writer, ephemerides, iono, quiet, log) -> RunSummary:
+def _run(cfg, readers, writer, ephemerides, iono, quiet, log, band_reader=None) -> RunSummary:
     reader = readers[0]
     fs = reader.fs
     t_wall = time.perf_counter()
     acq_start = reader.first + int(round(cfg.acquisition.start_s * fs))
     readers = [PrefetchingReader(r) for r in readers]
     try:
-        return _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono)
+        return _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono, band_reader)
     finally:
         for r in readers:
             r.close()
@@ -249,8 +253,10 @@ class _Part:
         return self.table.key(self.signal.system, prn)
 
 
-def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono) -> RunSummary:
+def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono, band_reader=None) -> RunSummary:
     run = _ChunkLoop(cfg, readers, writer, quiet, acq_start, ephemerides, iono)
+    if band_reader is not None:
+        run.dual = DualBand(cfg, band_signal(cfg), band_reader, run)
     run.loop()
     return run.summary(t_wall)
 
@@ -269,7 +275,8 @@ class _ChunkLoop:
         if_hz = reader.if_hz
         self.notes = []
         week_hint = cfg.input.start_gps_week
-        sigs = [get_signal(n) for n in run_signals(cfg)]
+        self.dual = None                            # a second band (BAND_SIGNALS): receiver/dualband.py
+        sigs = [get_signal(n) for n in core_signals(cfg)]
         multi = self.multi = len(sigs) > 1
         nav = self.nav = None
         if cfg.navigation.enabled:                  # L1 C/A: LNAV; B1I: D1/D2 (gnss/bds_nav.py)
@@ -316,6 +323,9 @@ class _ChunkLoop:
             else:
                 fixes = self.vfixes     # the summary counts the fixes that were written
             writer.append_observables(obs)
+        if self.dual is not None:
+            with stage("navigation"):
+                self.dual.epochs(fixes, obs)
         if len(fixes):
             self.n_fixes += len(fixes)
             if self.first_fix is None:
@@ -411,6 +421,9 @@ class _ChunkLoop:
             with stage("re-acquisition"):
                 for part in self.parts:
                     part.manager.after_chunk(start, start + chunk)
+        if self.dual is not None:
+            with stage("tracking"):
+                self.dual.chunk(start, chunk)
         return pending
 
     def summary(self, t_wall) -> RunSummary:
@@ -433,6 +446,8 @@ class _ChunkLoop:
             s.notes += reader.summary_lines()
             reader.write(writer)
         s.notes += self.notes
+        if self.dual is not None:
+            s.notes += self.dual.finish()
         if nav is not None:
             s.parity_failures = sum(ch.decoder.parity_failures for ch in nav.channels.values())
             # every satellite decoded during the run (navigation memory, not only the channels still tracking)

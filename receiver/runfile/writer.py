@@ -306,6 +306,11 @@ class RunWriter:
         """Append observable rows (OBS_DTYPE) to /observables (buffered like :meth:`append_fixes`)."""
         self._append_table("observables", obs)              # OBS_DTYPE
 
+    def append_band(self, group: str, rows: np.ndarray):
+        """Append rows of a second band's table (/acquisition_l5, /observables_l5, /navigation_ionofree:
+        receiver/dualband.py) to /group, one dataset per field (buffered like :meth:`append_fixes`)."""
+        self._append_table(group, rows)
+
     def write_ephemerides(self, ephs: dict):
         """ephs: prn -> Ephemeris (dataclass); stored as one compound-free table of fields.  A run over
         several signals (system M) keeps the BeiDou ones (BDT, field tgd2) in a table of their own,

@@ -53,6 +53,9 @@ def simulate(scenario, out, sets, quiet):
                                  f"{int(ra['random_min_visible'])} satellites visible "
                                  f"{100 * ra['random_fraction']:.1f} % of that time")
                 click.echo("blockage: " + "; ".join(parts))
+            if "l5_if" in paths:
+                click.echo(f"wrote {paths['l5_if']} (GPS L5, truth {paths['l5_truth']}; same clock, "
+                           f"named in input.signal_files)")
             click.echo(f"receiver input section: {paths['yaml']}")
 
 

@@ -157,6 +157,21 @@ SCENARIO_SCHEMA = {
         "klobuchar_alpha": P(None, "list_float", "override the Klobuchar alpha (also broadcast)",
                              nullable=True),
         "klobuchar_beta": P(None, "list_float", "override the Klobuchar beta (also broadcast)", nullable=True),
+        "iono_scale": P(1.0, "float", "the true ionosphere is this factor times the broadcast Klobuchar model "
+                                      "(the broadcast parameters stay as they are): 1.5 leaves the 50 % the "
+                                      "single-frequency fix cannot remove (docs: Dual frequency)", lo=0.0, hi=20.0),
+    },
+    "l5": {
+        "enabled": P(False, "bool", "also write a GPS L5 recording (<stem>_l5.bin, Q5 pilot and I5 of every GPS "
+                                    "satellite, own truth <stem>_l5.truth.h5) on the same receiver clock as the "
+                                    "L1 file; the receiver fragment names it in input.signal_files"),
+        "sample_rate_hz": P(21.0e6, "float", "L5 file sample rate (complex: about 2 x 10.23 MHz keeps the main "
+                                             "lobe; a rate that is not a whole multiple of 10.23 MHz avoids the "
+                                             "code bias of a sample grid locked to the chips)", lo=1e6, hi=1e9),
+        "if_hz": P(0.0, "float", "L5 file IF (the front end's second channel, its own LO)"),
+        "format": P("int8_iq", "str", "L5 file sample format", choices=tuple(FORMATS)),
+        "cn0_offset_db": P(0.0, "float", "Q5 pilot C/N0 (I5: the same) minus the L1 C/A C/N0 of the "
+                                                "same satellite (dB)"),
     },
     "navigation": {
         "data": P(True, "bool", "modulate the LNAV data bits (false: pilot-like, no data)"),

@@ -78,7 +78,11 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     if len(set(map(os.path.abspath, paths.values()))) < len(paths):
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
+    if sc.l5.enabled:                    # + an L5 file on the same clock (sim/multiband.py)
+        from .multiband import simulate_l1_l5
+        return simulate_l1_l5(sc, out_path, reads, progress, _Simulator, scale_ionosphere)
     sim = _Simulator(sc)                 # input errors surface here, before any file or directory is made
+    scale_ionosphere(sim, sc.atmosphere.iono_scale)
     for kind, p in paths.items():        # missing directories are made (as for every command's outputs)
         check_output(p, reads, what={"if": "output", "truth": "truth file",
                                      "yaml": "receiver-input fragment", "sigmf": "SigMF metadata",
@@ -104,6 +108,11 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     return paths
 
 
+def scale_ionosphere(sim, factor: float):
+    """The true ionosphere of simulator ``sim`` is ``factor`` times its model (atmosphere.iono_scale; the
+    broadcast parameters unchanged; exactly no change for 1.0)."""
+    if factor != 1.0:
+        sim.iono_scale = {p: v * factor for p, v in sim.iono_scale.items()}
 
 
 # formats written by the numba quantiser in kernel.py; the others go through source.io.Encoder

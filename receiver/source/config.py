@@ -11,6 +11,10 @@ from .io import ALIASES, BIT_ORDERS, ENCODINGS, FORMATS
 
 #: the aliases of real (not complex) formats: input.if_hz must then lie in (0, fs/2)
 REAL_FORMAT_ALIASES = tuple(a for a, f in ALIASES.items() if not FORMATS[f].complex)
+FORMATS_ALL = tuple(FORMATS) + tuple(ALIASES)
+#: signals whose file (input.signal_files) may have its own format and sample rate: they are read by their own
+#: input stage (receiver.tracking.aided), not on the first signal's sample clock (acquisition.config.BAND_SIGNALS)
+OWN_RATE_SIGNALS = ("gps_l5",)
 
 SCHEMA = {
     "path": P(None, "str", "IF sample file (relative paths are taken from the current directory; "
@@ -29,9 +33,10 @@ SCHEMA = {
     "sample_rate_hz": P(2.6e6, "float", "sampling rate", lo=1e5),
     "if_hz": P(0.0, "float", "intermediate frequency (0 for complex baseband)"),
     "signal_files": P({}, "dict", "runs over several signals recorded into one file per signal at the same "
-                                  "instant: signal name -> {path, if_hz} of that signal's file (same format "
-                                  "and sample rate as input.path, which holds the first signal); a signal "
-                                  "not listed is read from input.path"),
+                                  "instant (one clock): signal name -> {path, if_hz, format, sample_rate_hz} "
+                                  "of that signal's file (format and sample_rate_hz default to input.format "
+                                  "and input.sample_rate_hz; gps_l5 may have its own, e.g. 20.46 MS/s); a "
+                                  "signal not listed is read from input.path, which holds the first signal"),
     "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
     "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and resample to a "
                                  "complex baseband stream before acquisition and tracking.  auto: when the "
@@ -101,15 +106,27 @@ def check(i: Section):
         raise UserError(f"config key 'input.decimate' must be auto or an integer >= 1, got {d!r}")
 
 
+def _number(v) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float))
+
+
 def check_signal_files(i: Section, sigs: list):
-    """input.signal_files names the run's signals after the first, each {path, if_hz} inside the band."""
-    half = i.sample_rate_hz / 2
+    """input.signal_files names the run's signals after the first, each {path, if_hz[, format,
+    sample_rate_hz]} with the IF inside the file's band; own formats and rates only for signals that read
+    their file by themselves (OWN_RATE_SIGNALS)."""
     for name, v in (i.signal_files or {}).items():
         if name not in sigs[1:]:
             raise UserError(f"config key 'input.signal_files': {name!r} is not one of the run's signals after the "
                             f"first ({', '.join(sigs[1:]) or 'none'}; the first is read from input.path)")
-        if not isinstance(v, dict) or set(v) - {"path", "if_hz"} or not isinstance(v.get("path"), str) or \
-                isinstance(v.get("if_hz", 0.0), bool) or not isinstance(v.get("if_hz", 0.0), (int, float)) or \
-                abs(v.get("if_hz", 0.0)) >= half:
-            raise UserError(f"config key 'input.signal_files.{name}' must be {{path: FILE, if_hz: HZ}} with "
-                            f"|if_hz| < sample_rate_hz/2, got {v!r}")
+        fs = v.get("sample_rate_hz", i.sample_rate_hz) if isinstance(v, dict) else i.sample_rate_hz
+        if not isinstance(v, dict) or set(v) - {"path", "if_hz", "format", "sample_rate_hz"} or \
+                not isinstance(v.get("path"), str) or not _number(v.get("if_hz", 0.0)) or not _number(fs) or \
+                fs <= 0 or abs(v.get("if_hz", 0.0)) >= fs / 2 or v.get("format", i.format) not in FORMATS_ALL:
+            raise UserError(f"config key 'input.signal_files.{name}' must be {{path: FILE, if_hz: HZ, format: F, "
+                            f"sample_rate_hz: HZ}} (format, rate optional) with |if_hz| < sample_rate_hz/2, "
+                            f"got {v!r}")
+        own = ("format" in v and v["format"] != i.format) or fs != i.sample_rate_hz
+        if own and name not in OWN_RATE_SIGNALS:
+            raise UserError(f"config key 'input.signal_files.{name}': {name} is read on the first signal's "
+                            f"sample clock: same format and sample_rate_hz as input.path (own ones: "
+                            f"{', '.join(OWN_RATE_SIGNALS)})")

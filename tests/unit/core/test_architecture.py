@@ -29,7 +29,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("receiver.acquisition",),
     ("receiver.tracking",),
     ("receiver.navigation",),
-    ("receiver.pipeline", "receiver.schema", "receiver.summary"),
+    ("receiver.pipeline", "receiver.schema", "receiver.summary", "receiver.dualband"),
     ("receiver.sim", "receiver.leo", "receiver.batch", "receiver.export", "receiver.evaluate", "receiver.probe",
      "receiver.validate", "receiver.snapshot"),
     ("receiver.cli", "receiver.api"),
