@@ -17,7 +17,8 @@ is excised when |X_k|^2 > 10^(threshold_db / 10) x floor_k x level (12 dB: 1.3e-
 
 Switched on by :func:`tf_test` on a span (the detection span and every monitor check's span): moving
 interference = over a higher threshold (gate_db, 15 dB: 2e-14 per bin) in >= 5 % of the frames and in at
-least N / 8 distinct bins (a tone switching on is one to three bins); off after the monitor's quiet checks
+least N / 8 distinct bins (a stationary tone is a few bins; a frame with more than N / 4 bins over -- where a
+tone switches on or a pulse starts, splattering over the band -- is not counted); off after the monitor's quiet checks
 with fewer than 1 % of the frames excised.  While it is off the samples are untouched.
 """
 from __future__ import annotations
@@ -80,7 +81,8 @@ def tf_test(x: np.ndarray, n: int, gate_db: float = GATE_DB) -> TfTest:
     floor = bin_floor(p)
     r = p / floor[None, :]
     over = r > 10 ** (gate_db / 10.0) * _level(r)
-    frames = float(np.mean(over.any(axis=1)))
+    over = over[over.sum(axis=1) <= n // 4]        # a frame where a tone or a pulse starts splatters: not counted
+    frames = float(np.sum(over.any(axis=1))) / p.shape[0]
     bins = int(np.count_nonzero(over.any(axis=0)))
     return TfTest(floor, frames, bins, frames >= MIN_FRAMES and bins >= max(4, n // 8))
 

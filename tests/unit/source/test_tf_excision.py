@@ -20,6 +20,7 @@ def _sweep(n, jnr_db, span_hz=800e3, period_s=0.01, start_s=0.0):
 
 
 def test_tf_test_finds_a_sweep_but_not_noise_or_a_stationary_tone():
+    """A +30 dB sweep is moving interference; noise, a +35 dB tone and that tone switching on mid-span are not."""
     n = int(0.0126 * FS)
     N = frame_size(FS)
     assert N == 128
@@ -28,6 +29,8 @@ def test_tf_test_finds_a_sweep_but_not_noise_or_a_stationary_tone():
     k = np.arange(n)
     cw = (np.sqrt(10 ** 3.5) * np.exp(2j * np.pi * 120e3 / FS * k)).astype(np.complex64)
     assert not tf_test(_noise(n, 5) + cw, N).moving
+    late = np.where(k > n // 3, cw, 0).astype(np.complex64)      # a tone switching on inside the span
+    assert not tf_test(_noise(n, 7) + late, N).moving
     assert tf_test(_noise(n, 6) + _sweep(n, 30.0), N).moving
 
 
