@@ -24,134 +24,27 @@ Tone canceller (:func:`cancel`, numba)
     one block to the next (:class:`ConditionedReader` continues the stream when consecutive reads
     overlap, as the pipeline's chunk reads do), so there are no block-edge discontinuities.
 
-Pulse blanking (optional): samples whose magnitude exceeds ``threshold_sigma`` times the RMS of the
-conditioned detection span are set to zero.
+Pulsed interference (:mod:`receiver.source.pulses`, ``pulse_detection``): found in the detection span and at
+every monitor check, blanked by an adaptive causal blanker while present (the static ``pulse_blanking``:
+samples whose magnitude exceeds ``blank_sigma`` times the RMS of the conditioned detection span are set to
+zero).  Moving narrowband interference (:mod:`receiver.source.excision`, ``tf_excision``): found the same way,
+excised in short FFT frames of the raw samples before the notches.  Tone detection is in
+:mod:`receiver.source.tones`.
+
+One module (~580 lines): the reader's monitor is one state machine over the notches, the blanker and the
+excision, and the canceller kernel carries the notches' state it switches.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
+from ..estimation.stats import gamma_median
 from . import excision, pulses
+from .tones import _ENBW_BH, Detection, Tone, detect_tones, refine_tone_frequency  # noqa: F401 (re-exported)
 
-# equivalent noise bandwidth of the 4-term Blackman-Harris window, in bins
-_ENBW_BH = 2.0044
 QUIET_CHECKS = 3        # monitor checks a notch's tone must stay below the detection level before it is removed
-
-
-@dataclass
-class Tone:
-    """A narrowband tone found by detect_tones: frequency (Hz, in the sampled complex band), peak bin SNR and
-    JNR (dB), and whether a notch cancels it."""
-    freq_hz: float          # frequency of the tone in the sampled (complex) band
-    snr_bin_db: float       # peak periodogram bin over the local noise floor
-    jnr_db: float           # tone power over the total noise power of the sampled band
-    cancelled: bool = True  # a notch runs on it (False: DC, excision off, or beyond max_tones)
-    dc: bool = False        # at 0 Hz: dc_removal takes it
-
-
-@dataclass
-class Detection:
-    """What detect_tones found: the tones, the periodogram's size, segments and bin width (Hz), the detection
-    threshold (dB over the floor), the total noise power and the DC offset of the span."""
-    tones: list = field(default_factory=list)
-    fft_size: int = 0
-    segments: int = 0
-    bin_hz: float = 0.0
-    threshold_db: float = 0.0     # detection threshold over the floor
-    noise_power: float = 0.0      # total noise power (floor summed over the band), input units^2
-    dc: complex = 0j              # mean of the detection span (DC offset)
-
-
-def _bh_window(n):
-    # 4-term Blackman-Harris (periodic form: the DFT-even window of an n-point segment)
-    x = 2.0 * np.pi * np.arange(n) / n
-    return 0.35875 - 0.48829 * np.cos(x) + 0.14128 * np.cos(2 * x) - 0.01168 * np.cos(3 * x)
-
-
-def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e-3, min_db: float = 6.0,
-                 max_tones: int = 32, floor_bins: int = 129) -> Detection:
-    """Detect CW tones / spurs in complex samples ``x`` (see the module doc for the test and Pfa)."""
-    x = np.asarray(x)
-    nfft = int(fft_size)
-    while nfft > 64 and len(x) < nfft:
-        nfft //= 2
-    k = len(x) // nfft
-    det = Detection(fft_size=nfft, segments=k, bin_hz=fs / nfft)
-    if k < 1:
-        return det
-    seg = x[:k * nfft].astype(np.complex128).reshape(k, nfft)
-    det.dc = complex(seg.mean())
-    w = _bh_window(nfft)
-    spec = np.fft.fftshift(np.mean(np.abs(np.fft.fft(seg * w[None, :], axis=1)) ** 2, axis=0))
-    freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
-    fb = min(floor_bins, nfft // 4) | 1
-    h = fb // 2                                        # running median over fb bins, wrapping around
-    med = median_last_axis(np.lib.stride_tricks.sliding_window_view(np.concatenate([spec[-h:], spec, spec[:h]]),
-                                                                     fb))
-    floor = med / gamma_median(k)
-    floor = np.maximum(floor, 1e-30)
-    thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
-    det.threshold_db = 10 * np.log10(thr)
-    wp = float(np.sum(w ** 2))
-    det.noise_power = float(np.sum(floor)) / (wp * nfft)       # per-sample noise power
-    over = spec > thr * floor
-    if not over.any():
-        return det
-    # contiguous runs (circularly) -> one tone each
-    idx = np.flatnonzero(over)
-    runs, cur = [], [idx[0]]
-    for i in idx[1:]:
-        if i == cur[-1] + 1:
-            cur.append(i)
-        else:
-            runs.append(cur)
-            cur = [i]
-    runs.append(cur)
-    if len(runs) > 1 and runs[0][0] == 0 and runs[-1][-1] == nfft - 1:
-        runs[0] = runs.pop() + runs[0]
-    tones = []
-    for r in runs:
-        r = np.asarray(r)
-        i = int(r[np.argmax(spec[r])])
-        lo, hi = spec[(i - 1) % nfft], spec[(i + 1) % nfft]
-        a, b, c = np.log(max(lo, 1e-30)), np.log(spec[i]), np.log(max(hi, 1e-30))
-        den = a - 2 * b + c
-        d = 0.5 * (a - c) / den if den < 0 else 0.0
-        f = freqs[i] + float(np.clip(d, -0.5, 0.5)) * fs / nfft
-        excess = float(np.sum(np.maximum(spec[r] - floor[r], 0.0)))
-        p_tone = excess / (wp * nfft)          # Parseval: the lobe sums to the tone power
-        tones.append(Tone(f, 10 * np.log10(spec[i] / floor[i]),
-                          10 * np.log10(max(p_tone, 1e-30) / det.noise_power)))
-    tones.sort(key=lambda t: -t.jnr_db)
-    tones = tones[:max_tones]
-    for t in tones:
-        t.freq_hz = refine_tone_frequency(x, fs, t.freq_hz, nfft)
-    det.tones = tones
-    return det
-
-
-def refine_tone_frequency(x: np.ndarray, fs: float, f0: float, block: int) -> float:
-    """Frequency of a tone near ``f0``: slope of the phase of ``block``-sample sums of the mixed-down
-    signal (two passes; needs >= 3 blocks, else ``f0`` is returned)."""
-    k = len(x) // block
-    if k < 3:
-        return float(f0)
-    n = np.arange(k * block)
-    f = float(f0)
-    for _ in range(2):
-        y = x[:k * block] * np.exp(-2j * np.pi * (f / fs) * n)
-        s = y.reshape(k, block).sum(axis=1)
-        ph = np.unwrap(np.angle(s))
-        w = np.abs(s)
-        tk = np.arange(k) * block / fs
-        A = np.vstack([tk, np.ones(k)]).T * w[:, None]
-        slope = np.linalg.lstsq(A, ph * w, rcond=None)[0][0]
-        f += slope / (2 * np.pi)
-    return f
 
 
 @njit(cache=True, fastmath=True, nogil=True)
