@@ -2,6 +2,7 @@
 stage): pulses found and blanked, a weak signal kept, nothing changed on noise alone or by a tone
 switching on, output independent of the read split."""
 import numpy as np
+import pytest
 
 from receiver.source.conditioning import ConditionedReader
 from receiver.source.pulses import pulse_test
@@ -65,6 +66,7 @@ def test_blanker_removes_pulses_and_keeps_the_signal():
     assert any("pulsed interference" in line for line in r.summary_lines())
 
 
+@pytest.mark.slow
 def test_pulses_starting_mid_stream_switch_the_blanker_on_and_off_again():
     """Pulses from 0.3 s to 0.6 s: the monitor switches blanking on within one check and off after the
     quiet checks; before the pulses the output is exactly the blanker-less stage's."""
