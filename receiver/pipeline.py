@@ -89,7 +89,7 @@ def open_input(cfg, name: str | None = None, plan_chip_rate: float | None = None
     if (l, m) != (1, 1):                                          # mix to 0 Hz, filter, resample
         reader = DecimatingReader(reader, l, m, if_hz, chip_rate)
     c = i.conditioning
-    if c.dc_removal or c.tone_detection or c.pulse_blanking:      # the input conditioning stage
+    if c.dc_removal or c.tone_detection or c.pulse_blanking or c.pulse_detection:      # the input conditioning stage
         from .source.conditioning import ConditionedReader
         # the decimating stage mixed input.if_hz to 0 Hz: the front end's DC is now at -IF
         reader = ConditionedReader(reader, c, dc_hz=-reader.input_if_hz if isinstance(reader, DecimatingReader)

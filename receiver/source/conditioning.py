@@ -13,8 +13,15 @@ Tone canceller (:func:`cancel`, numba)
     one block to the next (:class:`ConditionedReader` continues the stream when consecutive reads
     overlap, as the pipeline's chunk reads do), so there are no block-edge discontinuities.
 
-Pulse blanking (optional): samples whose magnitude exceeds ``threshold_sigma`` times the RMS of the
-conditioned detection span are set to zero.
+Pulsed interference (:mod:`receiver.source.pulses`, ``pulse_detection``): found in the detection span and at
+every monitor check, blanked by an adaptive causal blanker while present (the static ``pulse_blanking``:
+samples whose magnitude exceeds ``blank_sigma`` times the RMS of the conditioned detection span are set to
+zero).  Moving narrowband interference (:mod:`receiver.source.excision`, ``tf_excision``): found the same way,
+excised in short FFT frames of the raw samples before the notches.  Tone detection is in
+:mod:`receiver.source.tones`.
+
+Why this module is long: the reader's monitor is one state machine over the notches, the blanker and the
+excision, and the canceller kernel carries the notches' state it switches.
 """
 from __future__ import annotations
 
@@ -22,9 +29,10 @@ import math
 
 import numpy as np
 from numba import njit
-
+from ..estimation.stats import gamma_median
+from . import excision, pulses
 from .tones import ENBW_BH as _ENBW_BH
-from .tones import Detection, detect_tones
+from .tones import Detection, Tone, detect_tones, refine_tone_frequency  # noqa: F401 (re-exported)
 
 QUIET_CHECKS = 3        # monitor checks a notch's tone must stay below the detection level before it is removed
 
@@ -127,6 +135,18 @@ class Canceller:
         self.dr = np.zeros(len(fl), np.float64)
         self.res = np.zeros(len(fl), np.float64)
         self._loop_arrays()
+        # adaptive pulse blanker (receiver/source/pulses.py): off until pulses are seen
+        self.pulse_on = False
+        self.pst = np.zeros(pulses.N_STATE, np.float64)
+        self.ppar = pulses.blanker_params(6.0)
+
+    def start_blanking(self, floor: float, threshold_db: float):
+        """Switch the adaptive pulse blanker on at the noise floor ``floor`` (mean power per sample)."""
+        runs, blanked = self.pst[pulses.S_RUNS], self.pst[pulses.S_BLANKED]
+        self.pst = pulses.blanker_state(floor)
+        self.pst[pulses.S_RUNS], self.pst[pulses.S_BLANKED] = runs, blanked
+        self.ppar = pulses.blanker_params(threshold_db)
+        self.pulse_on = True
 
     def _loop_arrays(self):
         n = self.freqs.size
@@ -145,7 +165,7 @@ class Canceller:
     @property
     def active(self) -> bool:
         """Whether the canceller changes the samples (a notch, or blanking)."""
-        return self.freqs.size > 0 or self.blank_level > 0
+        return self.freqs.size > 0 or self.blank_level > 0 or self.pulse_on
 
     def set_tones(self, freqs, rot, amp, mu, quiet, dw=None, dr=None, res=None):
         """Replace the tone set (new arrays: a forked copy of this canceller keeps its own)."""
@@ -176,6 +196,7 @@ class Canceller:
             a = complex(np.mean(resid * ph))
             self.amp[k] = a
             resid = resid - a * np.conj(ph)
+        pulses.restart(self.pst)
 
     def process(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """The conditioned samples of ``x`` (into ``out``, complex64 of len(x), when given)."""
@@ -184,6 +205,10 @@ class Canceller:
         if not self.active:
             out[:] = x
             return out
+        if self.pulse_on:
+            return pulses.cancel_blank(np.ascontiguousarray(x, np.complex64), out, self.steps, self.rot, self.amp,
+                                       self.mu, self.blank_level, self.dw, self.dr, self.res, self.g1, self.g2, self.g3,
+                                       self.pfloor, self.pst, self.ppar, np.zeros(2 * self.steps.size))
         return cancel(np.ascontiguousarray(x, np.complex64), out, self.steps, self.rot, self.amp, self.mu,
                       self.blank_level, self.dw, self.dr, self.res, self.g1, self.g2, self.g3, self.pfloor)
 
@@ -209,7 +234,26 @@ class ConditionedReader:
         start = reader.first if detect_start is None else detect_start
         n = int(round(cfg.detect_ms * 1e-3 * fs))
         span = reader.read(start, n)
-        self.detection = detect_tones(span, fs, cfg.fft_size, cfg.pfa, cfg.min_db, max(cfg.max_tones, 16)) \
+        # pulsed interference (receiver/source/pulses.py) first: a pulse train's spectral lines are no tones
+        self._pdet = bool(cfg.pulse_detection) and not cfg.pulse_blanking   # (the static blanker instead)
+        self.pulse_events = ()           # (sample, "on" | "off", noise floor, share of over blocks)
+        pt = pulses.pulse_test(span, cfg.pulse_threshold_db, cfg.pulse_min_count) if self._pdet else None
+        # moving narrowband interference (receiver/source/excision.py): excised before the tones are sought
+        self._tf = bool(cfg.tf_excision)
+        self._tf_n = excision.frame_size(fs, cfg.tf_frame_us)
+        self._tf_on, self._tf_floor, self._tf_hits, self._tf_frames, self._tf_quiet = False, None, 0, 0, 0
+        self.tf_events = ()              # (sample, "on" | "off", share of frames over the gate)
+        self._first = reader.first
+        tt = excision.tf_test(span, self._tf_n) if self._tf and len(span) else None
+        if tt is not None and tt.moving:
+            self._tf_on, self._tf_floor = True, tt.floor
+            self.tf_events = ((int(start), "on", tt.frames),)
+            span = self._excise(start, len(span))
+        tone_span = span
+        if pt is not None and pt.pulsed:
+            tone_span = span.copy()
+            tone_span[pulses.blank_mask(span, pt.floor, cfg.pulse_threshold_db)] = 0
+        self.detection = detect_tones(tone_span, fs, cfg.fft_size, cfg.pfa, cfg.min_db, max(cfg.max_tones, 16)) \
             if cfg.tone_detection else Detection(dc=complex(np.mean(span)) if len(span) else 0j)
         cancel_f = []
         dc_bin = self.detection.bin_hz if self.detection.bin_hz else 0.0
@@ -224,6 +268,10 @@ class ConditionedReader:
                                              cfg.notch_track_hz, self.detection.noise_power)
         self.canceller = self._make(0.0)
         self.blank_level = 0.0
+        if pt is not None and pt.pulsed:
+            self.canceller.start_blanking(pt.floor, cfg.pulse_threshold_db)
+            self.pulse_events = ((int(start), "on", pt.floor, pt.fraction),)
+        self._pruns, self._pquiet = 0.0, 0
         if len(span) and self.canceller.active:       # one pass over the span: DC estimate, blanking RMS
             self.canceller.reset(span)
             y = self.canceller.process(span)
@@ -233,13 +281,17 @@ class ConditionedReader:
             rms = math.sqrt(float(np.median(np.abs(y) ** 2)) / math.log(2.0))    # robust (complex Gaussian)
             self.blank_level = cfg.blank_sigma * rms
             self.canceller = self._make(self.blank_level)
+            if pt is not None and pt.pulsed:
+                self.canceller.start_blanking(pt.floor, cfg.pulse_threshold_db)
         self.blanked = 0
         self.processed = 0
+        self.canceller.pst[pulses.S_BLANKED] = self.canceller.pst[pulses.S_RUNS] = 0.0   # (the span's pass)
         self._tail = np.zeros(0, np.complex64)
         self._tail_start = None
         # interference monitor (module doc): checks at every monitor_ms of the stream from the detection span on
         self._mon_step = int(round(cfg.monitor_ms * 1e-3 * fs)) \
-            if cfg.tone_detection and cfg.tone_excision and cfg.monitor_ms > 0 else 0
+            if ((cfg.tone_detection and cfg.tone_excision) or self._pdet or self._tf) and cfg.monitor_ms > 0 else 0
+        self._tones_mon = bool(cfg.tone_detection and cfg.tone_excision)
         self._mon_len = int(cfg.fft_size) * int(cfg.monitor_segments)
         self._mon_next = start + n
         self._mon_buf = np.zeros(0, np.complex64)
@@ -257,7 +309,7 @@ class ConditionedReader:
     def read(self, start: int, n: int) -> np.ndarray:
         """Samples [start, start + n) of the underlying reader (file sample index), conditioned (notches, DC
         removal, blanking; unchanged when none runs; a read continuing the previous one carries the filter on)."""
-        if not self.canceller.active and not self._mon_step:
+        if not self.canceller.active and not self._mon_step and not self._tf_on:
             return self._reader.read(start, n)
         start = max(start, self._reader.first)
         ts, tail = self._tail_start, self._tail
@@ -296,14 +348,15 @@ class ConditionedReader:
                 if k < pos:                             # (cannot happen: the restart rule in read)
                     self._mon_next = start + pos
                     continue
-                self._process(raw[pos:k], out[pos:k])
+                self._process(self._excise(start + pos, k - pos) if self._tf_on else raw[pos:k], out[pos:k])
                 self._push(out[pos:k])
                 pos = k
                 if len(self._mon_buf) == L:
                     self._check(self._mon_buf, start + k - L)
                 self._mon_next += self._mon_step
         if pos < n:
-            self._process(raw[pos:], out[pos:])
+            self._process(self._excise(start + pos, n - pos) if self._tf_on and start is not None else raw[pos:],
+                          out[pos:])
             if self._mon_step and start is not None:
                 self._push(out[pos:])
         return out
@@ -312,6 +365,14 @@ class ConditionedReader:
         """Keep the last monitor span of the conditioned stream (new arrays: a forked reader keeps its own)."""
         L = self._mon_len
         self._mon_buf = y[-L:].copy() if len(y) >= L else np.concatenate([self._mon_buf, y])[-L:]
+
+    def _excise(self, s0, count):
+        """Raw samples [s0, s0 + count) after time-frequency excision (receiver/source/excision.py)."""
+        y, hits, frames = excision.tf_excise(self._reader.read, self._first, s0, count, self._tf_n,
+                                             self._tf_floor, self.cfg.tf_threshold_db)
+        self._tf_hits += hits
+        self._tf_frames += frames
+        return y
 
     def _process(self, raw, out):
         y = self.canceller.process(raw, out)
@@ -327,6 +388,9 @@ class ConditionedReader:
         for QUIET_CHECKS checks is removed (its subtraction is then below the noise: no transient)."""
         cfg, c, fs = self.cfg, self.canceller, self._reader.fs
         self.checks += 1
+        if self._pdet and self._check_pulses(y, s) or self._tf and self._check_tf(s, len(y)) \
+                or not self._tones_mon:
+            return                              # (pulses or a sweep just found: this span's lines are no tones)
         det = detect_tones(y, fs, cfg.fft_size, cfg.pfa, cfg.min_db, 16)
         if det.noise_power <= 0:
             return
@@ -384,6 +448,55 @@ class ConditionedReader:
         else:
             c._loop_arrays()
 
+    def _check_pulses(self, y, s) -> bool:
+        """The monitor's pulse check on the conditioned span y (first sample s): the blanker is switched on
+        when the span is pulsed (True: the caller leaves the span's tones to the next check), off after
+        QUIET_CHECKS checks in which it blanked nothing."""
+        cfg, c = self.cfg, self.canceller
+        if not c.pulse_on:
+            pt = pulses.pulse_test(y, cfg.pulse_threshold_db, cfg.pulse_min_count)
+            if not pt.pulsed:
+                return False
+            c.start_blanking(pt.floor, cfg.pulse_threshold_db)
+            self._pruns, self._pquiet = float(c.pst[pulses.S_RUNS]), 0
+            self.pulse_events = self.pulse_events + ((int(s + len(y)), "on", pt.floor, pt.fraction),)
+            return True
+        runs = float(c.pst[pulses.S_RUNS]) - self._pruns
+        self._pruns = float(c.pst[pulses.S_RUNS])
+        self._pquiet = 0 if runs > 0 else self._pquiet + 1
+        if self._pquiet >= QUIET_CHECKS:
+            c.pulse_on = False
+            self.pulse_events = self.pulse_events + (
+                (int(s + len(y)), "off", float(c.pst[pulses.S_Q]) / gamma_median(pulses.BLOCK), 0.0),)
+        return False
+
+    def _check_tf(self, s, L) -> bool:
+        """The monitor's test for moving narrowband interference on the raw span [s, s + L): excision on when
+        found (True: the caller leaves the span's tones to the next check), the per-bin floor renewed while
+        on, off after QUIET_CHECKS checks excising in under 1 % of the frames."""
+        tt = excision.tf_test(self._reader.read(s, L), self._tf_n)
+        if not self._tf_on:
+            if not tt.moving:
+                return False
+            self._tf_on, self._tf_floor, self._tf_hits, self._tf_frames, self._tf_quiet = True, tt.floor, 0, 0, 0
+            self.tf_events = self.tf_events + ((int(s + L), "on", tt.frames),)
+            return True
+        if tt.floor.size and np.all(tt.floor > 1e-30):
+            self._tf_floor = tt.floor
+        busy = self._tf_hits >= 0.01 * max(self._tf_frames, 1)
+        self._tf_hits = self._tf_frames = 0
+        self._tf_quiet = 0 if busy else self._tf_quiet + 1
+        if self._tf_quiet >= QUIET_CHECKS:
+            self._tf_on = False
+            self.tf_events = self.tf_events + ((int(s + L), "off", tt.frames),)
+        return False
+
+    @property
+    def blanked_fraction(self) -> float:
+        """Share of the conditioned samples set to zero by a pulse blanker (static or adaptive)."""
+        n = self.blanked + float(self.canceller.pst[pulses.S_BLANKED])
+        return n / self.processed if self.processed else 0.0
+
     # ------------------------------------------------------------------ reporting
     def summary_lines(self) -> list:
         """The conditioning's lines of the run summary: DC removal, tones found and cancelled, blanking."""
@@ -414,6 +527,17 @@ class ConditionedReader:
         if self.blank_level > 0:
             frac = self.blanked / self.processed if self.processed else 0.0
             parts.append(f"pulse blanking {100 * frac:.3f} % of samples")
+        if self.tf_events:
+            fs = self._reader.fs
+            shown = ", ".join(f"{w} at {smp / fs:.2f} s" for smp, w, _ in self.tf_events[:6])
+            parts.append(f"moving narrowband interference: time-frequency excision {shown}"
+                         + (", ..." if len(self.tf_events) > 6 else ""))
+        if self.pulse_events:
+            fs = self._reader.fs
+            shown = ", ".join(f"{w} at {smp / fs:.2f} s" for smp, w, _, _ in self.pulse_events[:6])
+            parts.append(f"pulsed interference: blanking {shown}"
+                         + (", ..." if len(self.pulse_events) > 6 else "")
+                         + f"; {100 * self.blanked_fraction:.2f} % of samples blanked")
         if parts:
             lines.append("conditioning    " + "; ".join(parts))
         return lines
@@ -441,6 +565,16 @@ class ConditionedReader:
                  "notch_bw_hz": self.cfg.notch_bw_hz, "pulse_blanking": bool(self.cfg.pulse_blanking),
                  "blank_level": self.blank_level, "blanked_samples": self.blanked,
                  "processed_samples": self.processed, "monitor_ms": float(self.cfg.monitor_ms),
-                 "monitor_checks": self.checks}
+                 "monitor_checks": self.checks, "pulse_detection": self._pdet,
+                 "blanked_fraction": self.blanked_fraction}
+        te = self.tf_events
+        g.create_dataset("tf_event_time_s", data=np.array([e[0] / self._reader.fs for e in te], float))
+        g.create_dataset("tf_event_kind", data=np.array([e[1] for e in te], "S8"))
+        g.attrs["tf_excision"] = self._tf
+        g.attrs["tf_frame"] = self._tf_n
+        pe = self.pulse_events
+        g.create_dataset("pulse_event_time_s", data=np.array([e[0] / self._reader.fs for e in pe], float))
+        g.create_dataset("pulse_event_kind", data=np.array([e[1] for e in pe], "S8"))
+        g.create_dataset("pulse_event_floor", data=np.array([e[2] for e in pe], float))
         for k, v in attrs.items():
             g.attrs[k] = v

@@ -77,6 +77,25 @@ SCHEMA = {
         "pulse_blanking": P(False, "bool", "zero samples whose magnitude exceeds blank_sigma x the RMS "
                                            "of the conditioned detection span (pulsed interference)"),
         "blank_sigma": P(5.0, "float", "pulse blanking threshold in RMS units", lo=1.0),
+        "pulse_detection": P(True, "bool", "detect pulsed interference (block powers far over a robust "
+                                           "noise floor, repeated) in the detection span and at every "
+                                           "monitor check, and blank the pulses while they last (docs: "
+                                           "Field robustness); pulse_blanking selects the static blanker "
+                                           "instead"),
+        "pulse_threshold_db": P(6.0, "float", "pulse detector and blanker: power over the noise floor "
+                                              "above which a block / the short-term power is a pulse (dB)",
+                                lo=3.0),
+        "tf_excision": P(True, "bool", "detect moving narrowband interference (swept / chirp jammers: "
+                                       "short-time spectra with bins far over their floor in many frames "
+                                       "and bins) in the detection span and at every monitor check, and "
+                                       "excise it in short FFT frames while it lasts (docs: Field "
+                                       "robustness)"),
+        "tf_threshold_db": P(12.0, "float", "time-frequency excision: a frame's bin this far over its noise "
+                                            "floor is zeroed (with its two neighbours; dB)", lo=6.0),
+        "tf_frame_us": P(50.0, "float", "time-frequency excision frame length (us; rounded to a power of "
+                                        "two samples)", lo=5.0, hi=2000.0),
+        "pulse_min_count": P(3, "int", "separate pulses a detection / monitor span must hold for the "
+                                       "blanker to switch on", lo=2),
         "monitor_ms": P(100.0, "float", "interference monitor: every monitor_ms of the stream the "
                                         "conditioned samples are checked for new tones (a notch is added "
                                         "at once) and every notch for a tone that has gone (removed); "

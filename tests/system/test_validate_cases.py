@@ -116,3 +116,23 @@ def test_eight_second_outage_in_a_tight_turn(sim, tmp_path):
              {"sample_rate_hz": 2.6e6, "cn0_dbhz": 45, "seed": 3, "outages": [{"start_s": 8.0, "end_s": 16.0}]})
     assert m["max_recovery_s"] <= 2.0, m
     assert m["max_err_meas_m"] <= 30.0, m
+
+
+def test_pulsed_interference_is_blanked(sim, tmp_path):
+    """Matrix row pulsed_40, shortened: a 300-kHz tone pulsed 10 % of every ms, 40 dB over the noise; the
+    adaptive pulse blanker (input conditioning) takes the pulses out: fixes within the bounds."""
+    m = _run(tmp_path, {"dynamics": "static", "place": "tokyo", "start": "02:00:00", "duration_s": 6},
+             {"sample_rate_hz": 2.6e6, "cn0_dbhz": 45, "seed": 12,
+              "interference": [{"kind": "pulsed", "freq_hz": 300000, "power_db": 40, "period_s": 0.001,
+                                "duty": 0.1}]})
+    assert check(m, EXPECT) == [], m
+
+
+def test_swept_interference_is_excised(sim, tmp_path):
+    """Matrix row swept_30, shortened: a tone swept +/-800 kHz every 10 ms, 30 dB over the noise; the
+    time-frequency excision takes it out: fixes within the bounds."""
+    m = _run(tmp_path, {"dynamics": "static", "place": "munich", "start": "16:52:00", "duration_s": 6},
+             {"sample_rate_hz": 2.6e6, "cn0_dbhz": 45, "seed": 13,
+              "interference": [{"kind": "swept", "freq_hz": 0, "sweep_hz": 800000, "period_s": 0.01,
+                                "power_db": 30}]})
+    assert check(m, EXPECT) == [], m
