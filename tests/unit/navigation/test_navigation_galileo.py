@@ -13,6 +13,7 @@ from receiver.sim.gal_constellation import gal_nominal_content
 
 from repo_paths import ROOT
 
+pytestmark = pytest.mark.slow          # (numba compiles, seconds of samples)
 WEEK, TOW0 = 2300, 345619.5
 FS = 4.0e6
 N = 4.0e-3 * FS

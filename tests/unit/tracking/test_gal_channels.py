@@ -15,6 +15,7 @@ from receiver.runfile.record import EPOCH_DTYPE, STATE_BIT_SYNC
 from receiver.tracking.gal import GalChannel
 from receiver.tracking.gal_channels import DLL_BW_HZ, DLL_SPACING, PLL_BW_HZ, GalTrack
 
+pytestmark = pytest.mark.slow          # (numba compiles, seconds of samples)
 FS = 4.0e6
 PRN, DOP, CP0, OFF = 11, 1234.5, 1000.3, 7
 DUR = 0.8
