@@ -272,6 +272,7 @@ class ConditionedReader:
             self.canceller.start_blanking(pt.floor, cfg.pulse_threshold_db)
             self.pulse_events = ((int(start), "on", pt.floor, pt.fraction),)
         self._pruns, self._pquiet = 0.0, 0
+        y = span                                      # (no tone, no DC canceller: the span as it is)
         if len(span) and self.canceller.active:       # one pass over the span: DC estimate, blanking RMS
             self.canceller.reset(span)
             y = self.canceller.process(span)

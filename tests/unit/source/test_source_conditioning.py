@@ -142,6 +142,18 @@ def test_pulse_blanking_zeroes_pulses_only():
     assert any("pulse blanking" in line for line in r.summary_lines())
 
 
+def test_static_pulse_blanking_without_any_canceller():
+    """The static blanker alone (no DC removal, no tone found): its level comes from the raw span."""
+    x = make_signal([], FS, 0.2, seed=6)
+    pulses = np.zeros(len(x), np.complex64)
+    for s in range(20000, len(x), 52000):
+        pulses[s:s + 52] = 31.6
+    r = ConditionedReader(_ArrayReader(x + pulses), _cond(pulse_blanking=True, blank_sigma=5.0, dc_removal=False))
+    y = r.read(0, len(x))
+    assert np.all(y[pulses != 0] == 0)
+    assert np.count_nonzero(y[pulses == 0] == 0) < 1e-4 * len(x)
+
+
 @pytest.mark.parametrize("fmt, if_hz", [("packed2_real", 4.1304e6), ("int8_iq", 0.0)])
 def test_dc_removal_runs_only_where_the_front_ends_dc_is_at_0_hz(tmp_path, fmt, if_hz):
     """A decimating input stage that mixes a nonzero IF down moves the front end's DC offset to -IF: the
