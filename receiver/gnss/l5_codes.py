@@ -15,6 +15,20 @@ output; logic 0 is sent as +1.  The ICD prints the initial XB state in the octal
 13 XB chips, rightmost bit first out; since XA starts all ones, those 13 chips are the complement of the code's
 first 13 chips (``first_chips_octal``).
 
+Provenance of the PRN tables (checked 2026-12-02, helper l5icd): ``XB_ADVANCE_I5``/``XB_ADVANCE_Q5`` (64
+values) are NOT verified against ICD text.  They were entered from excerpts of other public projects that quote
+IS-GPS-705 Table 3-Ia, which the project's rules do not accept as a source for code tables.  A search of the
+stored ICD transcripts
+    IS-GPS-705D  https://vdocuments.site/revision-record-gps-the-global-positioning-system-gps-directorate-smcgp.html
+    IS-GPS-705E  https://pdfslide.net/documents/interface-specification-is-gps-705e-management-gps-iii-terminology-and-space-service.html
+    IS-GPS-705A  https://docslib.org/doc/3415295/is-gps-705a-jun-2010
+returned only their front matter, never the Table 3-Ia rows, so no advance (and no printed initial XB
+state) could be compared with the ICD.  What is checked (tests/unit/gnss/test_gnss_l5_codes.py): the register
+definitions above, that the 64 advances are distinct and give near-balanced codes with sharp autocorrelation and
+low cross-correlation (a wrong advance would still pass those), and that a few advances reproduce initial XB
+states that came from the same kind of secondary quotation.  TODO: compare all 64 advances and initial states
+with Table 3-Ia of an official IS-GPS-705 PDF (gps.gov) before relying on a particular PRN.
+
 Secondary codes (IS-GPS-705 3.3.2.3): NH10 = 0000110101 on I5 (one bit per 1-ms period, under the 100-sps
 symbols), NH20 = 00000100110101001110 on Q5 (20 ms).
 """
@@ -32,7 +46,8 @@ _NSTAGE = 13
 _XA_TAPS = (9, 10, 12, 13)
 _XB_TAPS = (1, 3, 4, 6, 7, 8, 12, 13)
 
-#: IS-GPS-705 Table 3-Ia, XB code advance (chips) for GPS PRN 1..32: I5 and Q5
+#: XB code advance (chips) for GPS PRN 1..32, I5 and Q5, as in IS-GPS-705 Table 3-Ia; NOT yet verified against
+#: the ICD's text (see "Provenance" in the module docstring)
 XB_ADVANCE_I5 = (266, 365, 804, 1138, 1509, 1559, 1756, 2084, 2170, 2303, 2527, 2687, 2930, 3471, 3940, 4132,
                  4332, 4924, 5343, 5443, 5641, 5816, 5898, 5918, 5955, 6243, 6345, 6477, 6518, 6875, 7168, 7187)
 XB_ADVANCE_Q5 = (1701, 323, 5292, 2020, 5429, 7136, 1041, 5947, 4315, 148, 535, 1939, 5206, 5910, 3595, 5135,

@@ -7,8 +7,10 @@ from receiver.gnss.l5_codes import (L5_CODE_LEN, L5_PRNS, NH10, NH20, XB_ADVANCE
                                     xb_initial_state)
 from receiver.gnss.registry import get_signal
 
-# IS-GPS-705 Table 3-Ia "Initial XB Code State" (binary, stages 1..13) for the PRNs whose printed values were
-# available here (quoted from the ICD); the XB code advances are the same table's other column
+# "Initial XB Code State" (binary, stages 1..13) of IS-GPS-705 Table 3-Ia for a few PRNs.  NOT verified against
+# ICD text: like the advances they were taken from secondary quotations of the table, and the stored ICD
+# transcripts searched on 2026-12-02 (IS-GPS-705D/E/A, URLs in receiver/gnss/l5_codes.py) gave no table rows.
+# The test below therefore checks the two columns against each other, not against the ICD.
 ICD_XB_STATE_I5 = {1: "0101011100100", 2: "1100000110101", 3: "0100000001000", 4: "1011000100110",
                    5: "1110111010111", 6: "0110011111010"}
 ICD_XB_STATE_Q5 = {1: "1001011001100", 2: "0100011110110"}
