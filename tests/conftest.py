@@ -24,6 +24,32 @@ from repo_paths import ROOT, TOKYO_META, TOKYO_NAV, TOKYO_REC  # noqa: E402
 
 import receiver  # noqa: E402
 
+
+def _l5_test_table():
+    """The GPS L5 XB-advance table of the test suite (receiver/gnss/l5_codes.py ships none): distinct advances
+    of our own choosing, so the simulator and the receiver use one consistent code family (not GPS's codes).
+    A user's table in GNSSRX_L5_XB_TABLE is left alone."""
+    import os
+    import tempfile
+    if os.environ.get("GNSSRX_L5_XB_TABLE"):
+        return
+    # the first 64 advances from 101 in steps of 3 whose codes are balanced within 20 chips, autocorrelation
+    # sidelobes < 0.04 and cross-correlation with the ones before < 0.05 (a greedy search of ours)
+    adv = (113, 152, 155, 197, 200, 206, 218, 221, 236, 242, 248, 260, 266, 323, 335, 359, 365, 374, 413, 449, 506,
+           518, 521, 527, 533, 575, 590, 596, 611, 635, 650, 653, 659, 689, 722, 749, 773, 788, 824, 872, 878, 923,
+           926, 950, 962, 977, 983, 989, 992, 1010, 1016, 1019, 1043, 1070, 1088, 1106, 1124, 1175, 1277, 1286,
+           1319, 1337, 1382, 1391)
+    text = "prn,i5_advance,q5_advance\n" + "".join(f"{p},{adv[2 * p - 2]},{adv[2 * p - 1]}\n" for p in range(1, 33))
+    path = Path(tempfile.gettempdir()) / "gnssrx_tests_l5_xb_table.csv"
+    if not path.exists() or path.read_text() != text:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    os.environ["GNSSRX_L5_XB_TABLE"] = str(path)
+
+
+_l5_test_table()
+
 receiver.limit_blas_threads()          # as the command line (before numpy loads)
 from receiver.tracking import refresh_compiled_caches  # noqa: E402
 

@@ -10,33 +10,31 @@ sequences, both clocked at 10.23 MHz and restarted at every 1-ms epoch:
 
 The satellite-specific code is XA XOR XBi, where XBi is the XB sequence started from a PRN-specific initial
 state: the all-ones state advanced by the "XB code advance" of IS-GPS-705 Table 3-Ia (a number of XB clock
-cycles, one for I5 and one for Q5 per PRN; ``XB_ADVANCE_I5``/``XB_ADVANCE_Q5`` below).  Stage 13 is the
+cycles, one for I5 and one for Q5 per PRN; :func:`xb_advances`).  Stage 13 is the
 output; logic 0 is sent as +1.  The ICD prints the initial XB state in the octal/binary notation of the first
 13 XB chips, rightmost bit first out; since XA starts all ones, those 13 chips are the complement of the code's
 first 13 chips (``first_chips_octal``).
 
-Provenance of the PRN tables (checked 2026-12-02, helper l5icd): ``XB_ADVANCE_I5``/``XB_ADVANCE_Q5`` (64
-values) are NOT verified against ICD text.  They were entered from excerpts of other public projects that quote
-IS-GPS-705 Table 3-Ia, which the project's rules do not accept as a source for code tables.  A search of the
-stored ICD transcripts
-    IS-GPS-705D  https://vdocuments.site/revision-record-gps-the-global-positioning-system-gps-directorate-smcgp.html
-    IS-GPS-705E  https://pdfslide.net/documents/interface-specification-is-gps-705e-management-gps-iii-terminology-and-space-service.html
-    IS-GPS-705A  https://docslib.org/doc/3415295/is-gps-705a-jun-2010
-returned only their front matter, never the Table 3-Ia rows, so no advance (and no printed initial XB
-state) could be compared with the ICD.  What is checked (tests/unit/gnss/test_gnss_l5_codes.py): the register
-definitions above, that the 64 advances are distinct and give near-balanced codes with sharp autocorrelation and
-low cross-correlation (a wrong advance would still pass those), and that a few advances reproduce initial XB
-states that came from the same kind of secondary quotation.  TODO: compare all 64 advances and initial states
-with Table 3-Ia of an official IS-GPS-705 PDF (gps.gov) before relying on a particular PRN.
+The PRN table (the XB code advances of IS-GPS-705 Table 3-Ia) is not shipped: the project takes code tables
+from the ICD's own text only, and no copy of IS-GPS-705 was available to transcribe it from (only other
+projects' tables, which may not be copied).  Give the table as a CSV file, one line per PRN
+``prn,i5_advance,q5_advance`` (chips, transcribed from Table 3-Ia of the official IS-GPS-705), in the
+environment variable ``GNSSRX_L5_XB_TABLE``; without it any use of a GPS L5 code is a one-line error.  The
+test suite runs the L5 machinery (simulator, aided acquisition, tracking, ionosphere-free fix) on a table of
+its own (distinct advances: valid members of the same code family, not the broadcast codes), which checks
+that simulator and receiver agree, not that the codes are GPS's.
 
 Secondary codes (IS-GPS-705 3.3.2.3): NH10 = 0000110101 on I5 (one bit per 1-ms period, under the 100-sps
 symbols), NH20 = 00000100110101001110 on Q5 (20 ms).
 """
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 
 import numpy as np
+
+from ..errors import UserError
 
 L5_HZ = 1176.45e6
 L5_CHIP_RATE = 10.23e6
@@ -46,12 +44,8 @@ _NSTAGE = 13
 _XA_TAPS = (9, 10, 12, 13)
 _XB_TAPS = (1, 3, 4, 6, 7, 8, 12, 13)
 
-#: XB code advance (chips) for GPS PRN 1..32, I5 and Q5, as in IS-GPS-705 Table 3-Ia; NOT yet verified against
-#: the ICD's text (see "Provenance" in the module docstring)
-XB_ADVANCE_I5 = (266, 365, 804, 1138, 1509, 1559, 1756, 2084, 2170, 2303, 2527, 2687, 2930, 3471, 3940, 4132,
-                 4332, 4924, 5343, 5443, 5641, 5816, 5898, 5918, 5955, 6243, 6345, 6477, 6518, 6875, 7168, 7187)
-XB_ADVANCE_Q5 = (1701, 323, 5292, 2020, 5429, 7136, 1041, 5947, 4315, 148, 535, 1939, 5206, 5910, 3595, 5135,
-                 6082, 6990, 3546, 1523, 4548, 4484, 1893, 3961, 7106, 5299, 4660, 276, 4389, 3783, 1591, 1601)
+#: environment variable naming the CSV file of Table 3-Ia's XB code advances (see the module docstring)
+XB_TABLE_ENV = "GNSSRX_L5_XB_TABLE"
 L5_PRNS = tuple(range(1, 33))
 
 NH10 = (0, 0, 0, 0, 1, 1, 0, 1, 0, 1)
@@ -96,16 +90,44 @@ def xb_initial_state(advance: int) -> tuple:
     return tuple(reg)
 
 
+@lru_cache(maxsize=None)
+def _read_table(path: str) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    rows = {}
+    try:
+        with open(path) as f:
+            for line in f:
+                line = line.split("#")[0].strip()
+                if line and not line.lower().startswith("prn"):
+                    prn, i5, q5 = (int(v) for v in line.split(","))
+                    rows[prn] = (i5, q5)
+    except (OSError, ValueError) as e:
+        raise UserError(f"{XB_TABLE_ENV}={path}: cannot read the L5 XB code advances ({e})") from None
+    if sorted(rows) != list(L5_PRNS) or not all(0 < a < 2 ** _NSTAGE - 1 for r in rows.values() for a in r):
+        raise UserError(f"{XB_TABLE_ENV}={path}: needs one line 'prn,i5_advance,q5_advance' for each PRN 1..32, "
+                        "advances 1..8190")
+    return tuple(rows[p][0] for p in L5_PRNS), tuple(rows[p][1] for p in L5_PRNS)
+
+
+def xb_advances() -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The XB code advances (I5, Q5) for PRN 1..32 from the file named by ``GNSSRX_L5_XB_TABLE``."""
+    path = os.environ.get(XB_TABLE_ENV)
+    if not path:
+        raise UserError("GPS L5 codes need the XB code advances of IS-GPS-705 Table 3-Ia, which gnssrx does not "
+                        f"ship: set {XB_TABLE_ENV} to a CSV file 'prn,i5_advance,q5_advance' (docs/dual-frequency.md)")
+    return _read_table(path)
+
+
 def _advance(prn: int, component: str) -> int:
-    table = {"I": XB_ADVANCE_I5, "Q": XB_ADVANCE_Q5}[component]
     if prn not in L5_PRNS:
         raise ValueError(f"GPS L5 PRN must be 1..32, got {prn}")
-    return table[prn - 1]
+    i5, q5 = xb_advances()
+    return {"I": i5, "Q": q5}[component][prn - 1]
 
 
 @lru_cache(maxsize=None)
 def l5_code_bits(prn: int, component: str = "Q") -> np.ndarray:
-    """I5 (``component="I"``) or Q5 (``"Q"``) primary code of GPS ``prn`` as 10230 bits (0/1, uint8)."""
+    """I5 (``component="I"``) or Q5 (``"Q"``) primary code of GPS ``prn`` as 10230 bits (0/1, uint8); cached
+    per PRN and component for the process (the table file is read once)."""
     adv = _advance(prn, component)
     xb = _xb_long()
     idx = (adv + np.arange(L5_CODE_LEN)) % xb.size          # XB runs on from the advanced state

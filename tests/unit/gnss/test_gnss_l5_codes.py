@@ -1,20 +1,13 @@
-"""GPS L5 I5/Q5 codes against IS-GPS-705's register definitions and Table 3-Ia."""
+"""GPS L5 I5/Q5 codes against IS-GPS-705's register definitions (the PRN table is the test suite's own: see
+tests/conftest.py and receiver/gnss/l5_codes.py)."""
 import numpy as np
 import pytest
 
-from receiver.gnss.l5_codes import (L5_CODE_LEN, L5_PRNS, NH10, NH20, XB_ADVANCE_I5, XB_ADVANCE_Q5, _XB_TAPS,
+from receiver.gnss.l5_codes import (L5_CODE_LEN, L5_PRNS, NH10, NH20, XB_TABLE_ENV, _XB_TAPS,
                                     _run, first_chips_octal, l5_code, l5_code_bits, nh_signs, xa_sequence,
-                                    xb_initial_state)
+                                    xb_advances, xb_initial_state)
+from receiver.errors import UserError
 from receiver.gnss.registry import get_signal
-
-# "Initial XB Code State" (binary, stages 1..13) of IS-GPS-705 Table 3-Ia for a few PRNs.  NOT verified against
-# ICD text: like the advances they were taken from secondary quotations of the table, and the stored ICD
-# transcripts searched on 2026-12-02 (IS-GPS-705D/E/A, URLs in receiver/gnss/l5_codes.py) gave no table rows.
-# The test below therefore checks the two columns against each other, not against the ICD.
-ICD_XB_STATE_I5 = {1: "0101011100100", 2: "1100000110101", 3: "0100000001000", 4: "1011000100110",
-                   5: "1110111010111", 6: "0110011111010"}
-ICD_XB_STATE_Q5 = {1: "1001011001100", 2: "0100011110110"}
-
 
 def test_signal_entry():
     sig = get_signal("gps_l5")
@@ -35,27 +28,35 @@ def test_xa_short_cycle_and_xb_maximal():
     assert reg == [1] * 13 and out.sum() == 4096          # 2^12 ones in an m-sequence of degree 13
 
 
-def test_advances_make_the_icd_initial_states():
-    for prn, s in ICD_XB_STATE_I5.items():
-        assert "".join(map(str, xb_initial_state(XB_ADVANCE_I5[prn - 1]))) == s, prn
-    for prn, s in ICD_XB_STATE_Q5.items():
-        assert "".join(map(str, xb_initial_state(XB_ADVANCE_Q5[prn - 1]))) == s, prn
-
-
-@pytest.mark.parametrize("comp,table", [("I", XB_ADVANCE_I5), ("Q", XB_ADVANCE_Q5)])
-def test_first_chips_are_the_complement_of_the_initial_state(comp, table):
+@pytest.mark.parametrize("comp", ["I", "Q"])
+def test_first_chips_are_the_complement_of_the_initial_state(comp):
     """ICD note to Table 3-Ia: the first 13 XB chips (rightmost bit first out) are the complement of the
     code's first 13 chips, because XA starts all ones; every PRN 1-32."""
     for prn in L5_PRNS:
-        state = xb_initial_state(table[prn - 1])
+        state = xb_initial_state(xb_advances()["IQ".index(comp)][prn - 1])
         first13 = l5_code_bits(prn, comp)[:13]
         assert np.array_equal(first13, 1 - np.array(state[::-1], np.uint8)), prn
         assert int(first_chips_octal(prn, comp), 8) == int("".join(map(str, first13)), 2)
 
 
-def test_tables_are_distinct():
-    assert len(set(XB_ADVANCE_I5) | set(XB_ADVANCE_Q5)) == 64
-    assert all(0 < a < 8191 for a in XB_ADVANCE_I5 + XB_ADVANCE_Q5)
+def test_table_comes_from_the_named_file_or_a_one_line_error(monkeypatch, tmp_path):
+    """No table shipped: without GNSSRX_L5_XB_TABLE a one-line error says what is needed; a short or
+    malformed file is refused; a complete one is read."""
+    from receiver.gnss import l5_codes
+    monkeypatch.delenv(XB_TABLE_ENV)
+    with pytest.raises(UserError, match="IS-GPS-705 Table 3-Ia") as e:
+        xb_advances()
+    assert "\n" not in str(e.value)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("prn,i5_advance,q5_advance\n1,266,1701\n")
+    monkeypatch.setenv(XB_TABLE_ENV, str(bad))
+    with pytest.raises(UserError, match="each PRN 1..32"):
+        l5_codes._read_table(str(bad))
+    good = tmp_path / "good.csv"
+    good.write_text("".join(f"{p},{10 * p},{5000 + p}\n" for p in range(1, 33)))
+    monkeypatch.setenv(XB_TABLE_ENV, str(good))
+    i5, q5 = xb_advances()
+    assert i5[6] == 70 and q5[31] == 5032
 
 
 def test_balance_and_correlation_bounds():

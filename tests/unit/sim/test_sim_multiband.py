@@ -84,7 +84,8 @@ def test_l5_samples_carry_q5_and_i5(pair):
     c = np.concatenate(([0], np.cumsum(x * np.conj(rep))))
     p, w = c[edges[1:]] - c[edges[:-1]], np.diff(edges)
     amp = math.sqrt(2.0 * sigma ** 2 * 10 ** (cn0 / 10) / fs)
-    assert p.size >= 95 and np.allclose(np.abs(p) / w, amp, rtol=2e-2)  # (+ PRN 24 cross-correlation)
+    # (+ the other satellite: cross-correlation of the code family below 0.05, and noise)
+    assert p.size >= 95 and np.allclose(np.abs(p) / w, amp, rtol=6e-2)
     # the satellite-time ms of each window: transmit time = receive time - pseudorange / c
     t_mid = t[(edges[1:] + edges[:-1]) // 2]
     ms = np.floor((tow0 + t_mid - np.interp(t_mid, ts, pr) / 299792458.0) * 1e3).astype(np.int64)
