@@ -174,30 +174,46 @@ def _symmetry_centre(sc, lag0, dlag, spc, d_chips):
 
 def fine_doppler(z, coarse_hz: float, half_range_hz: float, bit_ms: int = 20):
     """Residual frequency of the prompt 1-ms correlations z (one per ms, carrier wiped at coarse_hz):
-    coherent within each data bit (every edge position tried), non-coherent across bits.  Returns
+    coherent within each data bit (every edge position tried), non-coherent across bits, over 1.5 x
+    ``half_range_hz`` (a bit transition inside a search block can put the search's peak a bin off); the
+    best grid point refined on a grid 20 times finer (the exact function, no interpolation bias).  Returns
     (doppler_hz, bit_edge_ms)."""
     nb = len(z)
     t = np.arange(nb) * 1e-3
     span = nb * 1e-3
     step = 1.0 / (8.0 * min(span, bit_ms * 1e-3))
-    half_range_hz = max(half_range_hz, 2 * step)
+    half_range_hz = max(1.5 * half_range_hz, 2 * step)
     f = np.arange(-half_range_hz, half_range_hz + step / 2, step)
-    a = np.exp(-2j * np.pi * np.outer(f, t)) * z[None, :]         # (nf, nb)
-    c = np.concatenate([np.zeros((len(f), 1), complex), np.cumsum(a, axis=1)], axis=1)
-    best, best_e, best_p = None, -1, None
+    best_p, best_e, best_edges = None, -1, None
+    c = _cumulative(z, t, f)
     for e in range(min(bit_ms, nb) if nb > 1 else 1):
         edges = sorted({0, nb, *range(e, nb, bit_ms)})
-        seg = c[:, edges[1:]] - c[:, edges[:-1]]
-        p = (seg.real ** 2 + seg.imag ** 2).sum(axis=1)
-        if best is None or p.max() > best.max():
-            best, best_e, best_p = p, e, p
+        p = _segment_power(c, edges)
+        if best_p is None or p.max() > best_p.max():
+            best_p, best_e, best_edges = p, e, edges
     j = int(np.argmax(best_p))
+    ff = f[j] + np.linspace(-step, step, 41)
+    pf = _segment_power(_cumulative(z, t, ff), best_edges)
+    k = int(np.argmax(pf))
     d = 0.0
-    if 0 < j < len(f) - 1:
-        y0, y1, y2 = best_p[j - 1], best_p[j], best_p[j + 1]
+    if 0 < k < len(ff) - 1:
+        y0, y1, y2 = pf[k - 1], pf[k], pf[k + 1]
         den = y0 - 2 * y1 + y2
         d = 0.5 * (y0 - y2) / den if den != 0 else 0.0
-    return float(coarse_hz + f[j] + d * step), (best_e if nb > bit_ms else -1)
+    return float(coarse_hz + ff[k] + d * (ff[1] - ff[0])), (best_e if nb > bit_ms else -1)
+
+
+def _cumulative(z, t, f):
+    """Cumulative sums (n_f, nb + 1) of z wiped at each frequency f (Hz; t the times of z, s)."""
+    a = np.exp(-2j * np.pi * np.outer(f, t)) * z[None, :]
+    return np.concatenate([np.zeros((len(f), 1), complex), np.cumsum(a, axis=1)], axis=1)
+
+
+def _segment_power(c, edges):
+    """Power at each frequency of the cumulative sums c summed coherently within the segments
+    [edges[i], edges[i+1]) and non-coherently across them."""
+    seg = c[:, edges[1:]] - c[:, edges[:-1]]
+    return (seg.real ** 2 + seg.imag ** 2).sum(axis=1)
 
 
 def bit_transition(x, fs, if_hz, prn, code_phase_chips, doppler_hz, signal=None, min_snr: float = 30.0):

@@ -9,7 +9,7 @@ dwell) and solved twice:
       horizontal distance uniform in 0-100 km);
   (b) coarse time within +/-60 s and no position (Doppler-only prior).
 With ``--moving`` the receiver moves at 80-150 m/s (random heading, constant velocity) and the velocity
-error (from the Dopplers) is scored too.
+error (from the Dopplers) is scored too; mode (b) then needs the moving Doppler solution (>= 8 satellites).
 
 Prints a table of 3D error percentiles (50 / 95 %), fix rates and first-sample time errors, and writes
 all rows as JSON (``--out``).  Seeded: the same ``--seed`` gives the same trials.
@@ -30,8 +30,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from receiver.gnss.geodesy import enu_matrix  # noqa: E402
-from receiver.navigation.snapshot import (SnapObs, SnapshotSettings, coarse_time_fix, in_sky,  # noqa: E402
-                                          with_bit_edges)
+from receiver.navigation.snapshot import SnapObs, SnapshotSettings, coarse_time_fix, in_sky  # noqa: E402
+from receiver.navigation.snapshot_time import with_bit_edges  # noqa: E402
 from receiver.runfile.truth import TruthFile  # noqa: E402
 from receiver.sim.simulate import simulate  # noqa: E402
 from receiver.snapshot.acquire import snapshot_acquire  # noqa: E402
@@ -108,7 +108,8 @@ def run_trial(p, cn0, fs, tmp, ephs, max_len, lengths=LENGTHS):
             fix = with_bit_edges(fix, obs, edges, ephs, SnapshotSettings())
             row = {"cn0": cn0, "length_ms": length, "mode": mode, "ok": bool(fix.ok), "n_det": len(det),
                    "n_sky": len(sky), "false": false, "t_acq_s": t_acq, "t_solve_s": time.time() - t0,
-                   "speed": p["speed"], "msg": fix.message, "time_source": fix.time_source}
+                   "speed": p["speed"], "msg": fix.message, "time_source": fix.time_source,
+                   "prior": fix.prior, "n_edges": len(edges)}
             if fix.ok:
                 row.update({"err3d_m": float(np.linalg.norm(fix.ecef - x_true)),
                             "err_h_m": float(np.linalg.norm((enu @ (fix.ecef - x_true))[:2])),

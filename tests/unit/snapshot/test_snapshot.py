@@ -294,10 +294,54 @@ def test_time_from_bit_transitions(nav):
     edges[prns[4]] = edges[prns[0]] + 3e-3 if edges[prns[0]] < 0.015 else edges[prns[0]] - 3e-3   # a wrong one
     from dataclasses import replace
     fake = replace(fix, gps_tow_s=tow + 4.1e-3)                             # the fix's time 4.1 ms off
-    t, n = refine_time(fake, edges, nav["ephs"], s)
-    assert n == 4 and abs(t - tow) < 2e-6
+    t, agree, rejected = refine_time(fake, edges, nav["ephs"], s)
+    assert sorted(agree) == sorted(prns[:4]) and rejected == [prns[4]] and abs(t - tow) < 2e-6
     better = with_bit_edges(fix, obs, edges, nav["ephs"], s)
-    assert "bit transitions" in better.time_source and abs(better.gps_tow_s - tow) < 2e-6
+    assert "bit transitions of 4" in better.time_source and abs(better.gps_tow_s - tow) < 2e-6
     assert np.linalg.norm(better.ecef - x_true) < 15.0
-    # no agreement, no refinement
-    assert refine_time(fake, {prns[0]: edges[prns[0]]}, nav["ephs"], s) is None
+    # one transition alone is enough when nothing contradicts it; two that disagree give nothing
+    t1, agree1, _ = refine_time(fake, {prns[1]: edges[prns[1]]}, nav["ephs"], s)
+    assert agree1 == [prns[1]] and abs(t1 - tow) < 2e-6
+    assert refine_time(fake, {prns[0]: edges[prns[0]], prns[4]: edges[prns[4]]}, nav["ephs"], s) is None
+    # the multiple of 20 ms comes from the fix's own time: right while that is within 10 ms of the truth,
+    # 20 ms off beyond (the method's physical limit)
+    t9, _, _ = refine_time(replace(fix, gps_tow_s=tow - 9.5e-3), edges, nav["ephs"], s)
+    t11, _, _ = refine_time(replace(fix, gps_tow_s=tow - 10.5e-3), edges, nav["ephs"], s)
+    assert abs(t9 - tow) < 2e-6 and abs(t11 - (tow - 0.02)) < 2e-6
+
+
+def test_moving_receiver_without_a_position(nav):
+    """Mode (b) for a moving receiver: the Dopplers do not fit a static antenna, the Doppler solution with the
+    velocity as three more unknowns gives the prior; the fix and the velocity match the truth."""
+    lat, lon = 40.0, -100.0
+    x_true = lla2ecef(lat, lon, 9000.0)
+    enu = enu_matrix(lat, lon)
+    v_true = 140.0 * enu[0] + 90.0 * enu[1] + 3.0 * enu[2]          # an aircraft, 166 m/s
+    tow = nav["tow"] + 3100.0
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, v_true=v_true, noise_m=1.0, noise_hz=0.3, seed=7,
+                        mask_deg=5.0)
+    assert len(obs) >= 8
+    s = SnapshotSettings(**NO_ATMO)
+    fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow - 45.0, None, s)
+    assert fix.ok, fix.message
+    assert fix.prior == "doppler (moving)"
+    assert np.linalg.norm(fix.ecef - x_true) < 15.0
+    assert np.linalg.norm(fix.velocity_ecef - v_true) < 0.5
+    # the same Dopplers with too few satellites for the moving solution: one clear message
+    few = coarse_time_fix(obs[:7], nav["ephs"], nav["week"], tow - 45.0, None, s)
+    assert not few.ok and "moving" in few.message
+
+
+def test_velocity_solution_leaves_out_a_bad_doppler(nav):
+    from receiver.navigation.snapshot import velocity_solution
+    x_true = lla2ecef(-20.0, 30.0, 100.0)
+    v_true = np.array([80.0, -40.0, 10.0])
+    tow = nav["tow"] + 500.0
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, v_true=v_true, noise_hz=0.3, seed=2, mask_deg=5.0)
+    assert len(obs) >= 7
+    for o in obs:
+        o.length_ms = 20.0
+    obs[2].doppler_hz += 40.0                                          # a side-lobe Doppler: 7.6 m/s
+    v, drift, res, out = velocity_solution(obs, nav["ephs"], nav["week"], tow, x_true)
+    assert out == [2]
+    assert np.linalg.norm(v - v_true) < 0.3
