@@ -15,7 +15,7 @@ the error dt of the coarse time of the first sample; d rho_i / d dt is the satel
 Without a prior position a Doppler-only solution (position, clock drift and dt from the Dopplers of a
 static receiver; several start points on the Earth's surface, the lowest residual kept) gives it; when
 the Dopplers do not fit a static receiver, the same with the receiver velocity as three more unknowns
-(a moving receiver: at least 8 satellites; receiver/navigation/snapshot_doppler.py).
+(a moving receiver: at least 9 satellites; receiver/navigation/snapshot_doppler.py).
 
 Integrity: >= 5 satellites (4 with a height constraint), a residual test (the worst satellite is
 dropped while the residual RMS exceeds ``residual_threshold_m`` and enough remain), and the whole
@@ -35,6 +35,9 @@ from .snapshot_doppler import (doppler_solution, moving_doppler_rms, static_dopp
 from .snapshot_model import (CHIP_M, LAMBDA, MS_M, Ephemerides, SnapObs, SnapshotFix,  # noqa: F401
                              SnapshotSettings, corrections, dops, in_sky, line_of_sight, sat_geometry, sigma_m)
 
+
+#: satellites needed for the Doppler solution of a moving receiver (8 unknowns; with 8 it is unreliable)
+MIN_MOVING_SATS = 9
 
 def _whole_ms(rho_frac, pred, ref):
     """Integers M_i: rho_i = M_i MS_M + rho_frac_i with rho_i - rho_ref nearest to pred_i - pred_ref (the
@@ -185,28 +188,30 @@ def coarse_time_fix(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: floa
 
 
 def _doppler_prior(obs, ephs, week, tow0, s):
-    """The a-priori position from the Dopplers alone: a static receiver, else (at least 8 satellites) a moving
-    one.  (x on the surface, dt, residual RMS m/s, 'doppler' or 'doppler (moving)') or a failed SnapshotFix."""
+    """The a-priori position from the Dopplers alone: a static receiver, else a moving one (at least
+    MIN_MOVING_SATS satellites).  (x on the surface, dt, residual RMS m/s, 'doppler' or 'doppler (moving)') or
+    a failed SnapshotFix."""
     sol = doppler_solution(obs, ephs, week, tow0)
     kind = "doppler"
-    if (sol is None or sol[3] > s.max_doppler_rms_mps) and len(obs) >= 8:
+    if (sol is None or sol[3] > s.max_doppler_rms_mps) and len(obs) >= MIN_MOVING_SATS:
         mov = doppler_solution(obs, ephs, week, tow0, moving=True)
         if mov is not None and mov[3] <= s.max_doppler_rms_mps:
             sol, kind = mov, "doppler (moving)"
     if sol is None:
         return SnapshotFix(False, "no Doppler solution for the a-priori position (too few satellites, "
-                                  "inconsistent Dopplers, or a moving receiver with fewer than 8 satellites); "
+                                  "inconsistent Dopplers, or a moving receiver with fewer than 9 satellites); "
                                   "give --position")
     if sol[3] > s.max_doppler_rms_mps:
         return SnapshotFix(False, f"the Doppler-only solution does not fit a static receiver (RMS {sol[3]:.0f} "
-                                  "m/s) nor a moving one (that needs 8 satellites): give --position")
+                                  "m/s) nor a moving one (that needs 9 satellites): give --position")
     lat, lon, _ = ecef2lla(sol[0])        # the Doppler fix's height is poor: put it on the surface
     return lla2ecef(lat, lon, 0.0 if s.height_m is None else s.height_m), sol[2], sol[3], kind
 
 
 def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
-    """Whole milliseconds from the prior (x0, dt0), solve, residual test with exclusion of the worst
-    satellite; the reference satellite tried in order of elevation.  (sol, used indices, rejected) or
+    """Whole milliseconds from the prior (x0, dt0), solve, residual test (the RMS against
+    ``residual_threshold_m``, each residual against ``max_norm_residual`` times its noise) with exclusion
+    of the worst satellite; the reference satellite tried in order of elevation.  (sol, used indices, rejected) or
     None."""
     prns = [o.prn for o in obs]
     pos, vel, clk, cdrift, tau = sat_geometry(ephs, prns, week, tow0 + dt0, x0)
@@ -234,15 +239,18 @@ def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
             # resolved them under a false assumption (a consistent-looking wrong fix)
             plausible = -2000.0 < h_ell < 20000.0 and np.linalg.norm(sol["x"] - x0) <= s.max_move_m and \
                 abs(sol["dt"]) <= s.max_time_shift_s
-            if plausible and rms <= s.residual_threshold_m and el_ok.all() and \
+            # a residual far beyond its satellite's noise (sigma_m) is an outlier while others can replace it
+            nres = np.abs(res) / sig_all[idx]
+            outlier = len(active) > min_sats and float(nres.max()) > s.max_norm_residual
+            if plausible and rms <= s.residual_threshold_m and el_ok.all() and not outlier and \
                     dops(sol["h"], sol["x"])["pdop"] <= s.max_pdop:
                 if check is None or check(sol):
                     return sol, active, rejected
                 break                       # consistent pseudoranges, inconsistent Dopplers: next reference
             if len(active) == min_sats:
                 break
-            # drop the worst: below the mask first, else the largest residual
-            worst = int(np.argmin(sol["el"])) if not el_ok.all() else int(np.argmax(np.abs(res)))
+            # drop the worst: below the mask first, else the largest residual over its noise
+            worst = int(np.argmin(sol["el"])) if not el_ok.all() else int(np.argmax(nres))
             rejected.append(active.pop(worst))
             # the whole milliseconds again from the new solution when it is plausible (closer prior)
     return None

@@ -70,7 +70,7 @@ def doppler_solution(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: flo
             r = np.linalg.norm(x)
             if r > 1e7 or r < 5e6 or abs(dt) > 600 or np.linalg.norm(v) > 2000.0:   # diverging or off the Earth
                 break
-            if np.linalg.norm(step[:3]) < 1.0:
+            if np.linalg.norm(step[:3]) < (10.0 if moving else 1.0):
                 ok = True
                 break
         if not ok or abs(float(ecef2lla(x)[2])) > 50e3:

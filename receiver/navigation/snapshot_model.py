@@ -76,6 +76,7 @@ class SnapshotSettings:
     ionosphere: bool = True
     elevation_mask_deg: float = 5.0
     residual_threshold_m: float = 30.0
+    max_norm_residual: float = 6.0        # a residual beyond this many sigmas (sigma_m) is excluded
     max_pdop: float = 20.0
     height_m: float | None = None     # altitude aiding: height constraint (m above the ellipsoid)
     height_sigma_m: float = 10.0
@@ -153,9 +154,10 @@ def dops(h_geo, x, ncols_clock=1):
 
 
 def sigma_m(cn0_dbhz, length_ms=10.0):
-    """Pseudorange noise model (m) for the weights: ~6 m at 45 dB-Hz over 10 ms (measured on simulated
-    snapshots at 4 MS/s), 1 / sqrt(C/N0 x length)."""
-    return 6.0 * 10 ** ((45.0 - np.asarray(cn0_dbhz, float)) / 20.0) * np.sqrt(10.0 / np.asarray(length_ms, float))
+    """Pseudorange noise model (m) for the weights: ~3 m at 45 dB-Hz over 10 ms (the narrow early-late
+    code phase of receiver/snapshot/acquire.py on simulated snapshots at 4 MS/s), 1 / sqrt(C/N0 x length)."""
+    return 3.0 * 10 ** ((45.0 - np.asarray(cn0_dbhz, float)) / 20.0) * np.sqrt(10.0 / np.asarray(length_ms, float))
+
 
 def line_of_sight(ephs, prns, week, t, x, iono, settings):
     """The satellites' state at GPS time ``t`` (s of week) seen from ECEF ``x``: position, velocity (m, m/s),

@@ -12,7 +12,7 @@ from receiver.gnss.geodesy import ecef2lla, enu_matrix, lla2ecef
 from receiver.gnss.signals import CA_CHIP_RATE, C_LIGHT, L1_HZ
 from receiver.navigation.snapshot import (Ephemerides, SnapObs, SnapshotSettings, coarse_time_fix,
                                           sat_geometry)
-from receiver.snapshot.acquire import dwell_plan, fine_code_phase, fine_doppler, snapshot_acquire
+from receiver.snapshot.acquire import bit_transition, dwell_plan, fine_code_phase, fine_doppler, snapshot_acquire
 
 from clirun import cli
 from synth import make_signal
@@ -179,6 +179,40 @@ def test_fine_doppler_handles_a_bit_transition():
         assert abs(p - phase) < 0.02
 
 
+@pytest.mark.slow
+def test_narrow_early_late_code_phase_beats_the_triangle_fit():
+    """The replica early-late discriminator against the whole-triangle fit: error vs the true code phase over
+    seeded noise draws (2.6 MS/s, 20 ms, 42 dB-Hz)."""
+    fs = 2.6e6
+    err = {"fit": [], "replica": []}
+    for k in range(10):
+        phase = 200.0 + 0.173 * k
+        x = make_signal([{"prn": 7, "doppler_hz": -1500.0, "code_phase_chips": phase, "cn0_dbhz": 42.0}], fs=fs,
+                        duration_s=0.02, seed=10 + k)
+        for m in err:
+            p, _, _ = fine_code_phase(x, fs, 0.0, 7, phase - 0.3, -1500.0, method=m)
+            err[m].append(((p - phase + 511.5) % 1023 - 511.5) * C_LIGHT / CA_CHIP_RATE)
+    rms = {m: float(np.sqrt(np.mean(np.square(e)))) for m, e in err.items()}
+    assert rms["replica"] < 4.5 and rms["replica"] < 0.75 * rms["fit"], rms
+
+
+def test_bit_transition_in_a_10ms_snapshot():
+    """A transition 6 ms in (40 dB-Hz) is found on its code epoch; without one, none is reported."""
+    fs = 4e6
+    phase, dop = 700.25, 1800.0
+    rate = CA_CHIP_RATE * (1 + dop / L1_HZ)
+    for bits, start in (([1, -1], -14), ([1, 1], -14)):
+        x = make_signal([{"prn": 11, "doppler_hz": dop, "code_phase_chips": phase, "cn0_dbhz": 40.0,
+                          "bits": np.array(bits), "bit_start_ms": start}], fs=fs, duration_s=0.01, seed=3)
+        e = bit_transition(x, fs, 0.0, 11, phase, dop)
+        if bits[1] == bits[0]:
+            assert np.isnan(e)
+        else:
+            # the code period that starts the second bit: (20 + start) periods after the first code epoch
+            t_epoch = ((1023 - phase) % 1023) / rate + (20 + start - 1) * 1023 / rate
+            assert abs(e - t_epoch) < 1e-6, (e, t_epoch)
+
+
 # ------------------------------------------------------------------------------ end to end
 @pytest.fixture(scope="module")
 def rec(tmp_path_factory, nav):
@@ -310,6 +344,7 @@ def test_time_from_bit_transitions(nav):
     assert abs(t9 - tow) < 2e-6 and abs(t11 - (tow - 0.02)) < 2e-6
 
 
+@pytest.mark.slow
 def test_moving_receiver_without_a_position(nav):
     """Mode (b) for a moving receiver: the Dopplers do not fit a static antenna, the Doppler solution with the
     velocity as three more unknowns gives the prior; the fix and the velocity match the truth."""
@@ -320,7 +355,7 @@ def test_moving_receiver_without_a_position(nav):
     tow = nav["tow"] + 3100.0
     obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, v_true=v_true, noise_m=1.0, noise_hz=0.3, seed=7,
                         mask_deg=5.0)
-    assert len(obs) >= 8
+    assert len(obs) >= 9
     s = SnapshotSettings(**NO_ATMO)
     fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow - 45.0, None, s)
     assert fix.ok, fix.message
@@ -328,7 +363,7 @@ def test_moving_receiver_without_a_position(nav):
     assert np.linalg.norm(fix.ecef - x_true) < 15.0
     assert np.linalg.norm(fix.velocity_ecef - v_true) < 0.5
     # the same Dopplers with too few satellites for the moving solution: one clear message
-    few = coarse_time_fix(obs[:7], nav["ephs"], nav["week"], tow - 45.0, None, s)
+    few = coarse_time_fix(obs[:8], nav["ephs"], nav["week"], tow - 45.0, None, s)
     assert not few.ok and "moving" in few.message
 
 
