@@ -18,7 +18,8 @@ import numpy as np
 
 from ..gnss.signals import C_LIGHT
 from .snapshot import coarse_time_fix
-from .snapshot_model import Ephemerides, SnapObs, SnapshotFix, SnapshotSettings, corrections, sat_geometry
+from .snapshot_model import (Ephemerides, SnapObs, SnapshotFix, SnapshotSettings, corrections, sat_geometry,
+                             sigma_m)
 
 BIT_S = 0.02          # GPS L1 C/A data bit
 
@@ -42,12 +43,16 @@ def edge_offsets(fix: SnapshotFix, edges: dict, ephs: Ephemerides, settings: Sna
 
 
 def refine_time(fix: SnapshotFix, edges: dict, ephs: Ephemerides, settings: SnapshotSettings | None = None,
-                tol_s: float = 1e-4, min_agree: int = 1):
+                tol_s: float = 1e-4, min_agree: int = 1, min_ratio: float = 10.0, noise_scale: float = 1.0):
     """The time of the first sample from the data-bit transitions ``edges`` {prn: time of a transition after
     the first sample (s)}, used jointly: the corrections (:func:`edge_offsets`, modulo 20 ms) are clustered
     within ``tol_s`` on the circle; the largest cluster wins when it holds at least ``min_agree`` satellites
     and more than all the others together (a single transition is enough when no other contradicts it).
-    Returns (tow, agreeing PRNs, rejected PRNs) or None."""
+    The multiple of 20 ms is the one nearest the fix's time; it is validated like an integer ambiguity: the
+    chi-square of the next-nearest multiple must exceed the nearest's by ``min_ratio``, with the fix's time
+    sigma times ``noise_scale`` (> 1 when its residuals exceed their noise model): (d2^2 - d1^2) / sigma^2,
+    d1 and d2 the distances of the two multiples from the fix's time.  Returns (tow, agreeing PRNs, rejected
+    PRNs) or None."""
     s = settings or SnapshotSettings()
     if not fix.ok:
         return None
@@ -68,8 +73,22 @@ def refine_time(fix: SnapshotFix, edges: dict, ephs: Ephemerides, settings: Snap
     c = v[k] + ((v[agree] - v[k] + BIT_S / 2) % BIT_S - BIT_S / 2)
     shift = float(np.mean(c))
     shift = (shift + BIT_S / 2) % BIT_S - BIT_S / 2              # the multiple of 20 ms nearest the fix's time
+    sig_t = fix.time_sigma_s * max(1.0, noise_scale)
+    d1, d2 = abs(shift), BIT_S - abs(shift)
+    if not np.isfinite(sig_t) or (d2 ** 2 - d1 ** 2) / max(sig_t, 1e-9) ** 2 < min_ratio:
+        return None                                               # the 20-ms multiple is not determined
     return (fix.gps_tow_s + shift, [p for p, a in zip(prns, agree) if a],
             [p for p, a in zip(prns, agree) if not a])
+
+
+def _noise_scale(fix: SnapshotFix, obs: list[SnapObs]) -> float:
+    """The fix's residual RMS over the RMS of the noise model (sigma_m) of its satellites (1: as modelled)."""
+    by = {o.prn: o for o in obs}
+    used = [by[p] for p in fix.prns if p in by]
+    if not used or not fix.residuals_m:
+        return 1.0
+    sig = sigma_m([o.cn0_dbhz for o in used], [o.length_ms for o in used])
+    return float(np.sqrt(np.mean(np.square(fix.residuals_m)) / np.mean(sig ** 2)))
 
 
 def with_bit_edges(fix: SnapshotFix, obs: list[SnapObs], edges: dict, ephs: Ephemerides,
@@ -78,7 +97,7 @@ def with_bit_edges(fix: SnapshotFix, obs: list[SnapObs], edges: dict, ephs: Ephe
     they give one and the new fix passes the same tests; else ``fix`` unchanged.  The result's
     ``time_source`` says which."""
     s = settings or SnapshotSettings()
-    r = refine_time(fix, edges, ephs, s)
+    r = refine_time(fix, edges, ephs, s, noise_scale=_noise_scale(fix, obs))
     if r is None:
         return fix
     tow, agree, _ = r

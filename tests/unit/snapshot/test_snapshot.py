@@ -327,7 +327,7 @@ def test_time_from_bit_transitions(nav):
         edges[p] = np.ceil(t_sv0 / 0.02) * 0.02 - t_sv0      # arrival of the next transmit multiple of 20 ms
     edges[prns[4]] = edges[prns[0]] + 3e-3 if edges[prns[0]] < 0.015 else edges[prns[0]] - 3e-3   # a wrong one
     from dataclasses import replace
-    fake = replace(fix, gps_tow_s=tow + 4.1e-3)                             # the fix's time 4.1 ms off
+    fake = replace(fix, gps_tow_s=tow + 4.1e-3, time_sigma_s=2e-3)          # the fix's time 4.1 ms off
     t, agree, rejected = refine_time(fake, edges, nav["ephs"], s)
     assert sorted(agree) == sorted(prns[:4]) and rejected == [prns[4]] and abs(t - tow) < 2e-6
     better = with_bit_edges(fix, obs, edges, nav["ephs"], s)
@@ -338,10 +338,11 @@ def test_time_from_bit_transitions(nav):
     assert agree1 == [prns[1]] and abs(t1 - tow) < 2e-6
     assert refine_time(fake, {prns[0]: edges[prns[0]], prns[4]: edges[prns[4]]}, nav["ephs"], s) is None
     # the multiple of 20 ms comes from the fix's own time: right while that is within 10 ms of the truth,
-    # 20 ms off beyond (the method's physical limit)
-    t9, _, _ = refine_time(replace(fix, gps_tow_s=tow - 9.5e-3), edges, nav["ephs"], s)
-    t11, _, _ = refine_time(replace(fix, gps_tow_s=tow - 10.5e-3), edges, nav["ephs"], s)
+    # 20 ms off beyond (the method's physical limit); not used when the fix's time sigma leaves it open
+    t9, _, _ = refine_time(replace(fix, gps_tow_s=tow - 9.5e-3, time_sigma_s=1e-3), edges, nav["ephs"], s)
+    t11, _, _ = refine_time(replace(fix, gps_tow_s=tow - 10.5e-3, time_sigma_s=1e-3), edges, nav["ephs"], s)
     assert abs(t9 - tow) < 2e-6 and abs(t11 - (tow - 0.02)) < 2e-6
+    assert refine_time(replace(fix, gps_tow_s=tow - 9.5e-3, time_sigma_s=5e-3), edges, nav["ephs"], s) is None
 
 
 @pytest.mark.slow
