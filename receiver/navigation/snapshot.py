@@ -208,6 +208,14 @@ def _doppler_prior(obs, ephs, week, tow0, s):
     return lla2ecef(lat, lon, 0.0 if s.height_m is None else s.height_m), sol[2], sol[3], kind
 
 
+def _w_test(res, h, cov, sig):
+    """|residual| / (sigma sqrt(1 - leverage)) per observation (rows h of the design, the solution's
+    covariance; the leverage w_i^2 h_i cov h_i^T, w_i = 1 / sigma_i)."""
+    hc = h[:, :cov.shape[0]]
+    lev = np.einsum("ij,jk,ik->i", hc, cov, hc) / sig ** 2
+    return np.abs(res) / (sig * np.sqrt(np.clip(1.0 - lev, 1e-4, 1.0)))
+
+
 def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
     """Whole milliseconds from the prior (x0, dt0), solve, residual test (the RMS against
     ``residual_threshold_m``, each residual against ``max_norm_residual`` times its noise) with exclusion
@@ -239,8 +247,10 @@ def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
             # resolved them under a false assumption (a consistent-looking wrong fix)
             plausible = -2000.0 < h_ell < 20000.0 and np.linalg.norm(sol["x"] - x0) <= s.max_move_m and \
                 abs(sol["dt"]) <= s.max_time_shift_s
-            # a residual far beyond its satellite's noise (sigma_m) is an outlier while others can replace it
-            nres = np.abs(res) / sig_all[idx]
+            # a residual far beyond its satellite's noise (sigma_m) is an outlier while others can replace it:
+            # Baarda's w-test, the residual over its own sigma, sigma_i sqrt(1 - leverage_i) (a satellite that
+            # alone fixes a direction, e.g. the only low one for the height, leaves a small residual)
+            nres = _w_test(res, sol["h"][:len(idx)], sol["cov"], sig_all[idx])
             outlier = len(active) > min_sats and float(nres.max()) > s.max_norm_residual
             if plausible and rms <= s.residual_threshold_m and el_ok.all() and not outlier and \
                     dops(sol["h"], sol["x"])["pdop"] <= s.max_pdop:

@@ -76,7 +76,7 @@ class SnapshotSettings:
     ionosphere: bool = True
     elevation_mask_deg: float = 5.0
     residual_threshold_m: float = 30.0
-    max_norm_residual: float = 6.0        # a residual beyond this many sigmas (sigma_m) is excluded
+    max_norm_residual: float = 6.0        # Baarda's w-test: a residual beyond this many of its sigmas is excluded
     max_pdop: float = 20.0
     height_m: float | None = None     # altitude aiding: height constraint (m above the ellipsoid)
     height_sigma_m: float = 10.0
