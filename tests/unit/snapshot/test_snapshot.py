@@ -381,3 +381,25 @@ def test_velocity_solution_leaves_out_a_bad_doppler(nav):
     v, drift, res, out = velocity_solution(obs, nav["ephs"], nav["week"], tow, x_true)
     assert out == [2]
     assert np.linalg.norm(v - v_true) < 0.3
+
+
+def test_w_test_excludes_a_faulty_low_satellite(nav):
+    """A 60-m error on the lowest satellite (which alone fixes much of the height) leaves a residual of a few
+    metres only -- the RMS stays far under the 30-m threshold -- but over its own sigma (with the leverage) it
+    stands out: excluded, and the fix is good again."""
+    from receiver.gnss.geodesy import azel
+    x_true = lla2ecef(35.0, 139.0, 50.0)
+    tow = nav["tow"] + 1800.0
+    obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, noise_m=1.0, seed=11, mask_deg=5.0)
+    pos, *_ = sat_geometry(nav["ephs"], [o.prn for o in obs], nav["week"], tow, x_true)
+    low = int(np.argmin(azel(x_true, pos)[1]))
+    obs[low].code_phase_chips = (obs[low].code_phase_chips - 60.0 / (C_LIGHT / CA_CHIP_RATE)) % 1023
+    s = SnapshotSettings(**NO_ATMO)
+    fix = coarse_time_fix(obs, nav["ephs"], nav["week"], tow + 0.5, x_true + 20e3, s)
+    assert fix.ok and obs[low].prn in fix.rejected
+    assert np.linalg.norm(fix.ecef - x_true) < 10.0
+    # the RMS test alone keeps it, and the fix is pulled off
+    loose = coarse_time_fix(obs, nav["ephs"], nav["week"], tow + 0.5, x_true + 20e3,
+                            SnapshotSettings(max_norm_residual=1e9, **NO_ATMO))
+    assert loose.ok and obs[low].prn not in loose.rejected and loose.residual_rms_m < 30.0
+    assert np.linalg.norm(loose.ecef - x_true) > np.linalg.norm(fix.ecef - x_true) + 10.0
