@@ -20,8 +20,8 @@ the Dopplers do not fit a static receiver, the same with the receiver velocity a
 Integrity: >= 5 satellites (4 with a height constraint), a residual test (the worst satellite is
 dropped while the residual RMS exceeds ``residual_threshold_m`` and enough remain), and the whole
 milliseconds are tried again from other reference satellites and start points when the test fails.
-The model (measurements, result, settings, geometry) is snapshot_model.py, the time from data-bit
-transitions snapshot_time.py; the names of both are re-exported here.  Pure numpy over receiver.gnss.
+The model (measurements, result, settings, geometry) is snapshot_model.py (its names re-exported here),
+the time from data-bit transitions snapshot_time.py (which builds on this module).  Pure numpy over receiver.gnss.
 """
 from __future__ import annotations
 
@@ -264,6 +264,3 @@ def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
             rejected.append(active.pop(worst))
             # the whole milliseconds again from the new solution when it is plausible (closer prior)
     return None
-
-
-from .snapshot_time import refine_time, with_bit_edges  # noqa: E402,F401  (re-exported; imports coarse_time_fix)

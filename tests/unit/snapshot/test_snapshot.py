@@ -312,7 +312,7 @@ def test_bad_inputs_one_line(rec, tmp_path):
 def test_time_from_bit_transitions(nav):
     """Data-bit transitions (each at a multiple of 20 ms of its satellite's clock) fix the first sample's time
     to microseconds from a fix whose time is a few ms off; a transition on the wrong epoch is outvoted."""
-    from receiver.navigation.snapshot import refine_time, with_bit_edges
+    from receiver.navigation.snapshot_time import refine_time, with_bit_edges
     x_true = lla2ecef(45.0, 7.0, 300.0)
     tow = nav["tow"] + 2222.2222
     obs = synthetic_obs(nav["ephs"], nav["week"], tow, x_true, noise_m=2.0, seed=5)
