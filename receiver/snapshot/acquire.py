@@ -14,9 +14,9 @@ where the power ``d_chips`` earlier equals the power ``d_chips`` later (a non-co
 discriminator at zero, found on a 0.02-chip grid and interpolated).
 
 Fine Doppler: the prompt 1-ms correlations z_b at that code phase; for each of the 20 possible positions
-of the data-bit edges the blocks are summed coherently within each bit and the bits non-coherently,
-as a function of the residual frequency (the data-bit transitions handled explicitly); the largest over
-edges and frequencies, interpolated.
+of the data-bit edges the blocks are summed coherently over the whole snapshot, each bit with the sign
+that aligns it with the sum so far (the data-bit transitions handled explicitly), as a function of the
+residual frequency; the largest over edges and frequencies, refined on a finer grid.
 """
 from __future__ import annotations
 
@@ -93,12 +93,14 @@ def _lag_power(spec_code, lag0, offs, dlag):
 
 
 def fine_code_phase(x, fs, if_hz, prn, code_phase_chips, doppler_hz, d_chips: float = 0.2, signal=None,
-                    n_ms: int | None = None, method: str = "fit"):
+                    n_ms: int | None = None, method: str = "replica", el_chips: float = 0.1):
     """Code phase (chips, at the first sample) refined to a fraction of a sample around the coarse
     ``code_phase_chips``; also returns the prompt 1-ms correlations (complex, one per block) and the C/N0
     (dB-Hz: their power over the power far from the peak).  ``method``: "fit" (the correlation power at
-    whole-sample lags fitted with the squared triangle, :func:`_triangle_fit`) or "symmetry" (the centre of
-    symmetry of the band-limited interpolated peak, :func:`_symmetry_centre`)."""
+    whole-sample lags fitted with the squared triangle, :func:`_triangle_fit`), "replica" (that fit, then a
+    narrow early-late discriminator, spacing ``el_chips``, on replicas sampled at fractional code phases,
+    :func:`_replica_centre`)
+    or "symmetry" (the centre of symmetry of the band-limited interpolated peak, :func:`_symmetry_centre`)."""
     sig = signal if signal is not None else GPS_L1CA
     n1 = int(round(fs * 1e-3))
     nb = max(1, min(len(x) // n1, n_ms or 10 ** 9))
@@ -113,11 +115,15 @@ def fine_code_phase(x, fs, if_hz, prn, code_phase_chips, doppler_hz, d_chips: fl
     # noise floor: the correlation far from the peak (32 lags spread over the rest of the code period)
     pn, _ = _lag_power(sc, lag0, n1 * np.linspace(0.05, 0.95, 32), dlag)
     floor = float(np.mean(pn))
-    if method == "fit":
+    if method in ("fit", "replica"):
         centre = _triangle_fit(sc, lag0, dlag, spc, floor)
     else:
         centre = _symmetry_centre(sc, lag0, dlag, spc, d_chips)
     lag = lag0 + centre
+    if method == "replica":
+        ph = _replica_centre(x[:nb * n1], fs, if_hz, sig.code(prn), (-lag / spc) % sig.code_len, doppler_hz, sig,
+                             n1, el_chips)
+        lag = -ph * spc
     _, r = _lag_power(sc, lag, np.zeros(1), dlag)
     phase = (-lag / spc) % sig.code_len
     noise = floor / nb
@@ -151,6 +157,37 @@ def _triangle_fit(sc, lag0, dlag, spc, floor):
     return base - lag0 + float(cand[j]) + 0.01 * d
 
 
+def _replica_centre(x, fs, if_hz, code, phase0, doppler_hz, sig, n1, d_chips, h_chips=0.02, k_max=15):
+    """Code phase (chips at the first sample) where a non-coherent early-late discriminator with spacing
+    ``d_chips`` is zero: the received samples (carrier wiped) correlated per 1-ms block with code replicas
+    sampled at the code phases phase0 + j h_chips (the code rate moved by the Doppler), the powers summed
+    over the blocks; P(phi + d/2) - P(phi - d/2) falls through zero at the peak's centre (the crossing
+    nearest phase0, interpolated).  No interpolation of the sampled correlation: exact at any sample rate
+    incommensurate with the chip rate, and with a narrow spacing about half the noise of a fit over the
+    whole triangle.  phase0 when no crossing is found within k_max steps."""
+    n = len(x)
+    nb = n // n1
+    rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz)
+    y = (x * np.exp(-2j * np.pi * (if_hz + doppler_hz) * np.arange(n) / fs)).astype(np.complex64)
+    m = max(1, int(round(0.5 * d_chips / h_chips)))
+    js = np.arange(-(k_max + m), k_max + m + 1)
+    base = np.arange(n) * (rate / fs)
+    code = np.asarray(code, np.float32)
+    p = np.empty(len(js))
+    for i, j in enumerate(js):
+        rep = code[np.floor(phase0 + j * h_chips + base).astype(np.int64) % len(code)]
+        zb = (y * rep).reshape(nb, n1).sum(axis=1)
+        p[i] = float(np.sum(zb.real ** 2 + zb.imag ** 2))
+    k = np.arange(-k_max, k_max + 1)
+    s = p[k + k_max + 2 * m] - p[k + k_max]              # P(phi + d/2) - P(phi - d/2) at phi = phase0 + k h
+    cross = np.flatnonzero((s[:-1] > 0) & (s[1:] <= 0))
+    if not cross.size:
+        return float(phase0)
+    c = cross[np.argmin(np.abs(k[cross]))]
+    frac = s[c] / (s[c] - s[c + 1])
+    return float((phase0 + (k[c] + frac) * h_chips) % len(code))
+
+
 def _symmetry_centre(sc, lag0, dlag, spc, d_chips):
     """Offset (samples) from lag0 where the band-limited interpolated power d_chips earlier equals the power
     d_chips later (0.02-chip grid, interpolated)."""
@@ -173,34 +210,64 @@ def _symmetry_centre(sc, lag0, dlag, spc, d_chips):
 
 
 def fine_doppler(z, coarse_hz: float, half_range_hz: float, bit_ms: int = 20):
-    """Residual frequency of the prompt 1-ms correlations z (one per ms, carrier wiped at coarse_hz):
-    coherent within each data bit (every edge position tried), non-coherent across bits.  Returns
-    (doppler_hz, bit_edge_ms)."""
+    """Residual frequency of the prompt 1-ms correlations z (one per ms, carrier wiped at coarse_hz): for
+    every position of the data-bit edges the bits (segments) are summed coherently over the whole snapshot
+    with their signs decided one after the other (each bit's sign the one that aligns it with the sum so
+    far), so that every hypothesis is a full-length coherent sum and the best (edge, frequency) is the
+    likeliest.  (Summing the bits non-coherently instead lets a single-segment hypothesis at a frequency
+    ~0.4 / bit off beat the true one when a transition sits mid-snapshot.)  Searched over 1.5 x
+    ``half_range_hz`` (a bit transition inside a search block can put the search's peak a bin off); the
+    best grid point refined on a grid 20 times finer with the signs kept.  Returns (doppler_hz,
+    bit_edge_ms)."""
     nb = len(z)
     t = np.arange(nb) * 1e-3
-    span = nb * 1e-3
-    step = 1.0 / (8.0 * min(span, bit_ms * 1e-3))
-    half_range_hz = max(half_range_hz, 2 * step)
+    step = 1.0 / (8.0 * nb * 1e-3)
+    half_range_hz = max(1.5 * half_range_hz, 2 * step)
     f = np.arange(-half_range_hz, half_range_hz + step / 2, step)
-    a = np.exp(-2j * np.pi * np.outer(f, t)) * z[None, :]         # (nf, nb)
-    c = np.concatenate([np.zeros((len(f), 1), complex), np.cumsum(a, axis=1)], axis=1)
-    best, best_e, best_p = None, -1, None
+    best_p, best_e, best_edges = None, -1, None
+    c = _cumulative(z, t, f)
     for e in range(min(bit_ms, nb) if nb > 1 else 1):
         edges = sorted({0, nb, *range(e, nb, bit_ms)})
-        seg = c[:, edges[1:]] - c[:, edges[:-1]]
-        p = (seg.real ** 2 + seg.imag ** 2).sum(axis=1)
-        if best is None or p.max() > best.max():
-            best, best_e, best_p = p, e, p
+        p, _ = _signed_power(c, edges)
+        if best_p is None or p.max() > best_p.max():
+            best_p, best_e, best_edges = p, e, edges
     j = int(np.argmax(best_p))
+    _, signs = _signed_power(c[j:j + 1], best_edges)
+    ff = f[j] + np.linspace(-step, step, 41)
+    pf, _ = _signed_power(_cumulative(z, t, ff), best_edges, signs[0])
+    k = int(np.argmax(pf))
     d = 0.0
-    if 0 < j < len(f) - 1:
-        y0, y1, y2 = best_p[j - 1], best_p[j], best_p[j + 1]
+    if 0 < k < len(ff) - 1:
+        y0, y1, y2 = pf[k - 1], pf[k], pf[k + 1]
         den = y0 - 2 * y1 + y2
         d = 0.5 * (y0 - y2) / den if den != 0 else 0.0
-    return float(coarse_hz + f[j] + d * step), (best_e if nb > bit_ms else -1)
+    return float(coarse_hz + ff[k] + d * (ff[1] - ff[0])), (best_e if nb > bit_ms else -1)
 
 
-def bit_transition(x, fs, if_hz, prn, code_phase_chips, doppler_hz, signal=None, min_snr: float = 30.0):
+def _cumulative(z, t, f):
+    """Cumulative sums (n_f, nb + 1) of z wiped at each frequency f (Hz; t the times of z, s)."""
+    a = np.exp(-2j * np.pi * np.outer(f, t)) * z[None, :]
+    return np.concatenate([np.zeros((len(f), 1), complex), np.cumsum(a, axis=1)], axis=1)
+
+
+def _signed_power(c, edges, signs=None):
+    """Power at each frequency of the cumulative sums c (n_f, nb + 1) summed coherently over the segments
+    [edges[i], edges[i+1]) with a sign per segment: ``signs`` (n_seg,) or, when None, each decided in turn
+    to align its segment with the sum so far.  Returns (power (n_f,), signs (n_f, n_seg))."""
+    seg = c[:, edges[1:]] - c[:, edges[:-1]]
+    if signs is not None:
+        acc = seg @ np.asarray(signs, float)
+        return acc.real ** 2 + acc.imag ** 2, np.tile(signs, (len(c), 1))
+    acc = seg[:, 0].copy()
+    sg = np.ones(seg.shape, float)
+    for k in range(1, seg.shape[1]):
+        s = np.where(np.real(seg[:, k] * np.conj(acc)) >= 0, 1.0, -1.0)
+        sg[:, k] = s
+        acc += s * seg[:, k]
+    return acc.real ** 2 + acc.imag ** 2, sg
+
+
+def bit_transition(x, fs, if_hz, prn, code_phase_chips, doppler_hz, signal=None, min_snr: float = 15.0):
     """Time (s after the first sample) of a data-bit transition seen in the snapshot, or NaN.
 
     The prompt correlations over code periods (blocks starting at the code epochs, carrier wiped at
@@ -208,14 +275,14 @@ def bit_transition(x, fs, if_hz, prn, code_phase_chips, doppler_hz, signal=None,
     after it have opposite signs (Re A B* < 0, |A B*| over their noise level, each of A and B at least
     ``min_snr`` in power SNR) -- of the epochs on the 20-ms grid the one with the strongest evidence.
     A transition's transmit time is a multiple of 20 ms: it fixes the time of the first sample modulo 20 ms
-    (receiver.navigation.snapshot.refine_time)."""
+    (receiver.navigation.snapshot_time.refine_time)."""
     sig = signal if signal is not None else GPS_L1CA
     rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz)
     n1 = int(round(fs * 1e-3))
     t_c = ((sig.code_len - code_phase_chips) % sig.code_len) / rate         # first code epoch
     s0 = int(np.ceil(t_c * fs))
     nb = (len(x) - s0) // n1
-    if nb < 4:
+    if nb < 2:
         return float("nan")
     n = nb * n1
     t = (s0 + np.arange(n)) / fs
@@ -228,7 +295,7 @@ def bit_transition(x, fs, if_hz, prn, code_phase_chips, doppler_hz, signal=None,
     best, best_m = 0.0, -1
     for e in range(min(20, nb)):
         for m in range(e, nb, 20):
-            if m < 2 or nb - m < 2:
+            if m < 1 or nb - m < 1:
                 continue
             w = min(10, m, nb - m)
             a, b = z[m - w:m].sum(), z[m:m + w].sum()

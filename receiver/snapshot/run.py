@@ -18,8 +18,8 @@ from ..errors import UserError
 from ..gnss.geodesy import lla2ecef
 from ..gnss.rinex import read_rinex_nav
 from ..gnss.time import GPS_EPOCH, WEEK_S, leap_seconds_at, normalize_week_tow, gps_datetime
-from ..navigation.snapshot import (Ephemerides, SnapObs, SnapshotSettings, coarse_time_fix, in_sky,
-                                   with_bit_edges)
+from ..navigation.snapshot import Ephemerides, SnapObs, SnapshotSettings, coarse_time_fix, in_sky
+from ..navigation.snapshot_time import with_bit_edges
 from .acquire import snapshot_acquire
 
 #: the longest snapshot used by default (ms) and the shortest accepted
@@ -142,12 +142,57 @@ def snapshot_file(cfg, ephemeris_path: str, time: str | None = None, time_uncert
     estimate (a scalar Kalman filter on the time of the file's first sample); ``independent``: every
     snapshot from the given priors alone."""
     from ..gnss.registry import get_signal
-    from ..pipeline import open_input, run_signals
+    from ..pipeline import run_signals
     sigs = run_signals(cfg)
     if sigs[0] != "gps_l1ca" or len(sigs) > 1:
         raise UserError(f"snapshot positioning is for GPS L1 C/A only (the config's signal is {sigs[0]})")
-    sig = get_signal("gps_l1ca")
     ephs = load_ephemerides(ephemeris_path)
+    reader, n1, first, avail_ms = _open(cfg)
+    length = _length(length_ms, avail_ms, reader)
+    week, tow, time_uncertainty_s = _coarse_time(cfg, time, time_uncertainty_s)
+    _check_ephemeris(ephs, ephemeris_path, week, tow)
+    ctx = _Context(cfg, ephs, reader, get_signal("gps_l1ca"), length, n1,
+                   parse_position(position) if position else None, position_uncertainty_m, time_aiding,
+                   _settings(cfg, height_m, time_uncertainty_s))
+    if every_s:
+        starts = np.arange(0.0, (avail_ms - length) * 1e-3 + 1e-9, float(every_s))
+    else:
+        starts = np.array([0.0])
+    results = []
+    last, last_offset = None, 0.0                 # previous good fix: the prior of the next snapshot
+    for k, off in enumerate(starts):
+        x = reader.read(first + int(round(off * reader.fs)), length * n1)
+        if len(x) < length * n1:
+            break
+        res = _one_snapshot(ctx, k, float(off), np.asarray(x, np.complex64), normalize_week_tow(week, tow + off),
+                            time_uncertainty_s, last, last_offset)
+        if res.fix.ok and not independent:
+            last, last_offset = res.fix, float(off)
+        results.append(res)
+        if log is not None:
+            log(_line(res))
+    return results
+
+
+@dataclass
+class _Context:
+    """What every snapshot of a file shares: config, ephemerides, reader, signal, length (ms) and samples per
+    ms, the user's prior position and its uncertainty, time aiding, the solver's settings."""
+    cfg: object
+    ephs: Ephemerides
+    reader: object
+    sig: object
+    length: int
+    n1: int
+    prior: object
+    position_uncertainty_m: float
+    time_aiding: bool
+    settings: SnapshotSettings
+
+
+def _open(cfg):
+    """The input stages of the config: (reader, samples per ms, first sample, whole ms available)."""
+    from ..pipeline import open_input
     reader = open_input(cfg)
     fs = float(reader.fs)
     n1 = fs * 1e-3
@@ -156,90 +201,84 @@ def snapshot_file(cfg, ephemeris_path: str, time: str | None = None, time_uncert
                         "input.decimate: auto to resample it")
     n1 = int(round(n1))
     avail = int(reader.n_samples)                 # from input.skip_s on (reader.first)
-    first = int(getattr(reader, "first", 0))
-    avail_ms = avail // n1
-    if avail_ms < MIN_LENGTH_MS:
+    if avail // n1 < MIN_LENGTH_MS:
         raise UserError(f"input too short for a snapshot: {avail / fs * 1e3:.2f} ms, at least "
                         f"{MIN_LENGTH_MS} ms needed")
+    return reader, n1, int(getattr(reader, "first", 0)), avail // n1
+
+
+def _length(length_ms, avail_ms, reader) -> int:
+    """The snapshot length (ms): ``length_ms`` or the default, at most the input."""
     want = int(length_ms) if length_ms else DEFAULT_LENGTH_MS
     if want < MIN_LENGTH_MS:
         raise UserError(f"--length must be at least {MIN_LENGTH_MS} ms")
     if length_ms and want > avail_ms:
-        raise UserError(f"--length {want} ms is longer than the input ({avail / fs * 1e3:.1f} ms)")
-    length = min(want, avail_ms)
-    # coarse time of the first sample
+        raise UserError(f"--length {want} ms is longer than the input ({reader.n_samples / reader.fs * 1e3:.1f} ms)")
+    return min(want, avail_ms)
+
+
+def _coarse_time(cfg, time, time_uncertainty_s):
+    """The coarse time of the first sample: (week, tow, uncertainty s) from ``time`` or the input metadata."""
     if time is not None:
         week, tow, date_only = parse_time(time)
         if date_only:
             time_uncertainty_s = max(time_uncertainty_s, 43200.0)
-    else:
-        week, tow = cfg.input.start_gps_week, cfg.input.start_gps_tow_s
-        if week is None or tow is None:
-            raise UserError("no time for the first sample: give --time (ISO 8601 UTC or GPS WEEK:TOW) or "
-                            "input.start_gps_week / start_gps_tow_s (or SigMF / .tag metadata)")
-        week, tow = int(week), float(tow)
-    _check_ephemeris(ephs, ephemeris_path, week, tow)
-    prior = parse_position(position) if position else None
-    a, nav = cfg.acquisition, cfg.navigation
-    settings = SnapshotSettings(troposphere=nav.troposphere != "none", ionosphere=nav.ionosphere != "none",
-                                elevation_mask_deg=float(nav.elevation_mask_deg),
-                                residual_threshold_m=float(nav.residual_threshold_m),
-                                max_pdop=float(nav.max_pdop), height_m=height_m,
-                                max_time_shift_s=max(120.0, 2.0 * min(time_uncertainty_s, 300.0)))
-    if every_s:
-        starts = np.arange(0.0, (avail_ms - length) * 1e-3 + 1e-9, float(every_s))
-    else:
-        starts = np.array([0.0])
-    results = []
-    last, last_offset = None, 0.0                 # previous good fix: the prior of the next snapshot
-    for k, off in enumerate(starts):
-        s0 = first + int(round(off * fs))
-        x = reader.read(s0, length * n1)
-        if len(x) < length * n1:
-            break
-        wk, tw = normalize_week_tow(week, tow + off)
-        searched = [p for p in a.prns if 1 <= p <= 32 and ephs.get(p, wk, tw) is not None]
-        x_prior, t_coarse, unc = prior, (wk, tw), time_uncertainty_s
-        snap_settings = settings
-        if last is not None:
-            # the previous fix: its position (unless the user gave one) and its time carried over by the
-            # sample counter, with its 1-sigma (and 2 ppm of the elapsed time) as a time constraint
-            elapsed = off - last_offset
-            x_prior = last.ecef if x_prior is None else x_prior
-            t_coarse = normalize_week_tow(last.gps_week, last.gps_tow_s + elapsed)
-            unc = 1.0
-            sig_t = float(np.hypot(last.time_sigma_s, 2e-6 * elapsed))
-            if time_aiding and np.isfinite(sig_t) and sig_t > 0:
-                snap_settings = replace(settings, time_sigma_s=sig_t)
-        if x_prior is not None and unc <= 600:
-            # only satellites that can be above the horizon from within the prior's uncertainty
-            near = set(in_sky(ephs, t_coarse[0], t_coarse[1], x_prior, mask_deg=-5.0
-                              - math.degrees(position_uncertainty_m / 6.4e6)))
-            searched = [p for p in searched if p in near]
-        acq = snapshot_acquire(np.asarray(x, np.complex64), fs, float(reader.if_hz), searched,
-                               doppler_max_hz=float(a.doppler_max_hz),
-                               doppler_center_hz=float(getattr(reader, "doppler_centre_hz", 0.0)),
-                               pfa=float(a.pfa), threshold=float(a.threshold), width_ratio=float(a.width_ratio),
-                               signal=sig)
-        det = [r for r in acq if r.detected]
-        obs = [SnapObs(r.prn, r.code_phase_chips, r.doppler_hz, r.cn0_dbhz if np.isfinite(r.cn0_dbhz) else 40.0,
-                       float(length)) for r in det]
-        fix = _solve(obs, ephs, t_coarse, unc, x_prior, snap_settings)
-        if fix.ok:
-            edges = {r.prn: r.edge_s for r in det if np.isfinite(r.edge_s)}
-            fix = with_bit_edges(fix, obs, edges, ephs, snap_settings)
-        missed = []
-        if fix.ok:
-            seen = {r.prn for r in det}
-            missed = [p for p in in_sky(ephs, fix.gps_week, fix.gps_tow_s, fix.ecef, settings.elevation_mask_deg)
-                      if p not in seen]
-            if not independent:
-                last, last_offset = fix, float(off)
-        results.append(SnapshotResult(k, float(off), length, int(t_coarse[0]), float(t_coarse[1]), fix, det,
-                                      searched, missed))
-        if log is not None:
-            log(_line(results[-1]))
-    return results
+        return week, tow, time_uncertainty_s
+    week, tow = cfg.input.start_gps_week, cfg.input.start_gps_tow_s
+    if week is None or tow is None:
+        raise UserError("no time for the first sample: give --time (ISO 8601 UTC or GPS WEEK:TOW) or "
+                        "input.start_gps_week / start_gps_tow_s (or SigMF / .tag metadata)")
+    return int(week), float(tow), time_uncertainty_s
+
+
+def _settings(cfg, height_m, time_uncertainty_s) -> SnapshotSettings:
+    """The solver's settings from the config's navigation section."""
+    nav = cfg.navigation
+    return SnapshotSettings(troposphere=nav.troposphere != "none", ionosphere=nav.ionosphere != "none",
+                            elevation_mask_deg=float(nav.elevation_mask_deg),
+                            residual_threshold_m=float(nav.residual_threshold_m),
+                            max_pdop=float(nav.max_pdop), height_m=height_m,
+                            max_time_shift_s=max(120.0, 2.0 * min(time_uncertainty_s, 300.0)))
+
+
+def _one_snapshot(ctx: _Context, k: int, off: float, x, t_nominal, time_uncertainty_s, last, last_offset):
+    """Acquire and solve the snapshot ``x`` (its first sample ``off`` s into the file, coarse time
+    ``t_nominal``), from the previous fix ``last`` (at ``last_offset``) when there is one."""
+    a, ephs, s = ctx.cfg.acquisition, ctx.ephs, ctx.settings
+    wk, tw = t_nominal
+    searched = [p for p in a.prns if 1 <= p <= 32 and ephs.get(p, wk, tw) is not None]
+    x_prior, t_coarse, unc = ctx.prior, (wk, tw), time_uncertainty_s
+    if last is not None:
+        # the previous fix: its position (unless the user gave one) and its time carried over by the
+        # sample counter, with its 1-sigma (and 2 ppm of the elapsed time) as a time constraint
+        elapsed = off - last_offset
+        x_prior = last.ecef if x_prior is None else x_prior
+        t_coarse = normalize_week_tow(last.gps_week, last.gps_tow_s + elapsed)
+        unc = 1.0
+        sig_t = float(np.hypot(last.time_sigma_s, 2e-6 * elapsed))
+        if ctx.time_aiding and np.isfinite(sig_t) and sig_t > 0:
+            s = replace(s, time_sigma_s=sig_t)
+    if x_prior is not None and unc <= 600:
+        # only satellites that can be above the horizon from within the prior's uncertainty
+        near = set(in_sky(ephs, t_coarse[0], t_coarse[1], x_prior, mask_deg=-5.0
+                          - math.degrees(ctx.position_uncertainty_m / 6.4e6)))
+        searched = [p for p in searched if p in near]
+    acq = snapshot_acquire(x, float(ctx.reader.fs), float(ctx.reader.if_hz), searched,
+                           doppler_max_hz=float(a.doppler_max_hz),
+                           doppler_center_hz=float(getattr(ctx.reader, "doppler_centre_hz", 0.0)),
+                           pfa=float(a.pfa), threshold=float(a.threshold), width_ratio=float(a.width_ratio),
+                           signal=ctx.sig)
+    det = [r for r in acq if r.detected]
+    obs = [SnapObs(r.prn, r.code_phase_chips, r.doppler_hz, r.cn0_dbhz if np.isfinite(r.cn0_dbhz) else 40.0,
+                   float(ctx.length)) for r in det]
+    fix = _solve(obs, ephs, t_coarse, unc, x_prior, s)
+    missed = []
+    if fix.ok:
+        fix = with_bit_edges(fix, obs, {r.prn: r.edge_s for r in det if np.isfinite(r.edge_s)}, ephs, s)
+        seen = {r.prn for r in det}
+        missed = [p for p in in_sky(ephs, fix.gps_week, fix.gps_tow_s, fix.ecef, s.elevation_mask_deg)
+                  if p not in seen]
+    return SnapshotResult(k, off, ctx.length, int(t_coarse[0]), float(t_coarse[1]), fix, det, searched, missed)
 
 
 def _solve(obs, ephs, t_coarse, unc, x_prior, settings):
