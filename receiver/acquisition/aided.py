@@ -18,9 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import gammainccinv
 
 from ..gnss.signals import sample_code
+from ..estimation.stats import gamma_isf, gamma_median
 
 
 @dataclass
@@ -85,7 +85,7 @@ def search(samples, fs: float, if_hz: float, signal, prn: int, doppler_hz: float
         if stat[i] > best[0]:
             best = (float(stat[i]), i, k)
     cells = int(mask.sum()) * len(dops)
-    thr = float(gammainccinv(n_ms, pfa / cells))
+    thr = float(gamma_isf(pfa / cells, n_ms) * n_ms)      # upper quantile of Gamma(n_ms, 1)
     metric, i, k = best
     code = (lag_chips[i] - shift) % signal.code_len        # at the first sample of ``samples``
     return AidedResult(prn, metric > thr, float(code), float(dops[k]), metric, thr, cells)
@@ -93,5 +93,4 @@ def search(samples, fs: float, if_hz: float, signal, prn: int, doppler_hz: float
 
 def _gamma_median(k: int) -> float:
     """Median of Gamma(k, 1) (the non-coherent sum of k unit-mean exponential cells)."""
-    from scipy.special import gammaincinv
-    return float(gammaincinv(k, 0.5))
+    return float(gamma_median(k) * k)

@@ -27,7 +27,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import fft as sfft
 
 GATE_DB = 15.0          # tf_test: per-bin level over the floor that counts
 MIN_FRAMES = 0.05       # share of the span's frames with such a bin
@@ -43,12 +42,16 @@ def _hann(n: int) -> np.ndarray:
     return (0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)).astype(np.float32)
 
 
-def _spectra(x: np.ndarray, n: int, hop: int) -> np.ndarray:
-    """Hann-windowed frame spectra (complex64) of frames starting every hop samples."""
+def _spectra(x: np.ndarray, n: int, hop: int, light: bool = False) -> np.ndarray:
+    """Hann-windowed frame spectra (complex64) of frames starting every hop samples.  ``light``: numpy's FFT
+    (the detection test every run makes: a run that never excises does not load scipy.fft)."""
     f = (len(x) - n) // hop + 1
     if f < 1:
         return np.zeros((0, n), np.complex64)
     fr = np.lib.stride_tricks.sliding_window_view(np.asarray(x, np.complex64), n)[::hop][:f]
+    if light:
+        return np.fft.fft(fr * _hann(n)[None, :], axis=1).astype(np.complex64)
+    from scipy import fft as sfft
     return sfft.fft(fr * _hann(n)[None, :], axis=1, overwrite_x=True)
 
 
@@ -75,7 +78,7 @@ def bin_floor(p: np.ndarray) -> np.ndarray:
 
 def tf_test(x: np.ndarray, n: int, gate_db: float = GATE_DB) -> TfTest:
     """Test a span of raw complex samples for moving narrowband interference (module doc)."""
-    p = np.abs(_spectra(x, n, n)).astype(np.float64) ** 2      # non-overlapping frames
+    p = np.abs(_spectra(x, n, n, light=True)).astype(np.float64) ** 2      # non-overlapping frames
     if p.shape[0] < 16:
         return TfTest(np.zeros(n), 0.0, 0, False)
     floor = bin_floor(p)
@@ -105,6 +108,7 @@ def tf_excise(read, first: int, s0: int, count: int, n: int, floor: np.ndarray, 
     m = r > np.float32(10 ** (threshold_db / 10.0)) * _level(r)
     m = m | np.roll(m, 1, axis=1) | np.roll(m, -1, axis=1)
     X[m] = 0.0
+    from scipy import fft as sfft
     y = sfft.ifft(X, axis=1, overwrite_x=True) * (_hann(n) / np.float32(1.5))[None, :]
     fcount = y.shape[0]
     out = np.zeros(b - a, np.complex64)
