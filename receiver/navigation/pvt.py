@@ -1,4 +1,4 @@
-"""Single-point positioning: iterative weighted least squares on code pseudoranges (GPS, QZSS, BeiDou),
+"""Single-point positioning: iterative weighted least squares on code pseudoranges (GPS, QZSS, BeiDou, Galileo),
 velocity and clock drift from Doppler.
 
 Measurement model (all in metres):
@@ -8,8 +8,8 @@ where r_sv is the satellite position at the true transmit time tx_tow - dt_sv, R
 Earth-rotation (Sagnac) correction over the travel time tau, I and T the ionospheric and
 tropospheric delays and b the receiver clock bias (c times the receiver clock error).
 
-The solver, its weighting models and its aiding constraints stay in one module: they are one measurement model
-and one least-squares iteration.
+Why this module is long: the solver, its weighting models (per system and signal) and its aiding constraints
+are one measurement model and one least-squares iteration; split, each part would reach into the others' state.
 """
 from __future__ import annotations
 

@@ -23,17 +23,11 @@ MAX_MODULE_LINES = 500
 REASON = re.compile(r"why this module is long:\s*\S", re.IGNORECASE)
 NUMBA_DECORATORS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "stencil"}
 
-#: functions another helper is splitting in this session (path::name -> who).  The lead empties this list
-#: as their branches merge; test_allow_lists_hold_only_current_violations fails on an entry that no longer
-#: violates the rule, so it cannot outlive the split.
-FUNCTION_ALLOW: dict[str, str] = {
-    "receiver/snapshot/run.py::snapshot_file": "snap splits receiver/snapshot/run.py",
-}
-#: modules another helper is splitting in this session (path -> who); emptied like FUNCTION_ALLOW
-MODULE_ALLOW: dict[str, str] = {
-    "receiver/navigation/pvt.py": "gal (Galileo PVT) splits it",
-    "receiver/navigation/snapshot.py": "snap splits it",
-}
+#: known exceptions (path::name -> why); test_allow_lists_hold_only_current_violations fails on an entry that
+#: no longer violates the rule, so none can outlive its fix.  Empty: every function and module meets the rule.
+FUNCTION_ALLOW: dict[str, str] = {}
+#: modules over the limit without a written reason (path -> why); emptied like FUNCTION_ALLOW
+MODULE_ALLOW: dict[str, str] = {}
 
 
 def _is_numba(dec: ast.expr) -> bool:
