@@ -28,44 +28,10 @@ from ..gnss.gal_codes import (E1_CHIP_RATE, E1_CODE_LEN, E1_HZ, boc11, cs25_sign
 
 
 @njit(cache=True, nogil=True)
-def _correlate(x, start, n, code_phase, code_step, carr_phase, carr_step, rep_c, rep_b, half_d):
-    """E, P, L of the E1-C replica and P of the E1-B replica over samples start .. start+n-1 of the
-    interleaved I/Q array x (int8 / int16 / float32 I, Q, I, Q, ...: a memmap of the recording): the carrier
-    NCO starts at carr_phase (cycles) and advances carr_step cycles per sample, the code at code_phase
-    (chips) by code_step chips per sample; replicas are BOC(1,1) half-chips (8184)."""
-    er = ei = pr = pi = lr = li = br = bi = 0.0
-    nrep = rep_c.size
-    two_pi = 2.0 * math.pi
-    for k in range(n):
-        xr = float(x[2 * (start + k)])
-        xi = float(x[2 * (start + k) + 1])
-        ph = two_pi * (carr_phase + k * carr_step)
-        c, sn = math.cos(ph), math.sin(ph)
-        # (xr + j xi) exp(-j ph)
-        yr = xr * c + xi * sn
-        yi = xi * c - xr * sn
-        cp = code_phase + k * code_step
-        ip = int(math.floor(2.0 * cp)) % nrep
-        ie = int(math.floor(2.0 * (cp + half_d))) % nrep
-        il = int(math.floor(2.0 * (cp - half_d))) % nrep
-        vc = rep_c[ip]
-        pr += yr * vc
-        pi += yi * vc
-        ve = rep_c[ie]
-        er += yr * ve
-        ei += yi * ve
-        vl = rep_c[il]
-        lr += yr * vl
-        li += yi * vl
-        vb = rep_b[ip]
-        br += yr * vb
-        bi += yi * vb
-    return complex(er, ei), complex(pr, pi), complex(lr, li), complex(br, bi)
-
-
-@njit(cache=True, nogil=True)
 def _correlate_block(x, start, n, code_phase, code_step, carr_phase, carr_step, rep_c, rep_b, half_d):
-    """:func:`_correlate` on a complex sample block (the pipeline's chunk): samples start .. start+n-1 of x."""
+    """E, P, L of the E1-C replica and P of the E1-B replica over samples start .. start+n-1 of the complex
+    block x: the carrier NCO starts at carr_phase (cycles) and advances carr_step cycles per sample, the code
+    at code_phase (chips) by code_step chips per sample; replicas are BOC(1,1) half-chips (8184)."""
     er = ei = pr = pi = lr = li = br = bi = 0.0
     nrep = rep_c.size
     two_pi = 2.0 * math.pi
@@ -189,8 +155,11 @@ class GalChannel:
             n, step = self._epoch_length()
             if 2 * (self.next_sample + n) > len(x):
                 break
-            e, p, l, b = _correlate(x, self.next_sample, n, self.code_phase, step, self.carr_phase,
-                                    self.carr_hz / self.fs, self.rep_c, self.rep_b, 0.5 * self.d)
+            seg = x[2 * self.next_sample:2 * (self.next_sample + n)]      # interleaved I, Q (exact in float32)
+            block = seg[0::2].astype(np.complex64) + 1j * seg[1::2].astype(np.float32)
+            e, p, l, b = _correlate_block(block.astype(np.complex64), 0, n, self.code_phase, step,
+                                          self.carr_phase, self.carr_hz / self.fs, self.rep_c, self.rep_b,
+                                          0.5 * self.d)
             rows.append(self._update(e, p, l, b, n, step))
         col = list(zip(*rows)) if rows else [()] * 8
         return GalEpochs(np.array(col[0], np.int64), np.array(col[1], float), np.array(col[2], np.int64),
