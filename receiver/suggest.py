@@ -55,3 +55,14 @@ def refuse_binary(path, what: str = "file") -> None:
         raise UserError(f"{what} {os.fspath(path)} looks like a recording (binary), not a YAML config: pass it "
                         f"with --input / input.path")
     raise UserError(f"{what} {os.fspath(path)} holds binary data, not text")
+
+
+def check_list_item(item, key: str, required: tuple, allowed: tuple, what: str) -> None:
+    """One entry ``key`` (e.g. ``impairments.tones[0]``) of a list of mappings in a config: a mapping holding
+    ``required``, no key outside ``allowed`` (with a did-you-mean); else a one-line :class:`UserError`
+    ("must be a mapping with ``what``")."""
+    if not isinstance(item, dict) or any(k not in item for k in required):
+        raise UserError(f"config key '{key}' must be a mapping with {what}")
+    unknown = set(item) - set(allowed)
+    if unknown:
+        raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'" + did_you_mean(sorted(unknown)[0], allowed))

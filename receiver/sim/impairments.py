@@ -26,7 +26,7 @@ import numpy as np
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from ..errors import UserError
-from ..suggest import did_you_mean
+from ..suggest import check_list_item
 
 # step / sigma minimising the MSE of a uniform quantiser with 2^b levels on a Gaussian input (Max 1960)
 _STEP_SIGMA = {2: 0.9957, 3: 0.5860, 4: 0.3352, 5: 0.1881, 6: 0.1041, 7: 0.0569, 8: 0.0308}
@@ -36,12 +36,7 @@ def _tones(items):
     out = []
     for i, t in enumerate(items or []):
         key = f"impairments.tones[{i}]"
-        if not isinstance(t, dict) or "freq_hz" not in t or "power_db" not in t:
-            raise UserError(f"config key '{key}' must be a mapping with freq_hz and power_db")
-        unknown = set(t) - {"freq_hz", "power_db", "phase_deg"}
-        if unknown:
-            raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'"
-                            + did_you_mean(sorted(unknown)[0], ("freq_hz", "power_db", "phase_deg")))
+        check_list_item(t, key, ("freq_hz", "power_db"), ("freq_hz", "power_db", "phase_deg"), "freq_hz and power_db")
         try:
             out.append((float(t["freq_hz"]), float(t["power_db"]), float(t.get("phase_deg", 0.0))))
         except (TypeError, ValueError):

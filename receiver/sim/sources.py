@@ -17,7 +17,7 @@ from ..gnss.lnav import encode_subframes
 from ..gnss.registry import get_signal
 from ..gnss.satid import sat_key
 from ..gnss.time import WEEK_S
-from ..suggest import did_you_mean
+from ..suggest import check_list_item
 from .constellation import load_constellation, quantize_iono
 from .scenario import resolve_path
 from .scintillation import Scintillation
@@ -110,12 +110,7 @@ class Cn0Model:
         self.schedules = []
         for i, item in enumerate(cfg.schedule or []):
             key = f"cn0.schedule[{i}]"
-            if not isinstance(item, dict) or "t_s" not in item or "dbhz" not in item:
-                raise UserError(f"config key '{key}' must be a mapping with t_s and dbhz lists")
-            unknown = set(item) - {"prns", "t_s", "dbhz"}
-            if unknown:
-                raise UserError(f"unknown config key '{key}.{sorted(unknown)[0]}'"
-                                + did_you_mean(sorted(unknown)[0], ("prns", "t_s", "dbhz")))
+            check_list_item(item, key, ("t_s", "dbhz"), ("prns", "t_s", "dbhz"), "t_s and dbhz lists")
             try:
                 t = np.asarray(item["t_s"], dtype=float).ravel()
                 v = np.asarray(item["dbhz"], dtype=float).ravel()
