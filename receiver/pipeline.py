@@ -363,6 +363,7 @@ class _ChunkLoop:
         if pending is not None:
             self.finish_chunk(pending)
         if self.bar is not None:
+            self.bar.refresh()          # draw the final count: tqdm skips updates closer than its interval
             self.bar.close()
 
     def _track_chunk(self, start, pending):
