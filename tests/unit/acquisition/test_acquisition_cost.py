@@ -72,6 +72,7 @@ def test_cold_search_window_after_a_fix_covers_the_tracked_satellites(tokyo_run)
     assert checked > 50
 
 
+@pytest.mark.slow
 def test_cold_search_window_before_a_fix_covers_every_satellite(tokyo_run):
     """Before a fix the window comes from the Dopplers of the channels in lock: on the reference run, each
     satellite's Doppler lies inside the window computed from the other nine (leave one out), and the

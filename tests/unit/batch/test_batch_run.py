@@ -79,6 +79,7 @@ def test_ci_small_summary(pool_run, dirs):
     assert len(recs) == 2 and len(list(dirs["rec"].glob("*.nav"))) == 2      # kept (keep_recordings on)
 
 
+@pytest.mark.slow
 def test_rerun_is_cached(pool_run, dirs):
     again = run_batch(CI, _over(dirs, "pool"), jobs=2)
     assert (again.executed, again.cached, again.simulated) == (0, 4, 0)     # nothing run again

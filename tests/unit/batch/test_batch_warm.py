@@ -41,6 +41,7 @@ def _py(code):
     return p.stdout
 
 
+@pytest.mark.slow
 def test_warm_loads_the_cached_kernels_without_compiling():
     _py(FILL)
     d = json.loads(_py(PROBE).strip().splitlines()[-1])

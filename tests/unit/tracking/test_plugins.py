@@ -117,6 +117,7 @@ def test_a_broken_plugin_is_one_line_and_exit_2(variant, message, tmp_path):
     assert len(lines) == 1 and message in lines[0], r.stderr
 
 
+@pytest.mark.slow
 def test_a_plugin_parameter_is_validated_like_ours(tmp_path):
     base = ["run", str(ROOT / "configs" / "default.yaml"), "--input", str(tmp_path / "none.bin"),
             "--set", "tracking.carrier.variant=cpll_again:CpllAgain"]
@@ -137,6 +138,7 @@ def _fake_distribution(site: Path, name: str, entries: dict):
                                            "".join(f"{k} = {v}\n" for k, v in entries.items()))
 
 
+@pytest.mark.slow
 def test_gnssrx_plugins_lists_an_installed_plugin(tmp_path):
     _fake_distribution(tmp_path / "site", "demo-loops", {"cpll_again": "cpll_again:CpllAgain",
                                                          "broken": "cpll_again:NoUpdate"})
