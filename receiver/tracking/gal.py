@@ -28,37 +28,65 @@ from ..gnss.gal_codes import (E1_CHIP_RATE, E1_CODE_LEN, E1_HZ, boc11, cs25_sign
 
 
 @njit(cache=True, nogil=True)
+def _wrap(i, n):
+    """Index ``i`` brought into 0 .. n-1 by whole periods ``n`` (usually no step: the loop's indices stay
+    within one period of the range)."""
+    while i >= n:
+        i -= n
+    while i < 0:
+        i += n
+    return i
+
+
+@njit(cache=True, nogil=True)
 def _correlate_block(x, start, n, code_phase, code_step, carr_phase, carr_step, rep_c, rep_b, half_d):
     """E, P, L of the E1-C replica and P of the E1-B replica over samples start .. start+n-1 of the complex
     block x: the carrier NCO starts at carr_phase (cycles) and advances carr_step cycles per sample, the code
-    at code_phase (chips) by code_step chips per sample; replicas are BOC(1,1) half-chips (8184)."""
+    at code_phase (chips) by code_step chips per sample; replicas are BOC(1,1) half-chips (8184).
+
+    The carrier replica is a unit phasor rotated by one sample's phase step per sample and set again from the
+    exact phase every 256 samples (rounding stays ~1e-13); replica indices are floor(2 x code phase) modulo the
+    replica length, computed on a phase shifted by whole periods to be positive (so truncation is floor)."""
     er = ei = pr = pi = lr = li = br = bi = 0.0
     nrep = rep_c.size
     two_pi = 2.0 * math.pi
-    for k in range(n):
-        v = x[start + k]
-        xr = float(v.real)
-        xi = float(v.imag)
-        ph = two_pi * (carr_phase + k * carr_step)
-        c, sn = math.cos(ph), math.sin(ph)
-        yr = xr * c + xi * sn
-        yi = xi * c - xr * sn
-        cp = code_phase + k * code_step
-        ip = int(math.floor(2.0 * cp)) % nrep
-        ie = int(math.floor(2.0 * (cp + half_d))) % nrep
-        il = int(math.floor(2.0 * (cp - half_d))) % nrep
-        vc = rep_c[ip]
-        pr += yr * vc
-        pi += yi * vc
-        ve = rep_c[ie]
-        er += yr * ve
-        ei += yi * ve
-        vl = rep_c[il]
-        lr += yr * vl
-        li += yi * vl
-        vb = rep_b[ip]
-        br += yr * vb
-        bi += yi * vb
+    dr = math.cos(two_pi * carr_step)
+    di = -math.sin(two_pi * carr_step)
+    cp0 = (2.0 * code_phase) % nrep + nrep                  # half-chips, nrep .. 2 nrep
+    step2 = 2.0 * code_step
+    d2 = 2.0 * half_d
+    k0 = 0
+    while k0 < n:
+        k1 = min(n, k0 + 256)
+        ph = two_pi * (carr_phase + k0 * carr_step)
+        wr = math.cos(ph)
+        wi = -math.sin(ph)
+        for k in range(k0, k1):
+            v = x[start + k]
+            xr = float(v.real)
+            xi = float(v.imag)
+            yr = xr * wr - xi * wi                                  # the sample times exp(-j carrier phase)
+            yi = xi * wr + xr * wi
+            t = wr * dr - wi * di
+            wi = wr * di + wi * dr
+            wr = t
+            cp = cp0 + k * step2
+            ip = _wrap(int(cp), nrep)
+            ie = _wrap(int(cp + d2), nrep)
+            il = _wrap(int(cp - d2), nrep)
+            vc = rep_c[ip]
+            pr += yr * vc
+            pi += yi * vc
+            ve = rep_c[ie]
+            er += yr * ve
+            ei += yi * ve
+            vl = rep_c[il]
+            lr += yr * vl
+            li += yi * vl
+            vb = rep_b[ip]
+            br += yr * vb
+            bi += yi * vb
+        k0 = k1
     return complex(er, ei), complex(pr, pi), complex(lr, li), complex(br, bi)
 
 
