@@ -116,6 +116,7 @@ class GalChannel:
                  cs25_offset: int, pll_bw_hz: float = 15.0, dll_bw_hz: float = 8.0, dll_spacing: float = 0.2):
         self.prn = int(prn)
         self.fs, self.if_hz = float(fs), float(if_hz)
+        code_phase_chips, doppler_hz = float(code_phase_chips), float(doppler_hz)
         self.rep_c = boc11(e1c_code(prn)).astype(np.float32)
         self.rep_b = boc11(e1b_code(prn)).astype(np.float32)
         self.cs25 = cs25_signs()
@@ -149,7 +150,11 @@ class GalChannel:
         """Loop filters of one epoch from its correlations (E, P, L of E1-C, P of E1-B; n samples): the
         epoch's values (sample, code phase, period, E1-B prompt, E1-C prompt with CS25 wiped, NCO Hz, C/N0,
         carrier cycles, |E|, |L|, carrier and code errors), the state advanced to the next epoch."""
-        s = self.cs25[(self.period + self.cs25_offset) % 25]
+        # (a Python float: the CS25 table is float32, and a float32 sign would make the correlations complex64,
+        # the DLL rate float32 and, through it, the code rate and code phase float32 -- NumPy keeps float32 when
+        # a Python float is added --: code rates rounded to 1/16 chip/s and code phases to 1/4096 chip, a code-rate
+        # error the first-order DLL follows with a lag of its own per satellite, ~1 m at 2 Hz)
+        s = float(self.cs25[(self.period + self.cs25_offset) % 25])
         p, e, l = p * s, e * s, l * s
         T = n / self.fs
         # PLL (the pilot: four-quadrant arctangent)

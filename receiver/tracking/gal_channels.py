@@ -33,8 +33,8 @@ PULL_IN_EPOCHS = 50          # 200 ms: the PLL settles from the refined Doppler
 LOCK_PLI = 0.5               # low-passed cos(2 phi) of the pilot prompt above this: phase lock
 PLI_KEEP = 0.9               # its low-pass factor per 4-ms epoch
 PLL_BW_HZ = 15.0             # pilot PLL noise bandwidth (4-ms epochs: B T = 0.06)
-DLL_BW_HZ = 8.0              # carrier-aided DLL noise bandwidth (scripts/bench/accuracy_galileo.py --dll-bw): at
-                             # 2 Hz each satellite's code settles with a bias of its own (docs/galileo.md, Limits)
+DLL_BW_HZ = 8.0              # carrier-aided DLL noise bandwidth (scripts/bench/accuracy_galileo.py --dll-bw); 2 Hz
+                             # gave no better carrier-smoothed fixes on short runs (docs/galileo.md, Limits)
 DLL_SPACING = 0.2            # early-late spacing (chips)
 REFINE_PERIODS = 50          # 200 ms of pilot periods refine the Doppler and find the CS25 phase
 REACQ_PER_ATTEMPT = 4        # cold searches per attempt

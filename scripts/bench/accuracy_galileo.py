@@ -103,8 +103,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rate", type=float, default=1.0, help="fix interval (s)")
     ap.add_argument("--recording", help="use this recording (made by an earlier run) instead of simulating")
     ap.add_argument("--dll-bw", type=float, default=8.0,
-                    help="DLL noise bandwidth (Hz); a narrower one (2 Hz) leaves per-satellite code biases of up to "
-                         "~1.7 m (under investigation, docs/galileo.md)")
+                    help="DLL noise bandwidth (Hz; the pipeline's Galileo channels use 8)")
     ap.add_argument("--reuse-tracking", action="store_true",
                     help="take the tracking and decoding of an earlier run from OUT/gal_epochs.pkl")
     ap.add_argument("--smooth-s", type=float, default=10.0,
