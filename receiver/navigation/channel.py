@@ -9,6 +9,10 @@ Galileo E1 (4-ms code periods, one I/NAV symbol each): ``code_period`` counts 4-
 of a record is its ``prompt1_i`` (receiver.tracking.gal_channels), and ``cp_ref`` / ``tx_offset`` stay in
 milliseconds (``bit_ms`` = 4: symbol ``b`` starts at millisecond ``4 b``); the decoder's page events give
 the GST of a page start, converted to GPS time (receiver.gnss.gal_inav).
+
+Why this module is long: the message decoding, the transmit-time reference, the lock tests and the carrier
+smoothing are one satellite's memory over the same records and losses of lock; split, each would reach into
+the others' state (the smoothing's track and lock gaps, the time reference's track of the records).
 """
 from __future__ import annotations
 
@@ -29,6 +33,12 @@ LOCK_GUARD_PRESENT_S = 0.04  # the same for a channel judged by the signal-prese
 PRESENCE_MARGIN_DB = 3.0     # ... i.e. its C/N0 this far above tracking.presence.min_cn0_dbhz
 SLOPE_OUTLIER_MPS = 2.0     # channels' code-minus-carrier drifts this far from the weighted median: not common
 ROT_KEEP = 0.8              # decay per bit of the rotation estimate (about 5 bits, 100 ms)
+SMOOTH_GAP_S = 1.0          # carrier smoothing goes on over lock gaps of one track up to this long
+SMOOTH_FAST_EPOCHS = 10     # memory (epochs) of the recent code-against-fit RMS (slip test of a faded channel)
+SMOOTH_FADE_DB = 6.0        # a code epoch this far below the fit's C/N0 level enters the smoothing fit with the
+                            # weight C/N0 / level (the code variance goes as 1 / C/N0), else with weight 1 (the
+                            # C/N0 estimates of a steady signal scatter by 1-2 dB: weights from them add noise)
+SMOOTH_LEVEL_EPOCHS = 50    # memory (epochs) of the fit's C/N0 level (the C/N0 of its full-weight epochs)
 
 
 def common_slope(info):
@@ -413,14 +423,31 @@ class ChannelNav:
                 return self.locked_at(s, LOCK_GUARD_PRESENT_S)
         return True
 
-    def smooth_update(self, s: float, txrel: float, phase: float, window_epochs: int, track: int = 0):
+    def cn0_at(self, s: float) -> float | None:
+        """The C/N0 estimate (dB-Hz) of the channel's epoch at sample s (None: no record there)."""
+        for recs in reversed(self.recent):
+            c = self._columns(recs)
+            si = c[1]
+            if len(si) == 0 or si[0] > s:
+                continue
+            return float(c[8][max(bisect_right(si, s) - 1, 0)])
+        return None
+
+    def smooth_update(self, s: float, txrel: float, phase: float, window_epochs: int, track: int = 0,
+                      cn0_dbhz: float | None = None):
         """Carrier smoothing, step 1: add this epoch's code-minus-carrier to the channel's fit.
 
         The code-minus-carrier z = c (s/fs - txrel) + lambda * phase is constant for an ideal front end
         but drifts linearly when code and carrier see different clock rates (an oscillator error applied
         to the carrier only, as in the third-party reference recording) and, slowly, with ionospheric
         divergence.  The sums of a straight-line fit of z over time are kept with exponential forgetting
-        (memory ``window_epochs``).  A jump of the code against the fit (cycle slip) restarts it.
+        (memory ``window_epochs``).  A jump of the code against the fit (cycle slip) restarts it.  The fit
+        goes on over a lock gap of the same track (the carrier NCO's phase is continuous: a fade handed to the
+        weak loops, a weak channel's lock dropouts) up to SMOOTH_GAP_S; the slip test then judges the first
+        epoch after it.  cn0_dbhz: the epoch's C/N0; more than SMOOTH_FADE_DB below the fit's level its code
+        enters the fit with the weight C/N0 / level (the code variance of a DLL goes as 1 / C/N0), so a fade's
+        weak code moves a fit made on the strong signal little, and the strong code after it takes the fit
+        back at once.
         """
         if window_epochs <= 1:
             self.hatch = None
@@ -429,24 +456,37 @@ class ChannelNav:
         z = C_LIGHT * (t - txrel) + self.wavelength * phase
         h = self.hatch
         # (a suspended channel's remaining epochs are before its loss: its lock there is checked per epoch)
-        if h is None or (self.active and not self.locked) or h["track"] != track:   # new track: new phase
+        if h is None or h["track"] != track or t - h.get("t_last", t) > SMOOTH_GAP_S:   # new track: new phase
             h = self.hatch = {"z0": z, "t0": t, "S": [0.0] * 5, "n": 0, "track": track}   # (Python floats)
+        h["t_last"] = t
         zr, tr = z - h["z0"], t - h["t0"]
         S = h["S"]
         if h["n"] >= 20:
             a, b = self._fit(S)
             res = zr - (a + b * tr)
             # slip: restart.  The threshold is 20 m, or 6 x the RMS of the code against the fit when that is
-            # larger (weak channels: a 0.5-Hz DLL at 27 dB-Hz wanders +/- 10 m; restarting on such an
-            # excursion would put the raw code back into the smoothed range)
-            if abs(res) > max(20.0, 6.0 * math.sqrt(h.get("r2", 0.0))):
+            # larger -- over the fit's memory or over the last SMOOTH_FAST_EPOCHS (weak channels: a 0.5-Hz DLL
+            # at 27 dB-Hz wanders +/- 10 m, at 24 dB-Hz +/- 30 m, smoothly; restarting on such an excursion
+            # would put the raw code back into the smoothed range)
+            if abs(res) > max(20.0, 6.0 * math.sqrt(max(h.get("r2", 0.0), h.get("f2", 0.0)))):
                 self.hatch = None
-                self.smooth_update(s, txrel, phase, window_epochs, track)
+                self.smooth_update(s, txrel, phase, window_epochs, track, cn0_dbhz)
                 return
             h["r2"] = h.get("r2", res * res) + (res * res - h.get("r2", res * res)) / min(h["n"], window_epochs)
+            h["f2"] = h.get("f2", res * res) + (res * res - h.get("f2", res * res)) / \
+                min(h["n"], SMOOTH_FAST_EPOCHS, window_epochs)
         f = 1.0 - 1.0 / window_epochs             # (each sum scaled, then the new term added: as numpy did)
-        S[0], S[1], S[2], S[3], S[4] = S[0] * f + 1.0, S[1] * f + tr, S[2] * f + tr * tr, S[3] * f + zr, \
-            S[4] * f + tr * zr
+        level = h.get("cn0")
+        if cn0_dbhz is not None and level is not None and cn0_dbhz < level - SMOOTH_FADE_DB:
+            w = 10.0 ** ((max(cn0_dbhz, 0.0) - level) / 10.0)
+            S[0], S[1], S[2], S[3], S[4] = S[0] * f + w, S[1] * f + w * tr, S[2] * f + w * tr * tr, \
+                S[3] * f + w * zr, S[4] * f + w * tr * zr
+        else:
+            if cn0_dbhz is not None and cn0_dbhz > 0.0:
+                h["cn0"] = cn0_dbhz if level is None else \
+                    level + (cn0_dbhz - level) / min(h["n"] + 1, SMOOTH_LEVEL_EPOCHS)
+            S[0], S[1], S[2], S[3], S[4] = S[0] * f + 1.0, S[1] * f + tr, S[2] * f + tr * tr, S[3] * f + zr, \
+                S[4] * f + tr * zr
         h["n"] += 1
 
     def slope_info(self):

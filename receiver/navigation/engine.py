@@ -385,14 +385,17 @@ class NavigationEngine(EphemerisStore):
         dt = 1.0 / self.rate
         window = int(round(self.cfg.smoothing_s * self.rate))
         for prn, ch in self.channels.items():
-            if not ch.settled(s, self.cfg.settle_s) or not ch.locked_at(s, presence_cn0=self.presence_cn0):
+            # (a lock gap keeps the carrier-smoothing fit: ChannelNav.smooth_update decides on the next epoch)
+            if not ch.settled(s, self.cfg.settle_s):
                 ch.hatch = None
+                continue
+            if not ch.locked_at(s, presence_cn0=self.presence_cn0):
                 continue
             m = ch.measure_track(s)
             if m is None:
                 ch.hatch = None
                 continue
-            ch.smooth_update(s, m[0], m[2], window, m[3])
+            ch.smooth_update(s, m[0], m[2], window, m[3], ch.cn0_at(s))
             if not ch.has_time:
                 continue
             prev = ch.measure_track(s - dt * self.fs)

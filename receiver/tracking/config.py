@@ -60,9 +60,14 @@ SCHEMA = {
                                    "or no longer predictable", lo=0.1),
     "weak": {
         "enabled": P(True, "bool", "weak-signal tracking: a channel whose C/N0 estimates stay below "
-                                   "cn0_dbhz during the first second after its pull-in is weak (latched "
-                                   "until it is lost); a channel that starts strong keeps the thresholds "
-                                   "above (signal outages are detected as fast)"),
+                                   "cn0_dbhz during the first second after its pull-in is weak (until it "
+                                   "is lost or handed over, exit_cn0_dbhz); a channel that starts strong "
+                                   "keeps the normal loops and thresholds above until it fades (fade)"),
+        "fade": P(True, "bool", "fade hand-down: a strong channel with bit sync that the normal lock "
+                                "detectors or the presence test would declare lost goes on with the weak "
+                                "loops instead; it has no lock until their first C/N0 window (~0.25 s) "
+                                "says the signal is there (a 10-20 dB fade), else it is lost then "
+                                "(built-in scalar loops only; docs: Tracking, weak signals)"),
         "cn0_dbhz": P(32.0, "float", "C/N0 below which a starting channel is weak (the acquisition's "
                                      "estimate opens a channel weak at once)", lo=0.0, hi=60.0),
         "integration_ms": P(20, "int", "coherent integration of a weak channel after bit sync",

@@ -65,7 +65,10 @@ S_FL_IM = 100
 S_FL_MS = 101          # ms summed in the current false-lock window
 S_FL_COUNT = 102       # false locks corrected so far
 S_STRONG_WIN = 103     # consecutive C/N0 windows of a weak channel at or above C_WEAK_EXIT_CN0 (hand-over)
-N_STATE = 104
+S_FADE = 104           # fade hand-down (C_WEAK_FADE): 1 while the first weak C/N0 window of a strong channel
+                       # handed down to the weak loops is not complete (no loss declared meanwhile), 2 after
+                       # it until the channel is handed back or lost, 0 otherwise
+N_STATE = 105
 
 #: false-lock test window (ms of bit-aligned epochs >= 10 ms): 0.5 s leaves ~2 Hz of noise at 27 dB-Hz
 FL_WINDOW_MS = 500.0
@@ -114,7 +117,9 @@ C_EL_SPACING_WIDE = 39  # > 0: E-L spacing (chips) during pull-in and on weak ch
 C_WEAK_DLL_HOLD_MS = 40  # a weak channel's DLL keeps C_DLL_BW this long after its pull-in, then C_WEAK_DLL_BW
 C_WEAK_EXIT_CN0 = 41   # > 0: a weak channel whose C/N0 reaches this for WEAK_EXIT_WINDOWS windows is handed
                        # over to the normal loops (tracking.weak.exit_cn0_dbhz)
-N_CONFIG = 42
+C_WEAK_FADE = 42       # 1: a strong channel about to be declared lost is handed down to the weak loops instead
+                       # (tracking.weak.fade)
+N_CONFIG = 43
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -166,6 +171,45 @@ def repair_state(st: np.ndarray) -> bool:
 
 
 @njit(cache=True, nogil=True)
+def _reset_cn0_window(st):
+    """Start a new C/N0 estimator window (its moment sums to zero)."""
+    st[S_ACC_ABSI] = 0.0
+    st[S_ACC_Q2] = 0.0
+    st[S_ACC_I2] = 0.0
+    st[S_ACC_M2] = 0.0
+    st[S_ACC_M4] = 0.0
+    st[S_ACC_N] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def _hand_down(st, cfg):
+    """Fade hand-down (tracking.weak.fade): a strong, bit-synchronised channel on the built-in loops that its
+    lock detectors or the presence test are about to declare lost goes on with the weak loops instead (20-ms
+    integration, narrow PLL / DLL, C/N0-aware lock detectors).  A signal faded by 10-20 dB (foliage, a body, a
+    building edge) reads as absent to the normal detectors -- the 1-ms window power falls to the noise floor
+    either way -- but the weak loops hold it; a signal that is gone is declared lost by them after their
+    first C/N0 window (~0.25 s later).  Meanwhile the channel reports no lock (C/N0 0), so nothing it measures
+    enters a fix; the presence reference is re-learnt at the faded level.  Returns True if handed down."""
+    if cfg[C_WEAK_FADE] <= 0 or cfg[C_WEAK_CN0] <= 0 or st[S_WEAK] > 0 or st[S_MODE] != MODE_BIT_SYNC or \
+            cfg[C_CARRIER_EXTERNAL] != 0 or cfg[C_CODE_EXTERNAL] != 0 or cfg[C_WEAK_INT_MS] <= cfg[C_MAX_INT_MS]:
+        return False
+    st[S_WEAK] = 1.0
+    st[S_WEAK_DONE] = 1.0
+    st[S_STRONG_WIN] = 0.0
+    st[S_FADE] = 1.0
+    st[S_CN0] = 0.0
+    st[S_BAD_MS] = 0.0
+    st[S_ABSENT_MS] = 0.0
+    st[S_PRES_REF] = 0.0
+    st[S_PRES_ACC] = 0.0
+    st[S_PRES_MS] = 0.0
+    st[S_LOCK_ABSI] = 0.0
+    st[S_LOCK_ABSQ] = 0.0
+    _reset_cn0_window(st)
+    return True
+
+
+@njit(cache=True, nogil=True)
 def _samples_needed(st, cfg, periods):
     step = st[S_CODE_RATE] / cfg[C_FS]
     chips = periods * cfg[C_CODE_LEN] - st[S_CODE_PHASE]
@@ -197,6 +241,8 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
             if (int(st[S_CODE_PERIOD]) - int(st[S_BIT_OFFSET])) % bit_ms == 0:
                 periods = int(target)
                 st[S_INT_MS] = periods
+                if st[S_FADE] == 1:             # a handed-down channel's C/N0 window: weak epochs only
+                    _reset_cn0_window(st)
         n = _samples_needed(st, cfg, periods)
         off = int(st[S_NEXT_SAMPLE]) - block_start
         if off < 0:
@@ -291,6 +337,8 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
                 if pn > 0 and pd > 0:
                     cn0 = pd / (pn * T)
             st[S_CN0] = 10.0 * math.log10(cn0) if cn0 > 1.0 else 0.0
+            if st[S_FADE] == 1 and periods == st[S_INT_MS] and periods > cfg[C_MAX_INT_MS]:
+                st[S_FADE] = 2.0                # the weak loops' first estimate: the lock detectors judge again
             # hand-over: a weak channel whose signal the normal loops hold (C/N0 at or above C_WEAK_EXIT_CN0,
             # above the weak threshold by a hysteresis) leaves the weak mode: its 10-Hz PLL at 20 ms and its
             # 0.5-Hz DLL are never worse than the normal loops' for a signal they track.  The acquisition's
@@ -306,6 +354,7 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
                     st[S_STRONG_WIN] = 0.0
                 if st[S_STRONG_WIN] >= WEAK_EXIT_WINDOWS:
                     st[S_WEAK] = 0.0
+                    st[S_FADE] = 0.0
                     st[S_WEAK_DONE] = 1.0
                     st[S_STRONG_WIN] = 0.0
                     if st[S_INT_MS] > cfg[C_MAX_INT_MS]:
@@ -321,12 +370,7 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
                     st[S_WEAK_DONE] = 1.0
                     if cfg[C_WEAK_CN0] > 0 and st[S_CN0_MAX] < cfg[C_WEAK_CN0]:
                         st[S_WEAK] = 1.0
-            st[S_ACC_ABSI] = 0.0
-            st[S_ACC_Q2] = 0.0
-            st[S_ACC_I2] = 0.0
-            st[S_ACC_M2] = 0.0
-            st[S_ACC_M4] = 0.0
-            st[S_ACC_N] = 0.0
+            _reset_cn0_window(st)
         a = min(1.0, periods / 20.0)
         st[S_PLI_I2] += a * (ip * ip - st[S_PLI_I2])
         st[S_PLI_Q2] += a * (qp * qp - st[S_PLI_Q2])
@@ -368,11 +412,17 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
             st[S_BAD_MS] += periods
             # a young channel (weak signal still pulling into phase lock) gets the longer grace time
             grace = cfg[C_LOST_GRACE_MS]
-            if weak and cfg[C_WEAK_GRACE_MS] > grace:
+            if weak and cfg[C_WEAK_GRACE_MS] > grace and st[S_FADE] == 0:     # (not a handed-down one)
                 grace = cfg[C_WEAK_GRACE_MS]
-            if st[S_BAD_MS] >= cfg[C_LOST_MS] and (st[S_TOTAL_MS] >= grace or st[S_BAD_MS] >= grace):
-                st[S_MODE] = MODE_LOST
+            # a handed-down channel is lost after two C/N0 windows in a row below the thresholds: the window
+            # in which a faded signal comes back (a 20-dB step of |I| inside it) reads low
+            lost_ms = cfg[C_LOST_MS]
+            if st[S_FADE] == 2 and cfg[C_CN0_WIN_MS] + 1.0 > lost_ms:
+                lost_ms = cfg[C_CN0_WIN_MS] + 1.0
+            lost = st[S_BAD_MS] >= lost_ms and (st[S_TOTAL_MS] >= grace or st[S_BAD_MS] >= grace)
             if st[S_ABSENT_MS] >= cfg[C_PRES_LOST_MS] and cfg[C_PRES_MS] > 0:
+                lost = True
+            if lost and st[S_FADE] != 1 and not _hand_down(st, cfg):
                 st[S_MODE] = MODE_LOST
         o[O_CN0] = st[S_CN0]
         o[O_PLI] = pli

@@ -81,8 +81,9 @@ def test_narrow_search_finds_the_signal_in_its_window_only():
 
 
 def test_channels_lose_and_hot_reacquire_the_signal(drive, scalar_run):
-    """Every channel declares the loss within 0.1 s (signal-presence test), is re-acquired within 1 s of the signal's
-    return with
+    """Every channel declares the loss within 1 s (the signal-presence test sees it within 0.05 s and hands the
+    channel to the weak loops, tracking.weak.fade, whose first C/N0 window finds no signal), is re-acquired
+    within 1 s of the signal's return with
     the predicted Doppler (within 10 Hz of the truth) and continues its code-period count: the relative
     transmit time minus the true transmit time is the same constant before and after the outage."""
     with h5py.File(scalar_run, "r") as f:
@@ -104,7 +105,8 @@ def test_channels_lose_and_hot_reacquire_the_signal(drive, scalar_run):
         gap = np.flatnonzero(np.diff(t) > 0.1)
         assert len(gap) >= 1, prn
         t_last, t_new = t[gap[0]], t[gap[0] + 1]
-        assert OUT_A <= t_last <= OUT_A + 0.1, (prn, t_last)        # presence test: lost within 0.1 s
+        # presence test + weak probe: lost in ~0.3 s; noise passing one weak C/N0 window: two more (G15: 0.62 s)
+        assert OUT_A <= t_last <= OUT_A + 1.0, (prn, t_last)
         assert OUT_B <= t_new <= OUT_B + 1.0, (prn, t_new)
         d_true = np.interp(t_new, tru["time_s"], tru["doppler_hz"])
         assert abs(rec["doppler_hz"][gap[0] + 1] - d_true) < 10.0, (prn, rec["doppler_hz"][gap[0] + 1], d_true)

@@ -118,6 +118,17 @@ def test_eight_second_outage_in_a_tight_turn(sim, tmp_path):
     assert m["max_err_meas_m"] <= 30.0, m
 
 
+def test_a_20_db_fade_while_walking(sim, tmp_path):
+    """Matrix row walk_atten20, shortened: walking at 1.4 m/s, every signal 20 dB down (45 -> 25 dB-Hz) for
+    6 s.  The strong channels are handed to the weak loops instead of lost (tracking.weak.fade) and their
+    carrier smoothing goes on over the hand-down: fixes through the fade, within the bounds (before: no fix
+    for ~4 s of it, then 3-5-satellite fixes from weak re-acquired channels with 27-45 m errors)."""
+    m = _run(tmp_path, {"dynamics": "walk", "place": "tokyo", "start": "02:00:00", "duration_s": 16},
+             {"sample_rate_hz": 2.6e6, "cn0_dbhz": 45, "seed": 44,
+              "outages": [{"start_s": 5.0, "end_s": 11.0, "atten_db": 20.0}]})
+    assert check(m, EXPECT) == [], m
+
+
 def test_pulsed_interference_is_blanked(sim, tmp_path):
     """Matrix row pulsed_40, shortened: a 300-kHz tone pulsed 10 % of every ms, 40 dB over the noise; the
     adaptive pulse blanker (input conditioning) takes the pulses out: fixes within the bounds."""
