@@ -412,7 +412,7 @@ class _ChunkLoop:
                 part.manager.note(prn, recs)
                 if nav is not None:
                     with stage("navigation"):
-                        nav.add_records(key, recs, ch.bit_offset)
+                        nav.add_records(key, recs, ch.bit_offset, ch.dll_hold_s)
         if self.vector is not None and self.vector.reinit_needed:
             self.vector = self.handover.fall_back(self.vector, start + chunk)   # scalar channels, hand over again
         # channel lifecycle: lost channels -> re-acquisition around the prediction; cold search of the rest.

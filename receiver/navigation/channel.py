@@ -123,7 +123,8 @@ class ChannelNav:
         self.active = True          # a channel tracks this satellite
         self.settle_s = None        # settle time of the current track (None: navigation.settle_s)
         self.tracks = 1             # tracks (channels) of this satellite so far
-        self.prev_track = None      # (track_start_s, settle_s, last sample) of the previous track (resume)
+        self.dll_hold_s = 0.0       # the current track's DLL keeps a wider bandwidth this long after its pull-in
+        self.prev_track = None      # (track_start_s, settle_s, last sample, dll_hold_s) of the previous track
         self.resumed_with_time = 0  # re-acquisitions that kept the transmit-time reference
 
     def _new_decoder(self, week_hint):
@@ -153,7 +154,8 @@ class ChannelNav:
         keep = continuous and self.has_time
         # a continuous track keeps the old records (same code-period count, same transmit-time reference)
         # for the not yet computed epochs before the loss; they are judged by the old track's settle state
-        self.prev_track = (self.track_start_s, self.settle_s, self.last_sample) if keep and self.recent else None
+        self.prev_track = (self.track_start_s, self.settle_s, self.last_sample, self.dll_hold_s) \
+            if keep and self.recent else None
         if not keep:
             self.recent.clear()
             self.recent_track.clear()
@@ -169,6 +171,7 @@ class ChannelNav:
         self.rot = 0j
         self.noncoherent_from = None
         self.settle_s = settle_s
+        self.dll_hold_s = 0.0
         self.polarity = 0           # a re-locked PLL may sit on the other half cycle: the next subframe says
         if continuous and self.has_time:
             self.time_assisted = True       # verified by the next subframe
@@ -215,7 +218,7 @@ class ChannelNav:
         k = round((tx_guess - txrel - base) / tb)
         return base + tb * k
 
-    def add(self, recs: np.ndarray, bit_offset: int):
+    def add(self, recs: np.ndarray, bit_offset: int, dll_hold_s: float = 0.0):
         """Take a chunk of this channel's epoch records (EPOCH_DTYPE): lock, C/N0 and the recent records; with bit
         sync (``bit_offset`` >= 0: the code period where bit 0 starts) the prompt sums become data bits fed to the
         message decoder, whose subframes set the transmit-time reference."""
@@ -228,6 +231,7 @@ class ChannelNav:
             self.recent_track.popleft()
         self._cols = {id(r): self._cols.get(id(r)) or _columns(r) for r in self.recent}
         self.last_sample = int(recs["sample_index"][-1])
+        self.dll_hold_s = dll_hold_s
         if self.track_start_s is None:
             st = np.flatnonzero(recs["state"] != 0)          # first epoch after the FLL pull-in
             if len(st):
@@ -350,14 +354,15 @@ class ChannelNav:
         return self.tow_ref - self.cp_ref * 1e-3
 
     def settled(self, s: float, settle_s: float) -> bool:
-        """True once the loops have tracked for settle_s after the pull-in (DLL transient over); a resumed
-        track uses its own (shorter) settle time."""
-        start, own = self.track_start_s, self.settle_s
+        """True once the loops have tracked for settle_s after the pull-in and the DLL's hold at a wider
+        bandwidth (a weak channel's, dll_hold_s) -- the DLL transient is over; a resumed track uses its own
+        (shorter) settle time."""
+        start, own, hold = self.track_start_s, self.settle_s, self.dll_hold_s
         if self.prev_track is not None and s <= self.prev_track[2]:
-            start, own, _ = self.prev_track          # an epoch of the previous track (before its loss)
+            start, own, _, hold = self.prev_track     # an epoch of the previous track (before its loss)
         if own is not None:
             settle_s = own
-        return start is not None and s / self.fs - start >= settle_s
+        return start is not None and s / self.fs - start >= settle_s + hold
 
     def _columns(self, recs):
         """The columns measure/locked_at read, as Python lists (cached for the records added by :meth:`add`:

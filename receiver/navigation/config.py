@@ -67,7 +67,8 @@ SCHEMA = {
                                         "from the prediction is not used; 3 in a row restart the filter "
                                         "from the WLS", lo=0.0),
     "settle_s": P(1.0, "float", "a channel's measurements are used this long after its pull-in "
-                                "(DLL/PLL transients over)", lo=0.0),
+                                "(DLL/PLL transients over); a weak channel's after its DLL hold "
+                                "(tracking.weak.dll_hold_ms) and this", lo=0.0),
     "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                      lo=0.0),
     "aiding": {

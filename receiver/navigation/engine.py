@@ -140,10 +140,11 @@ class NavigationEngine(EphemerisStore):
         self.first_eph_checks.append((ch.prn, s / self.fs, err))
         return abs(err) <= FIRST_EPH_RANGE_M
 
-    def add_records(self, prn: int, recs, bit_offset: int):
+    def add_records(self, prn: int, recs, bit_offset: int, dll_hold_s: float = 0.0):
         """Feed a chunk of channel ``prn``'s epoch records (EPOCH_DTYPE) with its bit offset (code period of
-        bit 0, -1 unknown) to its ChannelNav (ChannelNav.add)."""
-        self.channel(prn).add(recs, bit_offset)
+        bit 0, -1 unknown) to its ChannelNav (ChannelNav.add); dll_hold_s: the tracking channel's DLL keeps a
+        wider bandwidth this long after its pull-in (its measurements settle after that)."""
+        self.channel(prn).add(recs, bit_offset, dll_hold_s)
 
     def set_noncoherent(self, prn: int, from_sample):
         """Channel prn is frequency-locked from from_sample on (None: phase-locked again)."""

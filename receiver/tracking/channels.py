@@ -419,7 +419,7 @@ class ChannelManager:
             self.writer.append_channel(prn, recs)
         self.note(prn, recs)
         if self.nav is not None:
-            self.nav.add_records(prn, recs, ch.bit_offset)
+            self.nav.add_records(prn, recs, ch.bit_offset, ch.dll_hold_s)
         if ch.lost:                         # lost again at once: the next chunk's after_chunk handles it
             pass
 

@@ -91,7 +91,8 @@ SCHEMA = {
         "dll_hold_ms": P(2000, "int", "a weak channel's DLL keeps tracking.dll_bw_pull_in_hz this long "
                                       "after its pull-in (the pull-in's code error converges at the "
                                       "normal rate; its rate integrator at dll_bw_hz throughout), then "
-                                      "narrows to dll_bw_hz", lo=0),
+                                      "narrows to dll_bw_hz; the navigation uses its measurements "
+                                      "navigation.settle_s after that", lo=0),
         "exit_cn0_dbhz": P(35.0, "float", "a weak channel whose C/N0 estimates reach this in 3 windows in a "
                                           "row (tracking.cn0_window_ms each) while locked is handed over to "
                                           "the normal loops (the acquisition's estimate reads up to ~3 dB "

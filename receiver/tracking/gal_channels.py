@@ -66,6 +66,11 @@ class GalTrack(GalChannel):
         return 0
 
     @property
+    def dll_hold_s(self) -> float:
+        """The DLL tracks at its own bandwidth from the pull-in on (no weak-signal hold)."""
+        return 0.0
+
+    @property
     def doppler_hz(self) -> float:
         """Carrier NCO frequency minus IF (Hz)."""
         return self.carr_hz - self.if_hz

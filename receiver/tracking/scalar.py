@@ -94,6 +94,13 @@ class Channel:
         return int(self.st[K.S_BIT_OFFSET])
 
     @property
+    def dll_hold_s(self) -> float:
+        """Seconds after the pull-in during which the DLL keeps a wider bandwidth than its tracking one (a weak
+        channel: tracking.weak.dll_hold_ms; else 0); navigation.settle_s counts from then."""
+        return self.cfg[K.C_WEAK_DLL_HOLD_MS] * 1e-3 if self.st[K.S_WEAK] > 0 and self.cfg[K.C_WEAK_DLL_BW] > 0 \
+            else 0.0
+
+    @property
     def _loop_started(self) -> bool:
         if self.use_compiled_loop:
             return bool(self._cs[LR.CS_STARTED])

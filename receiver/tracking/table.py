@@ -96,9 +96,9 @@ class _SignalView:
         """The navigation engine's satellite channels of this signal, keyed by PRN."""
         return {p - self._k(0): c for p, c in self._t.channels.items() if split_key(p)[0] == self._sys}
 
-    def add_records(self, prn, recs, bit_offset):
+    def add_records(self, prn, recs, bit_offset, dll_hold_s=0.0):
         """NavigationEngine.add_records of the signal's PRN."""
-        self._t.add_records(self._k(prn), recs, bit_offset)
+        self._t.add_records(self._k(prn), recs, bit_offset, dll_hold_s)
 
     def suspend(self, prn):
         """NavigationEngine.suspend of the signal's PRN."""
