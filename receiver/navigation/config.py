@@ -38,6 +38,10 @@ SCHEMA = {
     "max_pdop": P(20.0, "float", "no fix when the PDOP of the satellites used exceeds this (4-satellite "
                                  "fixes in urban canyons reach PDOP > 100 and errors of hundreds of m)",
                   lo=1.0),
+    "first_fix_max_pdop": P(8.0, "float", "the first fix of a run needs a PDOP at most this (no fix before it "
+                                          "checks it, and it starts the aiding and the filters: weak "
+                                          "5-satellite geometries at PDOP 15-20 gave first fixes 20-100 m off)",
+                            lo=1.0),
     "filter": P("wls", "str", "navigation solution: wls (single-epoch weighted least squares and "
                               "Doppler velocity), ekf (extended Kalman filter) or ckf (square-root "
                               "cubature Kalman filter) over position, velocity, clock bias and drift, fed "

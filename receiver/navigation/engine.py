@@ -367,7 +367,10 @@ class NavigationEngine(EphemerisStore):
         fix = None
         if n >= 4:
             fix = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0)
-        if self.last_fix is None or (fix is not None and n > self.aid_cfg.max_sats):
+        if self.last_fix is None:
+            # the first fix: nothing before it checks it, and it starts the aiding and the filters
+            return fix if fix is not None and fix.pdop <= self.cfg.first_fix_max_pdop else None
+        if fix is not None and n > self.aid_cfg.max_sats:
             return fix
         if fix is not None and fix.n_sats >= AID_REF_SATS:
             self._remember(t_s, fix)        # over-determined on its own: a reference for the prediction
