@@ -16,7 +16,8 @@ def test_a_weak_geometry_waits_for_a_good_one_only_at_the_first_fix(brdc):
     rx = lla2ecef(*RX_LLA)
     rx_tow, obs = simulate(ephs, iono, rx, bias_m=100.0, drift_mps=0.0, sigma_m=2.0, seed=3)
     probe = NavSolver(cfg(max_pdop=1e9))
-    by_pdop = [(probe.fix(WEEK, rx_tow, list(sub), ephs, iono, x0=rx), list(sub)) for n in (4, 5) for sub in combinations(obs, n)]
+    subsets = [list(sub) for n in (4, 5) for sub in combinations(obs, n)]
+    by_pdop = [(probe.fix(WEEK, rx_tow, sub, ephs, iono, x0=rx), sub) for sub in subsets]
     weak = [sub for f, sub in by_pdop if f is not None and 8.0 < f.pdop < 20.0]
     good = [sub for f, sub in by_pdop if f is not None and f.pdop < 4.0]
     assert weak and good
