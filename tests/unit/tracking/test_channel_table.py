@@ -41,7 +41,7 @@ class _Engine:
         self.calls = []
         self.fs = 4e6
 
-    def add_records(self, key, recs, bit_offset):
+    def add_records(self, key, recs, bit_offset, dll_hold_s=0.0):
         self.calls.append(("add_records", key))
 
     def suspend(self, key):
