@@ -236,6 +236,17 @@ def test_three_gps_satellites_fix_with_galileo(sky, gal_sky):
     assert np.linalg.norm(fix.ecef - X) < 0.05 and fix.isb_m["E"] == pytest.approx(-8.0, abs=0.05)
 
 
+def test_three_gps_satellites_fix_with_galileo_and_beidou(sky, gal_sky):
+    """GPS reduced to three satellites in a GPS + Galileo + BeiDou fix: one clock, two inter-system biases."""
+    g, c, ephs = sky
+    e, gal_ephs = gal_sky
+    obs = [o for _, o in g[:3]] + _shift([o for _, o in c], 21.0) + _shift([o for _, o in e], -8.0)
+    fix = NavSolver(CFG).fix(WEEK, T, obs, {**ephs, **gal_ephs})
+    assert fix is not None and fix.n_sats == 3 + len(c) + len(e)
+    assert np.linalg.norm(fix.ecef - X) < 0.05
+    assert fix.isb_m["E"] == pytest.approx(-8.0, abs=0.05) and fix.isb_m["C"] == pytest.approx(21.0, abs=0.05)
+
+
 def test_galileo_clock_uses_bgd_e1e5b(gal_sky):
     """ICD Eq. 15: the single-frequency E1 user's satellite clock is the E1,E5b clock minus BGD(E1,E5b)."""
     from dataclasses import replace
