@@ -95,8 +95,8 @@ class GalEpochs:
     """Per 4-ms epoch of one channel: first sample, replica code phase there (chips, ~0: epochs start at code
     period boundaries), period count since the channel start (the first epoch is period ``first_period`` of
     the acquisition block), E1-B and E1-C prompts, carrier NCO frequency (Hz, IF included), C/N0 estimate of
-    the pilot (the prompt's in-phase over quadrature power: biased low by the PLL phase jitter, ~3 dB with a
-    TCXO at 15 Hz), accumulated carrier phase (for carrier smoothing)."""
+    the whole E1 signal (E1-B + E1-C, :meth:`GalChannel._cn0_update`), accumulated carrier phase (for carrier
+    smoothing)."""
     sample: np.ndarray
     code_phase: np.ndarray
     period: np.ndarray
@@ -137,14 +137,33 @@ class GalChannel:
         self.carr_cycles = 0.0                              # accumulated NCO phase (cycles)
         self.period = 1                                     # periods after the acquisition block's first
         self.cs25_offset = int(cs25_offset)
-        self._nb = 0.0
-        self._ns = 0.0
+        self._m = None                                      # low-passed |P_C|^2, |P_C|^4, |P_B|^2, |P_B|^4
 
     def _epoch_length(self):
         """(samples, code step chips/sample) of the next epoch: up to the next code-period boundary."""
         rate = E1_CHIP_RATE * (1.0 + (self.carr_hz - self.if_hz) / E1_HZ) + self.dll_rate
         step = rate / self.fs
         return int(math.ceil((E1_CODE_LEN - self.code_phase) / step - 1e-9)), step
+
+    def _cn0_update(self, p, b, T) -> float:
+        """C/N0 (dB-Hz) of the whole E1 signal -- E1-B plus E1-C, the power the simulator's and the ICD's C/N0
+        refer to -- from this epoch's pilot and data prompts (low-passed over ~20 epochs).  Moments estimator
+        (M2M4) per component: with S the signal power and N the noise power of a prompt, E|P|^2 = S + N and
+        E|P|^4 = S^2 + 4 S N + 2 N^2, so S = sqrt(2 M2^2 - M4); it uses magnitudes only, so neither the PLL's
+        phase jitter (the in-phase / quadrature ratio of the pilot read ~2.5 dB low with a TCXO at 15 Hz) nor
+        the E1-B symbols bias it.  C/N0 = (S_C + S_B) / (N T), N the mean of the two noise powers."""
+        pc = p.real * p.real + p.imag * p.imag
+        pb = b.real * b.real + b.imag * b.imag
+        if self._m is None:                                 # the first epoch: its own moments
+            self._m = [pc, pc * pc, pb, pb * pb]
+        m = self._m
+        for k, pw in ((0, pc), (2, pb)):
+            m[k] += 0.05 * (pw - m[k])
+            m[k + 1] += 0.05 * (pw * pw - m[k + 1])
+        s_c = math.sqrt(max(2.0 * m[0] * m[0] - m[1], 0.0))
+        s_b = math.sqrt(max(2.0 * m[2] * m[2] - m[3], 0.0))
+        noise = 0.5 * ((m[0] - s_c) + (m[2] - s_b))
+        return 10.0 * math.log10(max((s_c + s_b) / max(noise, 1e-30 * max(m[0], 1e-30)), 1e-3) / T)
 
     def _update(self, e, p, l, b, n, step):
         """Loop filters of one epoch from its correlations (E, P, L of E1-C, P of E1-B; n samples): the
@@ -167,12 +186,8 @@ class GalChannel:
         ae, al = abs(e), abs(l)
         tau = (ae - al) / max(ae + al, 1e-30) * (2.0 - 3.0 * self.d) / 6.0
         self.dll_rate = self.k_dll * tau
-        # C/N0 by the narrow-band / wide-band power ratio of the prompt (per epoch, low-passed)
-        self._nb = 0.95 * self._nb + 0.05 * p.real ** 2
-        self._ns = 0.95 * self._ns + 0.05 * p.imag ** 2
-        snr = self._nb / max(self._ns, 1e-30) - 1.0
-        row = (self.next_sample, self.code_phase, self.period, b, p, self.carr_hz,
-               10.0 * math.log10(max(snr, 1e-3) / (2.0 * T)), self.carr_cycles, ae, al, err, tau)
+        row = (self.next_sample, self.code_phase, self.period, b, p, self.carr_hz, self._cn0_update(p, b, T),
+               self.carr_cycles, ae, al, err, tau)
         self.carr_cycles += self.carr_hz * T
         self.code_phase = self.code_phase + n * step - E1_CODE_LEN
         self.next_sample += n

@@ -77,7 +77,7 @@ class GalTrack(GalChannel):
 
     @property
     def cn0_dbhz(self) -> float:
-        """The latest C/N0 estimate of the pilot (dB-Hz)."""
+        """The latest C/N0 estimate of the whole E1 signal, E1-B + E1-C (dB-Hz)."""
         return self._cn0
 
     def process(self, block: np.ndarray, block_start: int) -> np.ndarray:

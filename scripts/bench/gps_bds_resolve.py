@@ -6,6 +6,11 @@ scripts/bench/accuracy_gps_bds.py runs the receiver itself.
 
     PYTHONPATH=. python scripts/bench/gps_bds_resolve.py RUN.h5 REC.bin [--iono run|fallback|none]
         [--every N] [--from-s S] [-o KEY=VALUE ...]     (KEY: a navigation setting, e.g. weighting=none)
+        [--systems GE,G,E] [--code-var E=2.0 ...]
+
+``--systems``: the system sets to solve (RINEX letters, default GC,G,C; e.g. GE,G,E for a GPS + Galileo run,
+GEC,G,E,C for three systems); ``--code-var L=V``: system L's range variance relative to L1 C/A for this solve
+(receiver.navigation.pvt.CODE_VAR_REL_CA, e.g. E=1 to compare with the shipped 2).
 """
 from __future__ import annotations
 
@@ -52,7 +57,13 @@ def main(argv=None):
     ap.add_argument("--every", type=int, default=1, help="use every N-th epoch")
     ap.add_argument("--from-s", type=float, default=0.0, help="only epochs from this time in the file (s)")
     ap.add_argument("-o", dest="overrides", action="append", default=[], help="navigation KEY=VALUE")
+    ap.add_argument("--systems", default="GC,G,C", help="comma-separated system sets, e.g. GE,G,E")
+    ap.add_argument("--code-var", action="append", default=[], help="L=V: system L's variance vs L1 C/A")
     a = ap.parse_args(argv)
+    from receiver.navigation.pvt import CODE_VAR_REL_CA
+    for item in a.code_var:
+        k, v = item.split("=", 1)
+        CODE_VAR_REL_CA[k] = float(v)
     run = load_run(a.run)
     run.obs = run.obs[run.obs["time_s"] >= a.from_s]
     changes = {}
@@ -67,8 +78,9 @@ def main(argv=None):
         iono = IonoUtc(alpha=FALLBACK_KLOBUCHAR_ALPHA, beta=FALLBACK_KLOBUCHAR_BETA)
     elif a.iono == "none":
         iono = None
-    fixes = {name: resolve_fixes(run, sy, iono, nav, a.every) for name, sy in
-             (("GPS + BeiDou", "GC"), ("GPS only", "G"), ("BeiDou only", "C"))}
+    names = {"G": "GPS", "C": "BeiDou", "E": "Galileo", "J": "QZSS"}
+    fixes = {(" + ".join(names.get(c, c) for c in sy) + (" only" if len(sy) == 1 else "")):
+             resolve_fixes(run, sy, iono, nav, a.every) for sy in a.systems.split(",")}
     print(table(fixes, truth_ecef(a.recording)))
 
 

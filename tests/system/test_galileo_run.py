@@ -132,6 +132,12 @@ def test_galileo_only_run_decodes_and_fixes(gal_only):
         assert {"E01", "E02", "E03", "E11", "E12", "E18", "E19", "E20"} <= set(names) and "E05" not in names
         ch = r.channel("E11")
         assert np.all(np.diff(ch["code_period"]) == 1) and np.all(ch["integration_ms"] == 4)
+        # the reported C/N0 is the whole E1 signal's (E1-B + E1-C), as simulated, within 1 dB
+        with TruthFile(str(rec)[:-4] + ".truth.h5") as tf:
+            sim_cn0 = {k: float(np.median(v["cn0_dbhz"])) for k, v in tf.satellites(("cn0_dbhz",)).items()}
+        for name in names:
+            c = r.channel(name, ("cn0_dbhz", "pll_lock"))
+            assert abs(np.median(c["cn0_dbhz"][c["pll_lock"] == 1]) - sim_cn0[name]) < 1.0, name
         # decoded ephemerides against the simulated I/NAV content
         from receiver.sim.gal_constellation import gal_nominal_content
         sim = gal_nominal_content(ROOT / "data" / "gal_nominal_constellation.yaml", WEEK, TOW0)

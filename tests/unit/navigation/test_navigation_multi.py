@@ -151,6 +151,18 @@ def test_combined_fix_weights_each_signal_by_its_code_noise(sky):
     np.testing.assert_array_equal(one, solver._weights(np.radians([30.0, 60.0]), np.full(2, 45.0)))
 
 
+def test_code_variance_table_per_system():
+    """Each system's range variance relative to L1 C/A (pvt.CODE_VAR_REL_CA): B1I 1/4 (chip length), Galileo E1
+    2 (measured, docs/multi-gnss.md), GPS and QZSS 1; a mixed epoch's satellites get their system's value."""
+    from receiver.navigation.pvt import CODE_VAR_REL_CA, _Sats
+    assert CODE_VAR_REL_CA["C"] == pytest.approx(0.25) and CODE_VAR_REL_CA["E"] == 2.0
+    assert "G" not in CODE_VAR_REL_CA and "J" not in CODE_VAR_REL_CA
+    n = 4
+    s = _Sats(range(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.full(n, 45.0),
+              np.zeros(n), systems=["G", "E", "C", "J"])
+    np.testing.assert_array_equal(s.code_var, [1.0, 2.0, 0.25, 1.0])
+
+
 def test_combined_run_applies_the_gps_klobuchar_set_to_every_satellite():
     """A GPS + BeiDou run: the GPS set (decoded, else the fallback set) corrects every satellite; a decoded
     BeiDou D1/D2 set (B1I reference) only while neither is there.  BeiDou-only runs keep their own set."""
@@ -222,6 +234,17 @@ def test_three_gps_satellites_fix_with_galileo(sky, gal_sky):
     fix = NavSolver(CFG).fix(WEEK, T, three + _shift([o for _, o in e], -8.0), {**ephs, **gal_ephs})
     assert fix is not None and fix.n_sats == 3 + len(e)
     assert np.linalg.norm(fix.ecef - X) < 0.05 and fix.isb_m["E"] == pytest.approx(-8.0, abs=0.05)
+
+
+def test_three_gps_satellites_fix_with_galileo_and_beidou(sky, gal_sky):
+    """GPS reduced to three satellites in a GPS + Galileo + BeiDou fix: one clock, two inter-system biases."""
+    g, c, ephs = sky
+    e, gal_ephs = gal_sky
+    obs = [o for _, o in g[:3]] + _shift([o for _, o in c], 21.0) + _shift([o for _, o in e], -8.0)
+    fix = NavSolver(CFG).fix(WEEK, T, obs, {**ephs, **gal_ephs})
+    assert fix is not None and fix.n_sats == 3 + len(c) + len(e)
+    assert np.linalg.norm(fix.ecef - X) < 0.05
+    assert fix.isb_m["E"] == pytest.approx(-8.0, abs=0.05) and fix.isb_m["C"] == pytest.approx(21.0, abs=0.05)
 
 
 def test_galileo_clock_uses_bgd_e1e5b(gal_sky):
