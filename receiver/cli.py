@@ -22,9 +22,11 @@ from .logs import setup_cli
 def _prepare_process() -> None:
     """What every command sets up before its work: one BLAS thread (:func:`receiver.limit_blas_threads`,
     effective when numpy has not loaded yet), stale numba caches of a source tree dropped, and numba's
-    first cache load without its BLAS probe importing scipy.linalg (receiver/_numba_start.py)."""
+    first cache load without its BLAS probe importing scipy.linalg (receiver/_numba_start.py), and the C
+    allocator's settings for a flat resident memory (receiver/_malloc.py, before any thread starts)."""
     limit_blas_threads()
-    from . import _numba_start
+    from . import _malloc, _numba_start
+    _malloc.configure()
     from .tracking import refresh_compiled_caches
     refresh_compiled_caches()
     _numba_start.prepare()

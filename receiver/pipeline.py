@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .acquisition.stage import acquire
-from . import interrupt, threads
+from . import _malloc, interrupt, threads
 from .stagetimes import stage
 from .errors import UserError, warn
 from .source.io import SampleReader
@@ -349,8 +349,13 @@ class _ChunkLoop:
         defer = nav is not None and self.handover is None and threads.threads() > 1
         pending = None                          # end sample of the chunk whose navigation epochs are due
         start = self.acq_start
+        trim_every = max(1, round(_malloc.TRIM_EVERY_S / CHUNK_S))
+        n_chunks = 0
         while start < reader.end:
             interrupt.check()                       # SIGINT/SIGTERM: stop between compiled calls
+            n_chunks += 1
+            if n_chunks % trim_every == 0:
+                _malloc.trim()                      # freed chunk buffers back to the kernel (flat RSS)
             pending = self._track_chunk(start, pending)
             if nav is not None:
                 if defer:

@@ -86,8 +86,9 @@ def warm(modules=RUN_MODULES) -> dict:
     if _DONE is not None:
         return _DONE
     t0, c0 = time.perf_counter(), time.process_time()
-    from .. import _numba_start, limit_blas_threads
+    from .. import _malloc, _numba_start, limit_blas_threads
     limit_blas_threads()
+    _malloc.configure()
     try:
         from ..tracking import refresh_compiled_caches
         refresh_compiled_caches()

@@ -21,7 +21,8 @@ PKG = ROOT / "receiver"
 #: package's __init__ only).  A new top-level module must be placed here (and in docs/how-it-works/index.md) explicitly.
 LAYERS: list[tuple[str, ...]] = [
     ("receiver", "receiver.errors", "receiver.config", "receiver.plugins", "receiver.logs", "receiver.safeio",
-     "receiver.threads", "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start", "receiver.suggest"),
+     "receiver.threads", "receiver.interrupt", "receiver.stagetimes", "receiver._numba_start", "receiver._malloc",
+     "receiver.suggest"),
     ("receiver.gnss",),
     ("receiver.estimation",),
     ("receiver.runfile",),
