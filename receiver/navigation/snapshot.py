@@ -223,13 +223,15 @@ def _w_test(res, h, cov, sig):
 def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
     """Whole milliseconds from the prior (x0, dt0), solve, residual test (the RMS against
     ``residual_threshold_m``, each residual against ``max_norm_residual`` times its noise) with exclusion
-    of the worst satellite; the reference satellite tried in order of elevation.  (sol, used indices, rejected) or
-    None."""
+    of the worst satellite; the reference satellite tried in order of elevation.  With ``check`` (a Doppler
+    prior: its whole milliseconds are a hypothesis) one satellite more than the unknowns is kept, so that
+    the residual test can see them wrong (with none to spare any pseudoranges fit exactly: a 5-satellite
+    fix 725 km off passed).  (sol, used indices, rejected) or None."""
     prns = [o.prn for o in obs]
     pos, vel, clk, cdrift, tau = sat_geometry(ephs, prns, week, tow0 + dt0, x0)
     corr, el = corrections(x0, pos, tow0 + dt0, ephs.iono, s)
     pred = np.linalg.norm(pos - x0, axis=1) - clk + corr
-    min_sats = 4 if s.height_m is not None else 5
+    min_sats = (4 if s.height_m is not None else 5) + (1 if check is not None else 0)
     visible = el > np.radians(-5.0)
     order = [i for i in np.argsort(-el) if visible[i]][:3]
     sig_all = sigma_m([o.cn0_dbhz for o in obs], [o.length_ms for o in obs])
