@@ -15,7 +15,7 @@ the error dt of the coarse time of the first sample; d rho_i / d dt is the satel
 Without a prior position a Doppler-only solution (position, clock drift and dt from the Dopplers of a
 static receiver; several start points on the Earth's surface, the lowest residual kept) gives it; when
 the Dopplers do not fit a static receiver, the same with the receiver velocity as three more unknowns
-(a moving receiver: at least 9 satellites; receiver/navigation/snapshot_doppler.py).
+(a moving receiver: at least 8 satellites, with 8 the coarse time held; receiver/navigation/snapshot_doppler.py).
 
 Integrity: >= 5 satellites (4 with a height constraint), a residual test (the worst satellite is
 dropped while the residual RMS exceeds ``residual_threshold_m`` and enough remain), and the whole
@@ -36,7 +36,8 @@ from .snapshot_model import (CHIP_M, LAMBDA, MS_M, Ephemerides, SnapObs, Snapsho
                              SnapshotSettings, corrections, dops, in_sky, line_of_sight, sat_geometry, sigma_m)
 
 
-#: satellites needed for the Doppler solution of a moving receiver (8 unknowns; with 8 it is unreliable)
+#: satellites for the Doppler solution of a moving receiver with the time error (8 unknowns); with one fewer the
+#: coarse time is held (7 unknowns)
 MIN_MOVING_SATS = 9
 
 def _whole_ms(rho_frac, pred, ref):
@@ -189,21 +190,24 @@ def coarse_time_fix(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: floa
 
 def _doppler_prior(obs, ephs, week, tow0, s):
     """The a-priori position from the Dopplers alone: a static receiver, else a moving one (at least
-    MIN_MOVING_SATS satellites).  (x on the surface, dt, residual RMS m/s, 'doppler' or 'doppler (moving)') or
+    MIN_MOVING_SATS - 1 satellites).  (x on the surface, dt, residual RMS m/s, 'doppler' or 'doppler (moving)') or
     a failed SnapshotFix."""
     sol = doppler_solution(obs, ephs, week, tow0)
     kind = "doppler"
-    if (sol is None or sol[3] > s.max_doppler_rms_mps) and len(obs) >= MIN_MOVING_SATS:
-        mov = doppler_solution(obs, ephs, week, tow0, moving=True)
+    if (sol is None or sol[3] > s.max_doppler_rms_mps) and len(obs) >= MIN_MOVING_SATS - 1:
+        # a moving receiver: the velocity as three more unknowns; with one satellite too few for the time
+        # error as well, the coarse time is held (a minute's error moves the prior by tens of km, within what
+        # the whole-millisecond resolution tolerates)
+        mov = doppler_solution(obs, ephs, week, tow0, moving=True, solve_time=len(obs) >= MIN_MOVING_SATS)
         if mov is not None and mov[3] <= s.max_doppler_rms_mps:
             sol, kind = mov, "doppler (moving)"
     if sol is None:
         return SnapshotFix(False, "no Doppler solution for the a-priori position (too few satellites, "
-                                  "inconsistent Dopplers, or a moving receiver with fewer than 9 satellites); "
+                                  "inconsistent Dopplers, or a moving receiver with fewer than 8 satellites); "
                                   "give --position")
     if sol[3] > s.max_doppler_rms_mps:
         return SnapshotFix(False, f"the Doppler-only solution does not fit a static receiver (RMS {sol[3]:.0f} "
-                                  "m/s) nor a moving one (that needs 9 satellites): give --position")
+                                  "m/s) nor a moving one (that needs 8 satellites): give --position")
     lat, lon, _ = ecef2lla(sol[0])        # the Doppler fix's height is poor: put it on the surface
     return lla2ecef(lat, lon, 0.0 if s.height_m is None else s.height_m), sol[2], sol[3], kind
 
@@ -219,13 +223,15 @@ def _w_test(res, h, cov, sig):
 def _search(obs, rho_frac, ephs, week, tow0, x0, dt0, s, check=None):
     """Whole milliseconds from the prior (x0, dt0), solve, residual test (the RMS against
     ``residual_threshold_m``, each residual against ``max_norm_residual`` times its noise) with exclusion
-    of the worst satellite; the reference satellite tried in order of elevation.  (sol, used indices, rejected) or
-    None."""
+    of the worst satellite; the reference satellite tried in order of elevation.  With ``check`` (a Doppler
+    prior: its whole milliseconds are a hypothesis) one satellite more than the unknowns is kept, so that
+    the residual test can see them wrong (with none to spare any pseudoranges fit exactly: a 5-satellite
+    fix 725 km off passed).  (sol, used indices, rejected) or None."""
     prns = [o.prn for o in obs]
     pos, vel, clk, cdrift, tau = sat_geometry(ephs, prns, week, tow0 + dt0, x0)
     corr, el = corrections(x0, pos, tow0 + dt0, ephs.iono, s)
     pred = np.linalg.norm(pos - x0, axis=1) - clk + corr
-    min_sats = 4 if s.height_m is not None else 5
+    min_sats = (4 if s.height_m is not None else 5) + (1 if check is not None else 0)
     visible = el > np.radians(-5.0)
     order = [i for i in np.argsort(-el) if visible[i]][:3]
     sig_all = sigma_m([o.cn0_dbhz for o in obs], [o.length_ms for o in obs])

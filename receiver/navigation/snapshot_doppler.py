@@ -55,7 +55,7 @@ def doppler_solution(obs: list[SnapObs], ephs: Ephemerides, week: int, tow0: flo
             if moving:
                 up = enu_matrix(*ecef2lla(x)[:2])[2]
                 row = np.zeros(h.shape[1])
-                row[4:7] = up * np.median(sig) / VERTICAL_SIGMA_MPS
+                row[-3:] = up * np.median(sig) / VERTICAL_SIGMA_MPS       # the velocity: the last 3 columns
                 hw, zw = np.vstack([hw, row]), np.append(zw, -float(up @ v) * np.median(sig) / VERTICAL_SIGMA_MPS)
             try:
                 step = np.linalg.lstsq(hw, zw, rcond=None)[0]

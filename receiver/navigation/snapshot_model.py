@@ -121,17 +121,17 @@ def sat_geometry(ephs: Ephemerides, prns, week: int, t_rx: float, x, t_travel=No
     drift (m/s) for a reception at true GPS time t_rx (s of ``week``) at position x.  Transmission at
     t_rx - range / c (iterated twice from 75 ms)."""
     n = len(prns)
-    pos, vel = np.empty((n, 3)), np.empty((n, 3))
-    clk, drift = np.empty(n), np.empty(n)
     tau = np.full(n, 0.075) if t_travel is None else np.array(t_travel, float)
-    for i, prn in enumerate(prns):
-        eph = ephs.get(prn, week, t_rx)
-        for _ in range(2):
-            p, v, cb, cd = sat_state(eph, t_rx - tau[i])
-            pr = earth_rotation(p, tau[i])
-            tau[i] = np.linalg.norm(pr - x) / C_LIGHT
-        pos[i], vel[i] = pr, earth_rotation(v, tau[i])
-        clk[i], drift[i] = C_LIGHT * cb, C_LIGHT * cd
+    if n == 0:
+        return np.empty((0, 3)), np.empty((0, 3)), np.empty(0), np.empty(0), tau
+    eph = [ephs.get(prn, week, t_rx) for prn in prns]     # one vectorised orbit evaluation for all satellites
+    x = np.asarray(x, float)
+    for _ in range(2):
+        p, v, cb, cd = sat_state(eph, t_rx - tau)
+        pr = earth_rotation(p, tau)
+        tau = np.linalg.norm(pr - x, axis=-1) / C_LIGHT
+    pos, vel = pr.reshape(n, 3), earth_rotation(v, tau).reshape(n, 3)
+    clk, drift = C_LIGHT * np.asarray(cb, float).reshape(n), C_LIGHT * np.asarray(cd, float).reshape(n)
     return pos, vel, clk, drift, tau
 
 

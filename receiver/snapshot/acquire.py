@@ -80,15 +80,21 @@ def _offset_grid(n1: int, offs: np.ndarray) -> np.ndarray:
     return g
 
 
-def _lag_power(spec_code, lag0, offs, dlag):
-    """Correlations r_b at the fractional lags lag0 + offs (samples) of block 0, each block's lag moved by
-    b dlag (the code Doppler), and their power summed over the blocks: (power (n_offs,), r (nb, n_offs)).
-    spec_code (nb, n1): block spectrum times the conjugate code spectrum (band-limited interpolation of the
-    sampled correlation)."""
+def _doppler_ramp(spec_code, dlag):
+    """spec_code (nb, n1) with each block's lag moved by b dlag samples (the code Doppler): the ramp is
+    lag-independent, applied once per satellite (then :func:`_lag_power` costs one matrix product)."""
     nb, n1 = spec_code.shape
-    f = np.fft.fftfreq(n1)
-    ramp = np.exp(2j * np.pi * np.outer(lag0 + np.arange(nb) * dlag, f))
-    r = (spec_code * ramp) @ _offset_grid(n1, offs)
+    return spec_code * np.exp(2j * np.pi * np.outer(np.arange(nb) * dlag, np.fft.fftfreq(n1)))
+
+
+def _lag_power(spec_ramped, lag0, offs):
+    """Correlations r_b at the fractional lags lag0 + offs (samples) of block 0 (each block's lag moved by
+    the code Doppler: ``spec_ramped`` from :func:`_doppler_ramp`) and their power summed over the blocks:
+    (power (n_offs,), r (nb, n_offs)).  spec_ramped (nb, n1): block spectrum times the conjugate code
+    spectrum (band-limited interpolation of the sampled correlation)."""
+    n1 = spec_ramped.shape[1]
+    shift = np.exp(2j * np.pi * lag0 * np.fft.fftfreq(n1))
+    r = spec_ramped @ (shift[:, None] * _offset_grid(n1, offs))
     return (r.real ** 2 + r.imag ** 2).sum(axis=0), r
 
 
@@ -107,24 +113,24 @@ def fine_code_phase(x, fs, if_hz, prn, code_phase_chips, doppler_hz, d_chips: fl
     spc = fs / sig.chip_rate
     spec = _block_spectra(x, fs, if_hz, doppler_hz, n1, nb)
     code = sample_code(sig.code(prn), sig.chip_rate, fs, n1).astype(np.complex128)
-    sc = spec * np.conj(np.fft.fft(code))[None, :]
     # lag (samples) of the peak in block 0: the code's chip 0 sits at sample lag of the block
     lag0 = (-code_phase_chips * spc) % n1
     # the code phase grows by code_len (1 + fd / f_carrier) per block: the lag falls by the excess
     dlag = -sig.code_len * doppler_hz / sig.carrier_hz * spc
+    sc = _doppler_ramp(spec * np.conj(np.fft.fft(code))[None, :], dlag)
     # noise floor: the correlation far from the peak (32 lags spread over the rest of the code period)
-    pn, _ = _lag_power(sc, lag0, n1 * np.linspace(0.05, 0.95, 32), dlag)
+    pn, _ = _lag_power(sc, lag0, n1 * np.linspace(0.05, 0.95, 32))
     floor = float(np.mean(pn))
     if method in ("fit", "replica"):
-        centre = _triangle_fit(sc, lag0, dlag, spc, floor)
+        centre = _triangle_fit(sc, lag0, spc, floor)
     else:
-        centre = _symmetry_centre(sc, lag0, dlag, spc, d_chips)
+        centre = _symmetry_centre(sc, lag0, spc, d_chips)
     lag = lag0 + centre
     if method == "replica":
         ph = _replica_centre(x[:nb * n1], fs, if_hz, sig.code(prn), (-lag / spc) % sig.code_len, doppler_hz, sig,
                              n1, el_chips)
         lag = -ph * spc
-    _, r = _lag_power(sc, lag, np.zeros(1), dlag)
+    _, r = _lag_power(sc, lag, np.zeros(1))
     phase = (-lag / spc) % sig.code_len
     noise = floor / nb
     sp = float(np.mean(np.abs(r[:, 0]) ** 2)) - noise
@@ -132,7 +138,7 @@ def fine_code_phase(x, fs, if_hz, prn, code_phase_chips, doppler_hz, d_chips: fl
     return float(phase), r[:, 0], cn0
 
 
-def _triangle_fit(sc, lag0, dlag, spc, floor):
+def _triangle_fit(sc, lag0, spc, floor):
     """Offset (samples) from lag0 of the peak: the non-coherent power at whole-sample lags (minus the noise
     floor) within 1.2 chips of its maximum, least-squares fitted with A tri((lag - centre) / spc)^2 (the
     correlation of a sampled code with its replica at a rate incommensurate with the chip rate), centre on a
@@ -140,7 +146,7 @@ def _triangle_fit(sc, lag0, dlag, spc, floor):
     k = int(np.ceil(1.5 * spc))
     base = float(np.round(lag0))
     io = np.arange(-k, k + 1, dtype=float)
-    p, _ = _lag_power(sc, base, io, dlag)
+    p, _ = _lag_power(sc, base, io)
     q = p - floor
     km = int(np.argmax(q))
     sel = np.abs(io - io[km]) <= np.ceil(1.2 * spc)
@@ -170,30 +176,38 @@ def _replica_centre(x, fs, if_hz, code, phase0, doppler_hz, sig, n1, d_chips, h_
     rate = sig.chip_rate * (1.0 + doppler_hz / sig.carrier_hz)
     y = (x * np.exp(-2j * np.pi * (if_hz + doppler_hz) * np.arange(n) / fs)).astype(np.complex64)
     m = max(1, int(round(0.5 * d_chips / h_chips)))
-    js = np.arange(-(k_max + m), k_max + m + 1)
     base = np.arange(n) * (rate / fs)
     code = np.asarray(code, np.float32)
-    p = np.empty(len(js))
-    for i, j in enumerate(js):
-        rep = code[np.floor(phase0 + j * h_chips + base).astype(np.int64) % len(code)]
-        zb = (y * rep).reshape(nb, n1).sum(axis=1)
-        p[i] = float(np.sum(zb.real ** 2 + zb.imag ** 2))
-    k = np.arange(-k_max, k_max + 1)
-    s = p[k + k_max + 2 * m] - p[k + k_max]              # P(phi + d/2) - P(phi - d/2) at phi = phase0 + k h
-    cross = np.flatnonzero((s[:-1] > 0) & (s[1:] <= 0))
-    if not cross.size:
-        return float(phase0)
-    c = cross[np.argmin(np.abs(k[cross]))]
-    frac = s[c] / (s[c] - s[c + 1])
-    return float((phase0 + (k[c] + frac) * h_chips) % len(code))
+    memo = {}
+
+    def power(j):                        # power summed over the blocks at the code phase phase0 + j h_chips
+        if j not in memo:
+            rep = code[np.floor(phase0 + j * h_chips + base).astype(np.int64) % len(code)]
+            zb = (y * rep).reshape(nb, n1).sum(axis=1)
+            memo[j] = float(np.sum(zb.real ** 2 + zb.imag ** 2))
+        return memo[j]
+
+    def s(k):                            # P(phi + d/2) - P(phi - d/2) at phi = phase0 + k h
+        return power(k + m) - power(k - m)
+
+    # the downward zero crossing nearest phase0: walk from 0 towards it (a few replicas, not the whole range)
+    step = 1 if s(0) > 0 else -1
+    k = 0
+    while abs(k + step) <= k_max:
+        k += step
+        if (s(k) <= 0) if step > 0 else (s(k) > 0):
+            c = k - 1 if step > 0 else k
+            frac = s(c) / (s(c) - s(c + 1))
+            return float((phase0 + (c + frac) * h_chips) % len(code))
+    return float(phase0)
 
 
-def _symmetry_centre(sc, lag0, dlag, spc, d_chips):
+def _symmetry_centre(sc, lag0, spc, d_chips):
     """Offset (samples) from lag0 where the band-limited interpolated power d_chips earlier equals the power
     d_chips later (0.02-chip grid, interpolated)."""
     step = 0.02 * spc
     offs = np.arange(-60, 61) * step                                # +/- 1.2 chips
-    p, _ = _lag_power(sc, lag0, offs, dlag)
+    p, _ = _lag_power(sc, lag0, offs)
     k = int(np.argmax(p))
     dk = int(round(d_chips * spc / step))
     lo, hi = max(dk, k - dk), min(len(offs) - dk - 1, k + dk)
