@@ -22,14 +22,16 @@ from .logs import setup_cli
 def _prepare_process() -> None:
     """What every command sets up before its work: one BLAS thread (:func:`receiver.limit_blas_threads`,
     effective when numpy has not loaded yet), stale numba caches of a source tree dropped, and numba's
-    first cache load without its BLAS probe importing scipy.linalg (receiver/_numba_start.py), and the C
-    allocator's settings for a flat resident memory (receiver/_malloc.py, before any thread starts)."""
+    first cache load without its BLAS probe importing scipy.linalg and a failed cache write (a full disk)
+    not fatal (receiver/_numba_start.py), and the C allocator's settings for a flat resident memory
+    (receiver/_malloc.py, before any thread starts)."""
     limit_blas_threads()
     from . import _malloc, _numba_start
     _malloc.configure()
     from .tracking import refresh_compiled_caches
     refresh_compiled_caches()
     _numba_start.prepare()
+    _numba_start.tolerate_cache_write_errors()
 
 
 @dataclass
