@@ -93,6 +93,7 @@ def warm(modules=RUN_MODULES) -> dict:
         from ..tracking import refresh_compiled_caches
         refresh_compiled_caches()
         _numba_start.prepare()
+        _numba_start.tolerate_cache_write_errors()      # as the CLI's set-up: a full disk is not a crash
         for m in modules:
             importlib.import_module(m)
         n = load_cached_kernels()
