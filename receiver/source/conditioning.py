@@ -392,7 +392,10 @@ class ConditionedReader:
         if self._pdet and self._check_pulses(y, s) or self._tf and self._check_tf(s, len(y)) \
                 or not self._tones_mon:
             return                              # (pulses or a sweep just found: this span's lines are no tones)
-        det = detect_tones(y, fs, cfg.fft_size, cfg.pfa, cfg.min_db, 16)
+        # the check's false-alarm probability from a rate per unit time: at pfa per check (10 checks a
+        # second) a clean file got a false notch every ~100 s
+        pfa = min(cfg.pfa, cfg.monitor_false_per_hour * cfg.monitor_ms / 3.6e6)
+        det = detect_tones(y, fs, cfg.fft_size, pfa, cfg.min_db, 16)
         if det.noise_power <= 0:
             return
         L = len(y)

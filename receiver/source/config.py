@@ -105,6 +105,10 @@ SCHEMA = {
                                              "notch frequencies", lo=0.0),
         "monitor_segments": P(8, "int", "periodogram segments (of fft_size samples) per monitor check",
                               lo=2, hi=256),
+        "monitor_false_per_hour": P(0.1, "float", "interference monitor: expected false tone detections "
+                                                  "per hour of white noise (each check's false-alarm "
+                                                  "probability is this x monitor_ms / 1 h, at most pfa; the "
+                                                  "detection span keeps pfa)", lo=1e-9, hi=3600.0),
     },
 }
 

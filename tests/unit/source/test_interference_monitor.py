@@ -77,6 +77,20 @@ def test_white_noise_gets_no_notch():
     assert [e for e in r.tone_events if e[1] == "added"] == []
 
 
+def test_monitor_false_alarms_are_a_rate_per_unit_time():
+    """1000 monitor checks of white noise (2 ms apart, small spectra, the 6-dB floor rule off): with the
+    detection span's pfa (2 %) per check about 20 would add a false notch; the monitor's per-check
+    probability comes from monitor_false_per_hour (0.1 per hour of stream) and adds none."""
+    n = int(2.0 * FS)
+    cfg = _cond(monitor_ms=2.0, fft_size=256, pfa=0.02, min_db=0.0, pulse_detection=False,
+                tf_excision=False, detect_ms=2.0)
+    r = ConditionedReader(_ArrayReader(_noise(n, 5)), cfg)
+    for s in range(0, n, 260000):
+        r.read(s, 260000)
+    assert r.checks >= 900
+    assert [e for e in r.tone_events if e[1] == "added"] == []
+
+
 def _swept(n, f0, span, period, jnr_db, on_s):
     t = np.arange(n) / FS
     tri = 2 * np.abs(2 * np.mod(t / period, 1.0) - 1.0) - 1.0
