@@ -195,6 +195,12 @@ def e5a_q_secondary_bits(prn: int) -> np.ndarray:
     return _hex_bits(h, CS100_LEN)
 
 
+def e5a_q_prns() -> tuple[int, ...]:
+    """The code numbers whose E5a-Q pilot is complete (primary and CS100 secondary code): 1..50 without the
+    CS100 codes the data file lacks (37, 38, 39 for issue 1.1)."""
+    return tuple(p for p in GAL_PRNS if p in _table()["cs100"])
+
+
 def e5a_i_secondary() -> np.ndarray:
     """CS20_1 as +/-1 float32, one value per 1-ms primary-code period (the same for every satellite)."""
     return (1.0 - 2.0 * e5a_i_secondary_bits()).astype(np.float32)
