@@ -11,7 +11,9 @@ from ..gnss.registry import SIGNAL_NAMES, get_signal
 UNTRACKED_SIGNALS = ()
 #: signals tracked as a second band of the first signal's satellites, from a file of their own
 #: (input.signal_files), aided by the first signal's channels (receiver/dualband.py; docs: Dual frequency)
-BAND_SIGNALS = ("gps_l5",)
+BAND_SIGNALS = ("gps_l5", "gal_e5a")
+#: the signal whose channels aid each second-band signal (the same satellites' L1 / E1 channels)
+BAND_BASE = {"gps_l5": "gps_l1ca", "gal_e5a": "gal_e1"}
 
 #: the PRNs each signal has codes for (receiver.gnss.registry's SignalDef.prns)
 SIGNAL_PRNS = {name: tuple(get_signal(name).prns) for name in SIGNAL_NAMES}
@@ -20,8 +22,9 @@ SIGNAL_PRNS = {name: tuple(get_signal(name).prns) for name in SIGNAL_NAMES}
 SIGNALS_SCHEMA = {
     "signal": P("gps_l1ca", "str", "signal to acquire, track and navigate with: gps_l1ca (GPS and QZSS "
                                    "L1 C/A, LNAV), bds_b1i (BeiDou B1I, D1/D2 messages) or gal_e1 (Galileo E1 OS, "
-                                   "I/NAV; docs: Galileo E1); gps_l5 (GPS L5 Q5 pilot, only as signals: [gps_l1ca, "
-                                   "gps_l5] with input.signal_files; docs: Dual frequency)",
+                                   "I/NAV; docs: Galileo E1); gps_l5 (GPS L5 Q5 pilot) and gal_e5a (Galileo E5a-Q "
+                                   "pilot) only as second bands, e.g. signals: [gps_l1ca, gps_l5] or [gal_e1, "
+                                   "gal_e5a], with input.signal_files (docs: Dual frequency)",
                 choices=SIGNAL_NAMES),
     "signals": P([], "list", "several signals in one run (e.g. [gps_l1ca, gal_e1, bds_b1i]; empty: `signal` alone): "
                              "every signal is acquired and tracked from the same input (input.if_hz is the IF "
@@ -36,10 +39,10 @@ SCHEMA = {
                                     "{bds_b1i: [6, 7, 8]}); a signal not listed searches acquisition.prns "
                                     "when it is the first of `signals`, else all its PRNs"),
     "coherent_ms": P(4, "int", "coherent integration per non-coherent step (ms)", lo=1, hi=10),
-    "band_aiding": P(True, "bool", "second band (gps_l5 in `signals`): search each satellite's L5 signal "
-                                   "around the code phase and Doppler of its L1 channel (false: every code phase, "
-                                   "the full Doppler range; docs: Dual frequency)"),
-    "band_ms": P(10, "int", "second band: 1-ms correlations summed non-coherently per L5 search", lo=1,
+    "band_aiding": P(True, "bool", "second band (gps_l5 / gal_e5a in `signals`): search each satellite's "
+                                   "L5 / E5a signal around the code phase and Doppler of its L1 / E1 channel "
+                                   "(false: every code phase, the full Doppler range; docs: Dual frequency)"),
+    "band_ms": P(10, "int", "second band: 1-ms correlations summed non-coherently per L5 / E5a search", lo=1,
                  hi=200),
     "noncoherent": P(10, "int", "number of non-coherent sums", lo=1, hi=100),
     "doppler_max_hz": P(10000.0, "float", "Doppler search half-range", lo=0.0),
@@ -107,7 +110,8 @@ def signal_prns(cfg: Section, name: str) -> list:
 
 
 def _prn_text(name: str) -> str:
-    return {"gps_l1ca": "1-32 (GPS) and 193-202 (QZSS)", "gal_e1": "1-50", "gps_l5": "1-32"}.get(name, "1-63")
+    return {"gps_l1ca": "1-32 (GPS) and 193-202 (QZSS)", "gal_e1": "1-50", "gps_l5": "1-32",
+            "gal_e5a": "1-36"}.get(name, "1-63")
 
 
 def check_prns(a: Section):
@@ -119,10 +123,12 @@ def check_prns(a: Section):
 def check_signals(cfg: Section, sigs: list):
     """The run's signals are ones the receiver stages process."""
     key = "signals" if cfg.signals else "signal"
-    if any(s in BAND_SIGNALS for s in sigs) and list(sigs) != ["gps_l1ca", "gps_l5"]:
-        raise UserError(f"config key '{key}': {', '.join(b for b in sigs if b in BAND_SIGNALS)} is tracked as "
-                        f"the second band of GPS L1 C/A: use signals: [gps_l1ca, gps_l5] (no third signal yet) with "
-                        f"the L5 file in input.signal_files (docs: Dual frequency)")
+    for b in (s for s in sigs if s in BAND_SIGNALS):
+        base = BAND_BASE[b]
+        if base not in sigs or sigs.index(b) < sigs.index(base) or sigs[0] in BAND_SIGNALS:
+            raise UserError(f"config key '{key}': {b} is tracked as the second band of {base} (aided by its "
+                            f"channels): list it after {base}, e.g. signals: [{base}, {b}], with its file in "
+                            f"input.signal_files (docs: Dual frequency)")
     for s in sigs:
         if s in UNTRACKED_SIGNALS:
             key = "signals" if cfg.signals else "signal"

@@ -8,10 +8,11 @@ from __future__ import annotations
 from .signals import GPS_L1CA, SignalDef
 from .signals_bds import BDS_B1I
 from .signals_gal import GAL_E1
+from .signals_gal_e5a import GAL_E5A
 from .signals_l5 import GPS_L5
 
 SIGNALS: dict[str, SignalDef] = {"gps_l1ca": GPS_L1CA, "bds_b1i": BDS_B1I, "gal_e1": GAL_E1,
-                               "gps_l5": GPS_L5}
+                               "gps_l5": GPS_L5, "gal_e5a": GAL_E5A}
 SIGNAL_NAMES = tuple(SIGNALS)
 
 

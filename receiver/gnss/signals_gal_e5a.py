@@ -3,7 +3,8 @@
 chips at 10.23 Mcps, 1 ms, under its 100-ms CS100 secondary code); E5a-I (F/NAV at 50 sps under CS20_1) is
 there for the simulator.  Codes are in :mod:`receiver.gnss.gal_e5a_codes`.
 
-Not in the signal registry yet (no pipeline wiring): ``GAL_E5A`` describes the signal only.
+In the signal registry as ``gal_e5a``: tracked as the second band of Galileo E1 (``signals: [gal_e1, gal_e5a]``
+with the E5a file in ``input.signal_files``; receiver/dualband.py), aided by the E1 channels.
 """
 from __future__ import annotations
 

@@ -56,6 +56,9 @@ def simulate(scenario, out, sets, quiet):
             if "l5_if" in paths:
                 click.echo(f"wrote {paths['l5_if']} (GPS L5, truth {paths['l5_truth']}; same clock, "
                            f"named in input.signal_files)")
+            if "e5a_if" in paths:
+                click.echo(f"wrote {paths['e5a_if']} (Galileo E5a, truth {paths['e5a_truth']}; same clock, "
+                           f"named in input.signal_files)")
             click.echo(f"receiver input section: {paths['yaml']}")
 
 

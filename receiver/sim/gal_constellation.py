@@ -55,7 +55,8 @@ def gal_nominal_content(path, gps_week: int, gps_tow: float) -> dict:
                 omega0=_wrap(math.radians(float(s["raan_deg"])) + OMEGA_E_GAL * toe),
                 omega=math.radians(float(s["omega_deg"])), m0=math.radians(float(s["m0_deg"])),
                 delta_n=0.0, idot=0.0, omega_dot=float(s.get("omega_dot", 0.0)), cuc=0.0, cus=0.0, crc=0.0,
-                crs=0.0, cic=0.0, cis=0.0, health=0, ura_index=SISA_INDEX)
+                crs=0.0, cic=0.0, cis=0.0, health=0, ura_index=SISA_INDEX,
+                bgd_e1e5a=float(s.get("bgd_e1e5a", 0.0)))
         except (KeyError, TypeError, ValueError):
             raise UserError(f"constellation file {path}: satellite entry {k + 1} is incomplete or invalid "
                             "(needs prn 1..50, sqrt_a, e, i0_deg, raan_deg, omega_deg, m0_deg)") from None

@@ -1,4 +1,6 @@
-"""GPS L1 + L5 recordings on one receiver clock: ``simulate_l1_l5`` writes the L1 C/A file as
+"""Dual-frequency recordings on one receiver clock: GPS L1 + L5 and Galileo E1 + E5a.
+
+GPS L1 + L5: ``simulate_l1_l5`` writes the L1 C/A file as
 :func:`receiver.sim.simulate.simulate` does and, beside it, ``<stem>_l5.bin`` holding the GPS L5 Q5 pilot of
 the same satellites (IS-GPS-705 codes: Q5 + NH20, I5 + NH10), each file with its own truth
 (``<stem>_l5.truth.h5``).
@@ -17,6 +19,17 @@ TGD) on both bands, i.e. inter-signal corrections ISC_L1CA = ISC_L5Q5 = 0.
 Signal: Q5 (NH20) and I5 (NH10 x pseudo-random 100-sps symbols: CNAV is not modelled) in quadrature, each at
 the pilot C/N0 (L1 C/N0 + ``l5.cn0_offset_db``).  Not modelled: CNAV, QZSS L5, frequency-dependent
 scintillation.
+
+Galileo E1 + E5a (``e5a.enabled``, a ``signal: gal_e1`` scenario): ``simulate_l1_l5`` writes, beside the E1 file,
+``<stem>_e5a.bin`` holding E5a-Q (CS100_n of the PRN, aligned to the satellite's 100-ms epochs) and E5a-I
+(CS20_1 x pseudo-random 50-sps symbols: F/NAV is not modelled) of every Galileo satellite, on the same clock,
+the ionosphere (f_E1 / f_E5a)^2 times the E1 one.  Group delays (ICD 5.1.5): the I/NAV word type 5 of the E1
+file carries BGD(E1,E5a) of each satellite (data/gal_nominal_constellation.yaml); the E1 signal leaves with the
+E1 single-frequency clock dt(E1) = dt(E1,E5b) - BGD(E1,E5b) (the I/NAV clock, Eq. 15), the E5a signal with the
+E5a single-frequency clock of the E1/E5a pair, dt(E5a) = dt(E1,E5a) - gamma BGD(E1,E5a) (Eq. 16) where
+dt(E1,E5a) = dt(E1) + BGD(E1,E5a) (Eq. 15 for that pair): the E5a clock is dt(E1) + (1 - gamma) BGD(E1,E5a)
+(:func:`e5a_clock_offset_s`).  Not modelled: F/NAV, E5b, the AltBOC side band structure (E5a is a QPSK signal of
+its own, as a receiver filtering E5a alone sees it).
 """
 from __future__ import annotations
 
@@ -31,19 +44,30 @@ from ..errors import UserError
 from ..gnss.l5_codes import L5_PRNS, nh_signs
 from ..gnss.signals import L1_HZ
 from ..gnss.signals_l5 import GPS_L5
+from ..gnss.signals_gal_e5a import GAL_E5A
 from ..safeio import TMP_SUFFIX, OutputLock, check_output, write_error_message
 from .outputs import output_paths, remove_files
 from .scenario import load_scenario
 
 #: L5 group delay / L1 group delay of the same ionosphere
 GAMMA_15 = (L1_HZ / GPS_L5.carrier_hz) ** 2
+#: E5a group delay / E1 group delay of the same ionosphere (the same number: E1 = L1, E5a = L5)
+GAMMA_E1E5A = (L1_HZ / GAL_E5A.carrier_hz) ** 2
 
 
-def l5_path(out_path) -> str:
-    """The L5 file's name beside the L1 file ``out_path`` (``x.bin`` -> ``x_l5.bin``)."""
+def e5a_clock_offset_s(bgd_e1e5a_s: float) -> float:
+    """The E5a single-frequency satellite clock minus the E1 one (s) of a satellite broadcasting
+    BGD(E1,E5a): (1 - gamma) BGD (ICD Eqs. 15-16 with dt(E1,E5a) = dt(E1) + BGD(E1,E5a)).  Besides the
+    ionosphere, the E5a pseudorange is then c (gamma - 1) BGD longer than the E1 one."""
+    return (1.0 - GAMMA_E1E5A) * bgd_e1e5a_s
+
+
+def l5_path(out_path, tag: str = "l5") -> str:
+    """The band file's name beside the L1 / E1 file ``out_path`` (``x.bin`` -> ``x_l5.bin``; tag e5a:
+    ``x_e5a.bin``)."""
     p = os.fspath(out_path)
     stem, ext = os.path.splitext(p)
-    return stem + "_l5" + (ext or ".bin")
+    return stem + "_" + tag + (ext or ".bin")
 
 
 class _L5Signs:
@@ -82,6 +106,74 @@ def _l5_rows(sim, b, p, s, sig):
     sig.append((p, chips_blk, ph + 0.25, amp, dsign, sim.i5_codes[p]))
 
 
+class _E5aSigns:
+    """Per-millisecond signs of Galileo satellite ``prn``'s E5a components: E5a-Q (``signs``) CS100_prn,
+    aligned to the satellite's 100-ms epochs; E5a-I (``signs_i``) CS20_1 x 50-sps symbols, pseudo-random (a fixed
+    function of PRN, seed and symbol index: F/NAV is not modelled)."""
+
+    def __init__(self, prn: int, seed: int):
+        self.cs100, self.cs20 = GAL_E5A.secondary(prn), GAL_E5A.data_secondary(prn)
+        self.prn, self.seed = prn, seed
+
+    def signs(self, ms_abs0, count):
+        """E5a-Q signs of satellite-time ms ``ms_abs0`` .. ``ms_abs0 + count - 1``."""
+        return self.cs100[(np.int64(ms_abs0) + np.arange(count)) % 100]
+
+    def signs_i(self, ms_abs0, count):
+        """E5a-I signs of the same milliseconds."""
+        ms = np.int64(ms_abs0) + np.arange(count, dtype=np.int64)
+        h = ((ms // 20) * np.int64(0x9E3779B1) + np.int64(self.prn) * np.int64(0x85EBCA77)
+             + np.int64(self.seed) * np.int64(0xC2B2AE3D) + np.int64(0x5A5A)) & np.int64(0xFFFFFFFF)
+        h = ((h ^ (h >> 15)) * np.int64(0x2C1B3C6D)) & np.int64(0xFFFFFFFF)
+        sym = (1.0 - 2.0 * ((h >> 11) & 1)).astype(np.float32)
+        return sym * self.cs20[ms % 20]
+
+
+def _e5a_rows(sim, b, p, s, sig):
+    """The E5a simulator's kernel rows of satellite p: E5a-Q (the truth's carrier phase) and E5a-I (a quarter
+    cycle ahead), each at the pilot's amplitude.  (The simulator counts a Galileo satellite's chips from a
+    4-ms boundary, ``m_ref_gal``: the 1-ms periods of E5a are numbered from 4 m_ref_gal.)"""
+    if not (b.n_samp > 0 and np.any(s.amp > 0)):
+        return
+    code_n, chips_total = s.code_n, s.chips_total
+    ms0 = int(math.floor(chips_total[0] / code_n))
+    chips_blk = chips_total - ms0 * code_n
+    count = int(chips_blk[-1] // code_n) + 2
+    ms_abs = 4 * sim.m_ref_gal + ms0
+    ph = s.if_hz * b.t_rel + s.carr
+    a32 = s.amp.astype(np.float32)
+    sig.append((p, chips_blk, ph, a32, sim.nav[p].signs(ms_abs, count), sim.codes[p]))
+    sig.append((p, chips_blk, ph + 0.25, a32, sim.nav[p].signs_i(ms_abs, count), sim.i5_codes[p]))
+
+
+def _e5a_geometry(sim, b):
+    """The E1 simulator's geometry with each satellite's clock moved to its E5a clock (e5a_clock_offset_s of
+    its broadcast BGD(E1,E5a))."""
+    type(sim)._block_geometry(sim, b)
+    for p, q in b.geo.items():
+        q["clk"] = q["clk"] + sim.e5a_clock_offset[p]
+
+
+def _as_e5a(sim, factor: float, cn0_offset_db: float, seed: int):
+    """Turn a Galileo E1 simulator built on the E5a front-end settings into the E5a one."""
+    other = [p for p in sim.prns if p not in GAL_E5A.prns]
+    if other:
+        raise UserError(f"e5a.enabled: Galileo satellite {other[0]} has no E5a-Q secondary code in ICD issue 1.1 "
+                        "(PRN 1-36): set constellation.exclude_prns")
+    sim.signals, sim.signal = [GAL_E5A], GAL_E5A
+    sim.sat_sig = {p: (GAL_E5A, p, sim.if_hz) for p in sim.prns}
+    sim.codes = {p: GAL_E5A.code(p) for p in sim.prns}
+    sim.i5_codes = {p: GAL_E5A.data_code(p) for p in sim.prns}
+    sim.nav = {p: _E5aSigns(p, seed) for p in sim.prns}
+    sim._sat_rows = types.MethodType(_e5a_rows, sim)
+    sim.e5a_clock_offset = {p: e5a_clock_offset_s(sim.ephs[p].bgd_e1e5a) for p in sim.prns}
+    sim._block_geometry = types.MethodType(_e5a_geometry, sim)
+    sim.iono_scale = {p: factor * GAMMA_E1E5A for p in sim.prns}
+    base = sim.cn0
+    sim.cn0 = lambda prn, t_rel, el_deg: base(prn, t_rel, el_deg) + cn0_offset_db
+    sim.rng = np.random.default_rng(np.random.SeedSequence([seed, 1, 5, 1]))      # own noise stream
+
+
 def _as_l5(sim, factor: float, cn0_offset_db: float, seed: int):
     """Turn a GPS L1 C/A simulator built on the L5 front-end settings into the L5 Q5 one."""
     other = [p for p in sim.prns if p not in L5_PRNS]
@@ -100,25 +192,42 @@ def _as_l5(sim, factor: float, cn0_offset_db: float, seed: int):
     sim.rng = np.random.default_rng(np.random.SeedSequence([seed, 1, 5]))      # own noise stream
 
 
+#: the band of each scenario section: (tag, band signal name, base signal name, the conversion of a base simulator)
+_BANDS = {"l5": ("l5", "gps_l5", "gps_l1ca", _as_l5), "e5a": ("e5a", "gal_e5a", "gal_e1", _as_e5a)}
+
+
+def band_key(sc):
+    """The scenario's enabled band section (``l5`` or ``e5a``), None without one; both at once is a UserError
+    (the GPS + Galileo pair of bands is not simulated yet)."""
+    on = [k for k in _BANDS if getattr(sc, k).enabled]
+    if len(on) > 1:
+        raise UserError("l5.enabled and e5a.enabled: one band file per recording here (GPS L1 + L5, or Galileo "
+                        "E1 + E5a)")
+    return on[0] if on else None
+
+
 def simulate_l1_l5(sc, out_path, reads, progress, simulator, scale_ionosphere) -> dict:
-    """Write the L1 and L5 recordings (and their truth and fragment files) of scenario ``sc`` (l5.enabled).
-    ``simulator``, ``scale_ionosphere``: receiver.sim.simulate's simulator class and ionosphere scaling
-    (passed in: that module calls this one).  Returns the L1 paths plus ``l5_if`` and ``l5_truth``."""
+    """Write the L1 and L5 recordings (and their truth and fragment files) of scenario ``sc`` (l5.enabled;
+    e5a.enabled: the Galileo E1 and E5a ones).  ``simulator``, ``scale_ionosphere``: receiver.sim.simulate's
+    simulator class and ionosphere scaling (passed in: that module calls this one).  Returns the L1 paths plus
+    ``l5_if`` and ``l5_truth`` (E5a: ``e5a_if``, ``e5a_truth``)."""
     _Simulator, _remove = simulator, remove_files
-    if sc.signals or sc.signal != "gps_l1ca":
-        raise UserError("l5.enabled: the L1 + L5 recording is a GPS L1 C/A scenario (signal: gps_l1ca, "
-                        "no signals list)")
-    if sc.constellation.source not in ("embedded", "rinex"):
+    key = band_key(sc)
+    tag, band_name, base_name, convert = _BANDS[key]
+    if sc.signals or sc.signal != base_name:
+        raise UserError(f"{key}.enabled: the {base_name} + {band_name} recording is a {base_name} scenario "
+                        f"(signal: {base_name}, no signals list)")
+    if key == "l5" and sc.constellation.source not in ("embedded", "rinex"):
         raise UserError("l5.enabled: constellation.source must give GPS orbits (embedded or rinex)")
-    l5 = sc.l5
-    paths1, paths5 = output_paths(out_path), output_paths(l5_path(out_path))
+    l5 = getattr(sc, key)
+    paths1, paths5 = output_paths(out_path), output_paths(l5_path(out_path, tag))
     factor = sc.atmosphere.iono_scale
     sim1 = _Simulator(sc)
     scale_ionosphere(sim1, factor)
     sc5 = load_scenario(sc, [f"frontend.sample_rate_hz={l5.sample_rate_hz!r}", f"frontend.if_hz={l5.if_hz!r}",
                              f"frontend.format={l5.format}"])
     sim5 = _Simulator(sc5)
-    _as_l5(sim5, factor, l5.cn0_offset_db, sc.time.seed)
+    convert(sim5, factor, l5.cn0_offset_db, sc.time.seed)
     for paths in (paths1, paths5):
         for kind, p in paths.items():
             check_output(p, reads, what="output")
@@ -131,7 +240,7 @@ def simulate_l1_l5(sc, out_path, reads, progress, simulator, scale_ionosphere) -
             sim5.run(paths5, progress, tmp5)
         except OSError as exc:
             raise UserError(write_error_message("output", paths1["if"], exc)) from None
-        _fragment(tmp1["yaml"], paths5["if"], l5)
+        _fragment(tmp1["yaml"], paths5["if"], l5, base_name, band_name)
         for paths, tmp in ((paths5, tmp5), (paths1, tmp1)):
             for k in ("truth", "yaml", "sigmf", "tag", "if"):
                 if k == "tag" and not os.path.exists(tmp[k]):
@@ -144,19 +253,19 @@ def simulate_l1_l5(sc, out_path, reads, progress, simulator, scale_ionosphere) -
     finally:
         for lk in locks:
             lk.release()
-    return {**paths1, "l5_if": paths5["if"], "l5_truth": paths5["truth"]}
+    return {**paths1, f"{tag}_if": paths5["if"], f"{tag}_truth": paths5["truth"]}
 
 
-def _fragment(path, l5_file, l5):
-    """The L1 file's receiver fragment: both signals, the L5 file in input.signal_files."""
+def _fragment(path, l5_file, l5, base_name="gps_l1ca", band_name="gps_l5"):
+    """The L1 / E1 file's receiver fragment: both signals, the band's file in input.signal_files."""
     with open(path) as f:
         head = [ln for ln in f.read().splitlines() if ln.startswith("#")]
     with open(path) as f:
         frag = yaml.safe_load(f)
-    frag["input"]["signal_files"] = {"gps_l5": {"path": os.path.basename(l5_file), "format": l5.format,
+    frag["input"]["signal_files"] = {band_name: {"path": os.path.basename(l5_file), "format": l5.format,
                                                 "sample_rate_hz": float(l5.sample_rate_hz),
                                                 "if_hz": float(l5.if_hz)}}
-    frag = {"signals": ["gps_l1ca", "gps_l5"], **frag}
+    frag = {"signals": [base_name, band_name], **frag}
     with open(path, "w") as f:
         f.write("\n".join(head) + "\n")
         yaml.safe_dump(frag, f, sort_keys=False)

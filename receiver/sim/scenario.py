@@ -173,6 +173,18 @@ SCENARIO_SCHEMA = {
         "cn0_offset_db": P(0.0, "float", "Q5 pilot C/N0 (I5: the same) minus the L1 C/A C/N0 of the "
                                                 "same satellite (dB)"),
     },
+    "e5a": {
+        "enabled": P(False, "bool", "signal gal_e1: also write a Galileo E5a recording (<stem>_e5a.bin, E5a-Q pilot "
+                                    "and E5a-I of every Galileo satellite, own truth <stem>_e5a.truth.h5) on the "
+                                    "same receiver clock as the E1 file, the E1-E5a group delays those of the "
+                                    "BGD(E1,E5a) in I/NAV; the receiver fragment names it in input.signal_files "
+                                    "(docs: Dual frequency)"),
+        "sample_rate_hz": P(21.0e6, "float", "E5a file sample rate (as l5.sample_rate_hz)", lo=1e6, hi=1e9),
+        "if_hz": P(0.0, "float", "E5a file IF (the front end's second channel, its own LO)"),
+        "format": P("int8_iq", "str", "E5a file sample format", choices=tuple(FORMATS)),
+        "cn0_offset_db": P(0.0, "float", "E5a-Q pilot C/N0 (E5a-I: the same) minus the E1 C/N0 of the same "
+                                         "satellite (dB)"),
+    },
     "navigation": {
         "data": P(True, "bool", "modulate the LNAV data bits (false: pilot-like, no data)"),
         "page18_every_frame": P(True, "bool", "broadcast subframe 4 page 18 (iono/UTC) in every frame "

@@ -78,7 +78,7 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     if len(set(map(os.path.abspath, paths.values()))) < len(paths):
         raise UserError(f"output {paths['if']}: the IF, truth and receiver-input names must differ "
                         f"(use a .bin name)")
-    if sc.l5.enabled:                    # + an L5 file on the same clock (sim/multiband.py)
+    if sc.l5.enabled or sc.e5a.enabled:  # + an L5 / E5a file on the same clock (sim/multiband.py)
         from .multiband import simulate_l1_l5
         return simulate_l1_l5(sc, out_path, reads, progress, _Simulator, scale_ionosphere)
     sim = _Simulator(sc)                 # input errors surface here, before any file or directory is made

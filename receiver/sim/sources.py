@@ -159,11 +159,12 @@ def select_signals(sc):
     if bds_src and names[0] != "bds_b1i":
         raise UserError(f"constellation.source '{con.source}' needs signal: bds_b1i")
     gal = names[0] == "gal_e1" and not multi
-    if gal and (con.source != "embedded" or atm.ionosphere != "none"):
+    # (an E1 + E5a recording may have a Klobuchar ionosphere: the dual-frequency fix needs no broadcast model)
+    if gal and (con.source != "embedded" or (atm.ionosphere != "none" and not sc.e5a.enabled)):
         raise UserError("signal gal_e1: the Galileo orbits come from constellation.gal_file (leave "
                         "constellation.source at embedded) and the ionosphere must be none (Galileo "
                         "broadcasts NeQuick-G, not the simulator's Klobuchar model): set atmosphere.ionosphere: "
-                        "none")
+                        "none (or e5a.enabled with atmosphere.klobuchar_alpha/beta: an E1 + E5a recording)")
     return signals, multi, gal, bds_src
 
 

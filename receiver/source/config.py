@@ -14,7 +14,7 @@ REAL_FORMAT_ALIASES = tuple(a for a, f in ALIASES.items() if not FORMATS[f].comp
 FORMATS_ALL = tuple(FORMATS) + tuple(ALIASES)
 #: signals whose file (input.signal_files) may have its own format and sample rate: they are read by their own
 #: input stage (receiver.tracking.aided), not on the first signal's sample clock (acquisition.config.BAND_SIGNALS)
-OWN_RATE_SIGNALS = ("gps_l5",)
+OWN_RATE_SIGNALS = ("gps_l5", "gal_e5a")
 
 SCHEMA = {
     "path": P(None, "str", "IF sample file (relative paths are taken from the current directory; "
@@ -35,8 +35,8 @@ SCHEMA = {
     "signal_files": P({}, "dict", "runs over several signals recorded into one file per signal at the same "
                                   "instant (one clock): signal name -> {path, if_hz, format, sample_rate_hz} "
                                   "of that signal's file (format and sample_rate_hz default to input.format "
-                                  "and input.sample_rate_hz; gps_l5 may have its own, e.g. 20.46 MS/s); a "
-                                  "signal not listed is read from input.path, which holds the first signal"),
+                                  "and input.sample_rate_hz; gps_l5 and gal_e5a may have their own, e.g. 20.46 "
+                                  "MS/s); a signal not listed is read from input.path, which holds the first signal"),
     "iq_swap": P(False, "bool", "swap I and Q (spectral inversion) on reading"),
     "decimate": P("auto", "any", "input stage: mix the IF to 0 Hz, low-pass filter and resample to a "
                                  "complex baseband stream before acquisition and tracking.  auto: when the "

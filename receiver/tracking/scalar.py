@@ -41,7 +41,7 @@ class Channel:
         nh = sig.secondary(prn)
         bit_ms, self.max_int_ms, weak_int = integration_plan(sig, prn, trk_cfg, dataless, nh)
         self.code_ext, nh_base = code_table(sig.code(prn), nh)
-        self.hist = np.zeros(20, np.int64)
+        self.hist = np.zeros(max(20, bit_ms), np.int64)      # sign changes per code period of a bit / overlay
         self._carrier_loop(car, weak, trk_cfg)
         self.cfg = kernel_config(trk_cfg, sig, fs, if_hz, self.max_int_ms, bit_ms, nh_base, dataless, weak_int)
         self.vector_carrier = self.vector_code = False

@@ -45,8 +45,9 @@ def test_own_rate_only_for_band_signals(tmp_path):
 
 
 def test_band_signal_needs_l1_first_and_its_file(tmp_path):
-    for sigs in (["gps_l5"], ["gps_l5", "gps_l1ca"], ["bds_b1i", "gps_l5"], ["gps_l1ca", "bds_b1i", "gps_l5"]):
-        with pytest.raises(UserError, match="second band of GPS L1 C/A"):
+    for sigs in (["gps_l5"], ["gps_l5", "gps_l1ca"], ["bds_b1i", "gps_l5"], ["gal_e1", "gps_l5"],
+                 ["gal_e5a", "gal_e1"], ["gps_l1ca", "gal_e5a"]):
+        with pytest.raises(UserError, match="second band of (gps_l1ca|gal_e1)"):
             load_receiver_config(None, [("signals", sigs)])
     cfg = _cfg(tmp_path)
     with pytest.raises(UserError, match="input.signal_files.gps_l5"):
