@@ -31,7 +31,7 @@ from .runfile.provenance import provenance_async
 from .runfile.background import BackgroundWriter
 from .runfile.writer import RunWriter, chunk_rows_for
 from .runfile.record import EPOCH_DTYPE, IONO_BROADCAST
-from .dualband import DualBand, band_signal, core_signals, open_band_input
+from .dualband import DualBand, band_signal, band_signals, core_signals, open_band_input
 from .gnss.registry import get_signal
 from .gnss.satid import MIXED
 from .tracking.carrier import make_carrier_loop
@@ -138,8 +138,7 @@ def run(cfg, quiet: bool = False, log=None, reads=()) -> RunSummary:
         sigs = core_signals(cfg)
         plan_chip = max(get_signal(n).chip_rate for n in sigs)
         readers = [open_input(cfg, n, plan_chip if len(sigs) > 1 else None) for n in sigs]
-        band = band_signal(cfg)
-        band_reader = open_band_input(cfg, band) if band else None
+        band_reader = [open_band_input(cfg, n) for n in band_signals(cfg)] or None
         reader = readers[0]
         out_path = default_output_path(cfg, cfg.input.path)
         check_meaning(cfg, reader)
@@ -256,7 +255,7 @@ class _Part:
 def _chunks(cfg, readers, writer, quiet, log, acq_start, t_wall, ephemerides, iono, band_reader=None) -> RunSummary:
     run = _ChunkLoop(cfg, readers, writer, quiet, acq_start, ephemerides, iono)
     if band_reader is not None:
-        run.dual = DualBand(cfg, band_signal(cfg), band_reader, run)
+        run.dual = DualBand(cfg, band_signals(cfg), band_reader, run)
     run.loop()
     return run.summary(t_wall)
 

@@ -1,11 +1,13 @@
-"""Channels of a second-frequency signal (GPS L5) aided by the L1 channels of the same satellites
-(:class:`AidedBand`).
+"""Channels of a second-frequency signal (GPS L5, Galileo E5a) aided by the L1 / E1 channels of the same
+satellites (:class:`AidedBand`).
 
 The second signal is recorded in a file of its own on the same clock (``input.signal_files``): sample ``n``
 of the L1 stream and sample ``n * fs_band / fs_L1`` of the band's stream are the same instant.  For every
 satellite an L1 channel tracks in phase lock, the band searches the satellite's signal around the code phase
 and Doppler the L1 channel predicts (receiver.acquisition.aided) and, once found, tracks it with a scalar
-channel (receiver.tracking.scalar: the Q5 pilot, NH20 wiped once synchronised).  Without aiding
+channel (receiver.tracking.scalar: the Q5 pilot, NH20 wiped once synchronised; E5a: the E5a-Q pilot, CS100
+wiped once synchronised, the same sign-change histogram over 100 code periods).  The aiding channels are the
+scalar L1 C/A ones or the Galileo E1 ones (receiver.tracking.gal_channels.GalTrack: 4-ms code periods).  Without aiding
 (``aiding=False``) it searches every code phase over the full Doppler range instead.  A failed search is
 retried ``retry_s`` later; a lost channel is searched for again.  Only the last ``keep_s`` of each channel's
 records are kept (for the observables): memory does not grow with the run.
@@ -15,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..acquisition.aided import predict_from_l1, search
+from ..gnss.signals import GPS_L1CA
 from ..runfile import record
 from . import kernel as K
 from .scalar import Channel
@@ -25,16 +28,25 @@ SEARCH_DTYPE = np.dtype([("time_s", "f8"), ("prn", "i4"), ("aided", "u1"), ("det
                          ("doppler_hz", "f8"), ("cells", "i4")])
 
 
+def aiding_state(ch) -> tuple:
+    """(still pulling in, code phase in chips at ``ch.next_sample``) of an aiding channel: a scalar
+    Channel (kernel state) or a Galileo E1 GalTrack (``pulling_in``, ``code_phase``)."""
+    if hasattr(ch, "st"):
+        return int(ch.st[K.S_MODE]) == K.MODE_PULL_IN, float(ch.st[K.S_CODE_PHASE])
+    return bool(ch.pulling_in), float(ch.code_phase)
+
+
 class AidedBand:
     """The second band's channels (``channels``: PRN -> Channel) and their recent records.
 
     trk_cfg: the receiver's ``tracking`` section; reader: the band's input stage (``fs``, ``if_hz``,
-    ``first``, ``read``); fs_l1, first_l1: the L1 stream's rate and first sample."""
+    ``first``, ``read``); fs_l1, first_l1: the L1 stream's rate and first sample; base: the aiding channels'
+    signal (GPS L1 C/A, Galileo E1)."""
 
     def __init__(self, trk_cfg, reader, signal, fs_l1: float, first_l1: int, aiding: bool = True,
                  n_ms: int = 10, code_half_chips: float = 5.0, doppler_max_hz: float = 7000.0,
-                 retry_s: float = 1.0, keep_s: float = 2.0, pfa: float = 1e-3):
-        self.trk_cfg, self.reader, self.signal = trk_cfg, reader, signal
+                 retry_s: float = 1.0, keep_s: float = 2.0, pfa: float = 1e-3, base=GPS_L1CA):
+        self.trk_cfg, self.reader, self.signal, self.base = trk_cfg, reader, signal, base
         self.fs, self.if_hz = reader.fs, reader.if_hz
         self.fs_l1, self.first_l1 = fs_l1, first_l1
         self.aiding, self.n_ms, self.code_half = aiding, n_ms, code_half_chips
@@ -76,7 +88,8 @@ class AidedBand:
         for prn, ch in l1_channels.items():
             if prn in self.channels or prn not in self.signal.prns or self.next_try.get(prn, -1.0) > t:
                 continue
-            if ch.lost or int(ch.st[K.S_MODE]) == K.MODE_PULL_IN:
+            pulling, code_l1 = aiding_state(ch)
+            if ch.lost or pulling:
                 continue
             n1 = ch.next_sample
             n5 = self.to_band(n1)
@@ -84,7 +97,8 @@ class AidedBand:
             if n5 + n_need > self.reader.end:
                 continue
             block = self.reader.read(n5, n_need)
-            code5, dop5 = predict_from_l1(float(ch.st[K.S_CODE_PHASE]), ch.doppler_hz, self.signal)
+            code5, dop5 = predict_from_l1(code_l1, ch.doppler_hz, self.signal, self.base.chip_rate,
+                                          self.base.carrier_hz, self.base.code_len)
             if self.aiding:
                 res = search(block, self.fs, self.if_hz, self.signal, prn, dop5, 0.0, code5, self.code_half,
                              self.n_ms, pfa=self.pfa)

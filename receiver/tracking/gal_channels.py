@@ -66,6 +66,11 @@ class GalTrack(GalChannel):
         return 0
 
     @property
+    def pulling_in(self) -> bool:
+        """Within the first PULL_IN_EPOCHS (the PLL settling from the refined Doppler)."""
+        return self._epochs <= PULL_IN_EPOCHS
+
+    @property
     def dll_hold_s(self) -> float:
         """The DLL tracks at its own bandwidth from the pull-in on (no weak-signal hold)."""
         return 0.0
