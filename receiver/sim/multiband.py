@@ -41,7 +41,7 @@ import numpy as np
 import yaml
 
 from ..errors import UserError
-from ..gnss.l5_codes import L5_PRNS, nh_signs
+from ..gnss.l5_codes import nh_signs
 from ..gnss.signals import L1_HZ
 from ..gnss.signals_l5 import GPS_L5
 from ..gnss.signals_gal_e5a import GAL_E5A
@@ -95,7 +95,9 @@ class _L5Signs:
 
 def _l5_rows(sim, b, p, s, sig):
     """The L5 simulator's kernel rows of satellite p: Q5 (the truth's carrier phase) and I5 (a quarter cycle
-    ahead), each at the pilot's amplitude (IS-GPS-705: equal power)."""
+    ahead), each at the pilot's amplitude (IS-GPS-705: equal power); none for a satellite of another system."""
+    if p not in sim.band_keys:
+        return
     n0 = len(sig)
     type(sim)._sat_rows(sim, b, p, s, sig)               # the Q5 row, as for any 1-ms signal
     if len(sig) == n0:
@@ -131,9 +133,10 @@ class _E5aSigns:
 
 def _e5a_rows(sim, b, p, s, sig):
     """The E5a simulator's kernel rows of satellite p: E5a-Q (the truth's carrier phase) and E5a-I (a quarter
-    cycle ahead), each at the pilot's amplitude.  (The simulator counts a Galileo satellite's chips from a
-    4-ms boundary, ``m_ref_gal``: the 1-ms periods of E5a are numbered from 4 m_ref_gal.)"""
-    if not (b.n_samp > 0 and np.any(s.amp > 0)):
+    cycle ahead), each at the pilot's amplitude; none for a satellite of another system.  (The simulator counts
+    a Galileo satellite's chips from a 4-ms boundary, ``m_ref_gal``: the 1-ms periods of E5a are numbered from
+    4 m_ref_gal.)"""
+    if p not in sim.band_keys or not (b.n_samp > 0 and np.any(s.amp > 0)):
         return
     code_n, chips_total = s.code_n, s.chips_total
     ms0 = int(math.floor(chips_total[0] / code_n))
@@ -147,48 +150,53 @@ def _e5a_rows(sim, b, p, s, sig):
 
 
 def _e5a_geometry(sim, b):
-    """The E1 simulator's geometry with each satellite's clock moved to its E5a clock (e5a_clock_offset_s of
-    its broadcast BGD(E1,E5a))."""
+    """The E1 simulator's geometry with each Galileo satellite's clock moved to its E5a clock
+    (e5a_clock_offset_s of its broadcast BGD(E1,E5a))."""
     type(sim)._block_geometry(sim, b)
     for p, q in b.geo.items():
-        q["clk"] = q["clk"] + sim.e5a_clock_offset[p]
+        if p in sim.e5a_clock_offset:
+            q["clk"] = q["clk"] + sim.e5a_clock_offset[p]
+
+
+def _as_band(sim, signal, system: str, factor: float, gamma: float, cn0_offset_db: float, rows, signs):
+    """Turn a simulator of the base signal (built on the band's front-end settings) into the band's: its
+    satellites of ``system`` (``band_keys``; the others of a recording of several signals stay silent, as
+    the visibility and blockage of all are drawn as in the base file, and are left out of the truth) carry
+    ``signal`` (primary codes, ``signs(prn)`` per ms, kernel rows ``rows``), ionosphere ``factor x gamma``."""
+    keys = [p for p in sim.prns if sim.sat_sig[p][0].system == system]
+    other = [sim.sat_sig[p][1] for p in keys if sim.sat_sig[p][1] not in signal.prns]
+    if other:
+        raise UserError(f"{signal.name}: satellite {system}{other[0]:02d} has no {signal.name} code here "
+                        f"(PRN {min(signal.prns)}-{max(signal.prns)}): set constellation.exclude_prns"
+                        + (" or constellation.qzss: false" if system == "G" else ""))
+    if not keys:
+        raise UserError(f"{signal.name}: no satellite of system {system} in the recording")
+    sim.band_keys = set(keys)
+    sim.truth_prns = keys
+    sim.signals, sim.signal = [signal], signal
+    sim.sat_sig = {p: (signal, sim.sat_sig[p][1], sim.if_hz) for p in sim.prns}
+    sim.codes = {p: signal.code(sim.sat_sig[p][1]) for p in keys}
+    sim.i5_codes = {p: signal.data_code(sim.sat_sig[p][1]) for p in keys}
+    sim.nav = {p: signs(sim.sat_sig[p][1]) for p in keys}
+    sim._sat_rows = types.MethodType(rows, sim)
+    sim.iono_scale = {p: factor * gamma for p in sim.prns}
+    base = sim.cn0
+    sim.cn0 = lambda prn, t_rel, el_deg: base(prn, t_rel, el_deg) + cn0_offset_db
 
 
 def _as_e5a(sim, factor: float, cn0_offset_db: float, seed: int):
-    """Turn a Galileo E1 simulator built on the E5a front-end settings into the E5a one."""
-    other = [p for p in sim.prns if p not in GAL_E5A.prns]
-    if other:
-        raise UserError(f"e5a.enabled: Galileo satellite {other[0]} has no E5a-Q secondary code in ICD issue 1.1 "
-                        "(PRN 1-36): set constellation.exclude_prns")
-    sim.signals, sim.signal = [GAL_E5A], GAL_E5A
-    sim.sat_sig = {p: (GAL_E5A, p, sim.if_hz) for p in sim.prns}
-    sim.codes = {p: GAL_E5A.code(p) for p in sim.prns}
-    sim.i5_codes = {p: GAL_E5A.data_code(p) for p in sim.prns}
-    sim.nav = {p: _E5aSigns(p, seed) for p in sim.prns}
-    sim._sat_rows = types.MethodType(_e5a_rows, sim)
-    sim.e5a_clock_offset = {p: e5a_clock_offset_s(sim.ephs[p].bgd_e1e5a) for p in sim.prns}
+    """Turn a Galileo E1 simulator (or one of several signals with gal_e1) built on the E5a front-end settings
+    into the E5a one."""
+    _as_band(sim, GAL_E5A, "E", factor, GAMMA_E1E5A, cn0_offset_db, _e5a_rows, lambda prn: _E5aSigns(prn, seed))
+    sim.e5a_clock_offset = {p: e5a_clock_offset_s(sim.ephs[p].bgd_e1e5a) for p in sim.band_keys}
     sim._block_geometry = types.MethodType(_e5a_geometry, sim)
-    sim.iono_scale = {p: factor * GAMMA_E1E5A for p in sim.prns}
-    base = sim.cn0
-    sim.cn0 = lambda prn, t_rel, el_deg: base(prn, t_rel, el_deg) + cn0_offset_db
     sim.rng = np.random.default_rng(np.random.SeedSequence([seed, 1, 5, 1]))      # own noise stream
 
 
 def _as_l5(sim, factor: float, cn0_offset_db: float, seed: int):
-    """Turn a GPS L1 C/A simulator built on the L5 front-end settings into the L5 Q5 one."""
-    other = [p for p in sim.prns if p not in L5_PRNS]
-    if other:
-        raise UserError(f"l5.enabled: satellite {other[0]} has no L5 code here (GPS PRN 1-32 only): set "
-                        "constellation.qzss: false or constellation.exclude_prns")
-    sim.signals, sim.signal = [GPS_L5], GPS_L5
-    sim.sat_sig = {p: (GPS_L5, p, sim.if_hz) for p in sim.prns}
-    sim.codes = {p: GPS_L5.code(p) for p in sim.prns}
-    sim.i5_codes = {p: GPS_L5.data_code(p) for p in sim.prns}
-    sim.nav = {p: _L5Signs(p, seed) for p in sim.prns}
-    sim._sat_rows = types.MethodType(_l5_rows, sim)
-    sim.iono_scale = {p: factor * GAMMA_15 for p in sim.prns}
-    base = sim.cn0
-    sim.cn0 = lambda prn, t_rel, el_deg: base(prn, t_rel, el_deg) + cn0_offset_db
+    """Turn a GPS L1 C/A simulator (or one of several signals with gps_l1ca) built on the L5 front-end settings
+    into the L5 Q5 one."""
+    _as_band(sim, GPS_L5, "G", factor, GAMMA_15, cn0_offset_db, _l5_rows, lambda prn: _L5Signs(prn, seed))
     sim.rng = np.random.default_rng(np.random.SeedSequence([seed, 1, 5]))      # own noise stream
 
 
@@ -196,76 +204,84 @@ def _as_l5(sim, factor: float, cn0_offset_db: float, seed: int):
 _BANDS = {"l5": ("l5", "gps_l5", "gps_l1ca", _as_l5), "e5a": ("e5a", "gal_e5a", "gal_e1", _as_e5a)}
 
 
-def band_key(sc):
-    """The scenario's enabled band section (``l5`` or ``e5a``), None without one; both at once is a UserError
-    (the GPS + Galileo pair of bands is not simulated yet)."""
-    on = [k for k in _BANDS if getattr(sc, k).enabled]
-    if len(on) > 1:
-        raise UserError("l5.enabled and e5a.enabled: one band file per recording here (GPS L1 + L5, or Galileo "
-                        "E1 + E5a)")
-    return on[0] if on else None
+def band_keys(sc) -> list:
+    """The scenario's enabled band sections (``l5``, ``e5a``)."""
+    return [k for k in _BANDS if getattr(sc, k).enabled]
 
 
 def simulate_l1_l5(sc, out_path, reads, progress, simulator, scale_ionosphere) -> dict:
-    """Write the L1 and L5 recordings (and their truth and fragment files) of scenario ``sc`` (l5.enabled;
-    e5a.enabled: the Galileo E1 and E5a ones).  ``simulator``, ``scale_ionosphere``: receiver.sim.simulate's
-    simulator class and ionosphere scaling (passed in: that module calls this one).  Returns the L1 paths plus
-    ``l5_if`` and ``l5_truth`` (E5a: ``e5a_if``, ``e5a_truth``)."""
+    """Write the L1 / E1 recording and beside it one band file per enabled band (l5.enabled: GPS L5;
+    e5a.enabled: Galileo E5a; both in a recording of gps_l1ca and gal_e1), each with its truth, and the
+    receiver fragment naming them all.  ``simulator``, ``scale_ionosphere``: receiver.sim.simulate's simulator
+    class and ionosphere scaling (passed in: that module calls this one).  Returns the L1 paths plus ``l5_if``
+    and ``l5_truth`` (E5a: ``e5a_if``, ``e5a_truth``)."""
     _Simulator, _remove = simulator, remove_files
-    key = band_key(sc)
-    tag, band_name, base_name, convert = _BANDS[key]
-    if sc.signals or sc.signal != base_name:
-        raise UserError(f"{key}.enabled: the {base_name} + {band_name} recording is a {base_name} scenario "
-                        f"(signal: {base_name}, no signals list)")
-    if key == "l5" and sc.constellation.source not in ("embedded", "rinex"):
+    names = list(sc.signals or []) or [sc.signal]
+    bands = band_keys(sc)
+    for key in bands:
+        tag, band_name, base_name, _ = _BANDS[key]
+        if base_name not in names:
+            raise UserError(f"{key}.enabled: the {band_name} file is the second band of {base_name}: the scenario's "
+                            f"signal (or signals) must include {base_name}")
+    if "l5" in bands and sc.constellation.source not in ("embedded", "rinex"):
         raise UserError("l5.enabled: constellation.source must give GPS orbits (embedded or rinex)")
-    l5 = getattr(sc, key)
-    paths1, paths5 = output_paths(out_path), output_paths(l5_path(out_path, tag))
     factor = sc.atmosphere.iono_scale
+    paths1 = output_paths(out_path)
     sim1 = _Simulator(sc)
     scale_ionosphere(sim1, factor)
-    sc5 = load_scenario(sc, [f"frontend.sample_rate_hz={l5.sample_rate_hz!r}", f"frontend.if_hz={l5.if_hz!r}",
-                             f"frontend.format={l5.format}"])
-    sim5 = _Simulator(sc5)
-    convert(sim5, factor, l5.cn0_offset_db, sc.time.seed)
-    for paths in (paths1, paths5):
+    band_runs = []                               # (key, its config section, paths, simulator)
+    for key in bands:
+        tag, band_name, base_name, convert = _BANDS[key]
+        b = getattr(sc, key)
+        scb = load_scenario(sc, [f"frontend.sample_rate_hz={b.sample_rate_hz!r}", f"frontend.if_hz={b.if_hz!r}",
+                                 f"frontend.format={b.format}"])
+        simb = _Simulator(scb)
+        convert(simb, factor, b.cn0_offset_db, sc.time.seed)
+        band_runs.append((key, b, output_paths(l5_path(out_path, tag)), simb))
+    all_paths = [paths1] + [r[2] for r in band_runs]
+    for paths in all_paths:
         for kind, p in paths.items():
             check_output(p, reads, what="output")
-    locks = [OutputLock(paths1["if"]).acquire(), OutputLock(paths5["if"]).acquire()]
-    tmp1 = {k: v + TMP_SUFFIX for k, v in paths1.items()}
-    tmp5 = {k: v + TMP_SUFFIX for k, v in paths5.items()}
+    locks = [OutputLock(paths["if"]).acquire() for paths in all_paths]
+    tmps = [{k: v + TMP_SUFFIX for k, v in paths.items()} for paths in all_paths]
     try:
         try:
-            sim1.run(paths1, progress, tmp1)
-            sim5.run(paths5, progress, tmp5)
+            sim1.run(paths1, progress, tmps[0])
+            for (_, _, paths, simb), tmp in zip(band_runs, tmps[1:]):
+                simb.run(paths, progress, tmp)
         except OSError as exc:
             raise UserError(write_error_message("output", paths1["if"], exc)) from None
-        _fragment(tmp1["yaml"], paths5["if"], l5, base_name, band_name)
-        for paths, tmp in ((paths5, tmp5), (paths1, tmp1)):
+        _fragment(tmps[0]["yaml"], [(_BANDS[k][1], b, paths["if"]) for k, b, paths, _ in band_runs])
+        for paths, tmp in list(zip(all_paths, tmps))[::-1]:          # the L1 / E1 file last
             for k in ("truth", "yaml", "sigmf", "tag", "if"):
                 if k == "tag" and not os.path.exists(tmp[k]):
                     _remove([paths[k]])
                     continue
                 os.replace(tmp[k], paths[k])
     except BaseException:
-        _remove([*tmp1.values(), *tmp5.values()])
+        _remove([v for tmp in tmps for v in tmp.values()])
         raise
     finally:
         for lk in locks:
             lk.release()
-    return {**paths1, f"{tag}_if": paths5["if"], f"{tag}_truth": paths5["truth"]}
+    out = dict(paths1)
+    for key, _, paths, _ in band_runs:
+        out[f"{_BANDS[key][0]}_if"], out[f"{_BANDS[key][0]}_truth"] = paths["if"], paths["truth"]
+    return out
 
 
-def _fragment(path, l5_file, l5, base_name="gps_l1ca", band_name="gps_l5"):
-    """The L1 / E1 file's receiver fragment: both signals, the band's file in input.signal_files."""
+def _fragment(path, bands):
+    """The L1 / E1 file's receiver fragment: its signals and the bands' (``bands``: (signal name, scenario
+    section, file) each), the band files in input.signal_files."""
     with open(path) as f:
         head = [ln for ln in f.read().splitlines() if ln.startswith("#")]
     with open(path) as f:
         frag = yaml.safe_load(f)
-    frag["input"]["signal_files"] = {band_name: {"path": os.path.basename(l5_file), "format": l5.format,
-                                                "sample_rate_hz": float(l5.sample_rate_hz),
-                                                "if_hz": float(l5.if_hz)}}
-    frag = {"signals": [base_name, band_name], **frag}
+    frag["input"]["signal_files"] = {name: {"path": os.path.basename(file), "format": b.format,
+                                            "sample_rate_hz": float(b.sample_rate_hz), "if_hz": float(b.if_hz)}
+                                     for name, b, file in bands}
+    base = list(frag.pop("signals", None) or [frag.get("signal", "gps_l1ca")])
+    frag = {"signals": base + [name for name, _, _ in bands], **frag}
     with open(path, "w") as f:
         f.write("\n".join(head) + "\n")
         yaml.safe_dump(frag, f, sort_keys=False)

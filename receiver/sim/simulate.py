@@ -136,6 +136,7 @@ class _Simulator:
         self._codes()
         self.amp_k = (2.0 if self.cplx else 4.0) * self.sigma ** 2 / self.fs     # A^2 = amp_k * C/N0
         self.node_step = math.gcd(NODE_STEPS, self.decim)   # geometry nodes (grid steps), on truth rows
+        self.truth_prns = None              # the satellites of the truth file (None: all; a band file's own)
         self._tracks = {}
 
     # ------------------------------------------------------------------------------ set-up steps
@@ -271,7 +272,7 @@ class _Simulator:
         sat_attrs = {p: {"toe": e.toe, "iode": e.iode, "week": e.week} for p, e in self.ephs.items()}
         self.writer = None
         self.fh = open(tmp["if"], "wb")
-        self.writer = TruthWriter(tmp["truth"], self.attrs(), self.prns, sat_attrs,
+        self.writer = TruthWriter(tmp["truth"], self.attrs(), self.truth_prns or self.prns, sat_attrs,
                                   system=MIXED if self.multi else self.signal.system)
         fe = self.sc.frontend
         self.encoder = None if self.fmt in _FAST_FORMATS else Encoder(self.fmt, 1.0, fe.bit_order, fe.encoding)
