@@ -111,7 +111,7 @@ def signal_prns(cfg: Section, name: str) -> list:
 
 def _prn_text(name: str) -> str:
     return {"gps_l1ca": "1-32 (GPS) and 193-202 (QZSS)", "gal_e1": "1-50", "gps_l5": "1-32",
-            "gal_e5a": "1-36"}.get(name, "1-63")
+            "gal_e5a": "1-36 and 40-50"}.get(name, "1-63")
 
 
 def check_prns(a: Section):

@@ -166,8 +166,8 @@ def _as_band(sim, signal, system: str, factor: float, gamma: float, cn0_offset_d
     keys = [p for p in sim.prns if sim.sat_sig[p][0].system == system]
     other = [sim.sat_sig[p][1] for p in keys if sim.sat_sig[p][1] not in signal.prns]
     if other:
-        raise UserError(f"{signal.name}: satellite {system}{other[0]:02d} has no {signal.name} code here "
-                        f"(PRN {min(signal.prns)}-{max(signal.prns)}): set constellation.exclude_prns"
+        raise UserError(f"{signal.name}: satellite {system}{other[0]:02d} has no {signal.name} code here: set "
+                        f"constellation.exclude_prns"
                         + (" or constellation.qzss: false" if system == "G" else ""))
     if not keys:
         raise UserError(f"{signal.name}: no satellite of system {system} in the recording")

@@ -1,9 +1,9 @@
 """The gal_e5a signal definition (E5a-Q pilot, E5a-I data): rates from ICD Table 4 / 13, codes and secondary
-codes from receiver.gnss.gal_e5a_codes.  Not in the registry yet."""
+codes from receiver.gnss.gal_e5a_codes; in the signal registry as gal_e5a."""
 import numpy as np
 
 from receiver.gnss import gal_e5a_codes as G
-from receiver.gnss.registry import SIGNAL_NAMES
+from receiver.gnss.registry import SIGNAL_NAMES, get_signal
 from receiver.gnss.signals_gal_e5a import E5A_I_SYMBOL_PERIODS, E5A_OVER_E1, GAL_E5A
 
 
@@ -21,4 +21,4 @@ def test_signal_definition():
     assert not np.array_equal(s.secondary(5), s.secondary(6))
     assert s.data_bit_ms(5) == 20 == E5A_I_SYMBOL_PERIODS and np.array_equal(s.data_secondary(9), G.e5a_i_secondary())
     assert s.short_symbols(5)
-    assert "gal_e5a" not in SIGNAL_NAMES                       # described, not wired into the pipeline
+    assert "gal_e5a" in SIGNAL_NAMES and get_signal("gal_e5a") is GAL_E5A      # the second band of gal_e1
