@@ -73,11 +73,9 @@ class DualBand:
     (receiver.pipeline._ChunkLoop)."""
 
     def __init__(self, cfg, names, readers, loop):
-        if isinstance(names, str):
-            names, readers = [names], [readers]
         self.bands = [_Band(cfg, n, r, loop) for n, r in zip(names, readers)]
         self.loop = loop
-        self.dual = DualFrequency(cfg.navigation, [(b.band, b.part.key, b.part.signal) for b in self.bands],
+        self.dual = DualFrequency(cfg.navigation, [(b.band, b.part.key) for b in self.bands],
                                   loop.nav) if loop.nav is not None else None
         self.n_fixes = 0
 

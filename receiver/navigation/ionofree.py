@@ -69,28 +69,23 @@ def band_pseudorange(pr1: float, rx_tow: float, code_phase_chips: float, chip_ra
 class DualFrequency:
     """Per navigation epoch: the band's observables and the ionosphere-free fix.
 
-    nav_cfg: the receiver's ``navigation`` section; bands: an AidedBand, or a list of (AidedBand, key, base
-    signal) with ``key(prn)`` the run's satellite key of the band's PRN (the navigation engine's observables
-    are keyed by it) and the base signal that of the aiding channels; store: the navigation engine
-    (ephemerides)."""
+    nav_cfg: the receiver's ``navigation`` section; bands: a list of (AidedBand, key) with ``key(prn)`` the
+    run's satellite key of the band's PRN (the navigation engine's observables are keyed by it); store: the
+    navigation engine (ephemerides)."""
 
     def __init__(self, nav_cfg, bands, store):
         cfg = SimpleNamespace(**{k: getattr(nav_cfg, k) for k in _SOLVER_KEYS}, ionosphere="none")
         self.solver = NavSolver(cfg)
-        self._many = isinstance(bands, (list, tuple))
-        if not self._many:
-            bands = [(bands, lambda prn: prn, None)]
         self.bands = [SimpleNamespace(band=b, key=k, system=b.signal.system, g=gamma(b.signal.carrier_hz),
-                                      lam=C_LIGHT / b.signal.carrier_hz) for b, k, _ in bands]
-        self.band, self.store = self.bands[0].band, store
-        self.g, self.lam = self.bands[0].g, self.bands[0].lam
+                                      lam=C_LIGHT / b.signal.carrier_hz) for b, k in bands]
+        self.store = store
         self.x0 = None
         self.window = max(int(round(nav_cfg.smoothing_s * nav_cfg.rate_hz)), 1) if nav_cfg.smoothing_s > 0 else 1
         self.hatch = {}                      # satellite key -> (time_s, smoothed P5, carrier range, epochs)
 
     def epochs(self, fixes: np.ndarray, obs) -> tuple:
-        """(band OBS_DTYPE rows, ionosphere-free FIX_DTYPE rows) of the engine's epochs ``fixes`` with their
-        L1 observables ``obs``; with a list of bands the first item is a list of each band's rows."""
+        """([OBS_DTYPE rows of each band], ionosphere-free FIX_DTYPE rows) of the engine's epochs ``fixes`` with
+        their L1 / E1 observables ``obs``."""
         obs = np.asarray(obs, OBS_DTYPE) if len(obs) else np.zeros(0, OBS_DTYPE)
         out_obs, out_fix = [[] for _ in self.bands], []
         for f in fixes:
@@ -112,13 +107,7 @@ class DualFrequency:
                 out_fix.append((fix.gps_week, fix.gps_tow, f["time_s"], fix.ecef, fix.velocity_ecef,
                                 fix.clock_bias_m, fix.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop,
                                 fix.gdop, 0, float(lat), float(lon), float(h), IONO_NONE))
-        rows = [np.array(o, OBS_DTYPE) for o in out_obs]
-        return (rows if self.many else rows[0]), np.array(out_fix, FIX_DTYPE)
-
-    @property
-    def many(self) -> bool:
-        """Built with a list of bands (the epochs' band rows are a list)."""
-        return self._many
+        return [np.array(o, OBS_DTYPE) for o in out_obs], np.array(out_fix, FIX_DTYPE)
 
     def _band_obs(self, bd, rows, rx_tow):
         """The band ``bd``'s observables at the epoch of the L1 / E1 ``rows`` ({key: (P2, band)})."""
