@@ -55,3 +55,30 @@ def test_aiding_detects_where_the_full_search_fails():
         aided += search(x, FS, 0.0, GPS_L5, 11, -1300.0, 0.0, 776.0, 5.0).detected
         unaided += search(x, FS, 0.0, GPS_L5, 11, 0.0, 2000.0).detected
     assert aided == 6 and unaided <= 2
+
+
+def test_e5a_prediction_from_the_e1_channel():
+    """Galileo: the E1 code period is 4 ms (4092 chips), E5a's 1 ms; both start at whole ms of the satellite
+    clock, so the E1 code phase modulo 1023 chips gives the E5a one (x 10)."""
+    from receiver.gnss.signals_gal import GAL_E1
+    from receiver.gnss.signals_gal_e5a import GAL_E5A
+    args = (GAL_E1.chip_rate, GAL_E1.carrier_hz, GAL_E1.code_len)
+    for ms in range(4):                      # 123.4 chips into any of the 4 ms of the E1 period
+        code, dop = predict_from_l1(ms * 1023.0 + 123.4, -2100.0, GAL_E5A, *args)
+        assert code == pytest.approx(1234.0) and dop == pytest.approx(-2100.0 * 115 / 154)
+
+
+def test_e5a_q_found_around_the_prediction():
+    """E5a-Q x CS100 (a sign change every few ms): the aided search finds it at the predicted code phase, not
+    another PRN's code."""
+    from receiver.gnss.signals_gal_e5a import GAL_E5A
+    rng = np.random.default_rng(3)
+    n = int(FS * 1e-3) * 11
+    t = np.arange(n) / FS
+    chips = 2222.2 + t * GAL_E5A.chip_rate * (1 + 600.0 / GAL_E5A.carrier_hz)
+    x = np.sqrt(2 * 10 ** 4.5 / FS) * GAL_E5A.code(5)[np.floor(chips).astype(np.int64) % 10230] * \
+        GAL_E5A.secondary(5)[(17 + (chips // 10230).astype(np.int64)) % 100] * np.exp(2j * np.pi * 600.0 * t)
+    x = (x + rng.standard_normal(n) + 1j * rng.standard_normal(n)).astype(np.complex64)
+    r = search(x, FS, 0.0, GAL_E5A, 5, 600.0, 0.0, 2221.0, 5.0)
+    assert r.detected and abs(((r.code_phase_chips - 2222.2) + 5115) % 10230 - 5115) < 1.0
+    assert not search(x, FS, 0.0, GAL_E5A, 6, 600.0, 0.0, 2221.0, 5.0).detected
