@@ -134,7 +134,7 @@ class DualFrequency:
         return out, pr
 
     def _smooth(self, prn, t, p5, carrier_m):
-        """Hatch filter of the L5 code with the L5 carrier over navigation.smoothing_s (restarted after a gap
+        """Hatch filter of the band's code with its carrier over navigation.smoothing_s (restarted after a gap
         of more than 1 s: the channel lost lock or was not measured)."""
         h = self.hatch.get(prn)
         if h is None or t - h[0] > 1.0 or t <= h[0]:
