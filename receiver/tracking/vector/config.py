@@ -12,11 +12,12 @@ from ...gnss.clock import OSCILLATORS
 from . import REGISTRY
 
 #: the signals the vector loops track (any mix of them, one clock bias per system)
-VECTOR_SIGNALS = ("gps_l1ca", "bds_b1i")
+VECTOR_SIGNALS = ("gps_l1ca", "bds_b1i", "gal_e1")
 
 SCHEMA = {
     "enabled": P(False, "bool", "hand scalar channels over to a vector loop (gps_l1ca incl. QZSS, "
-                                "bds_b1i, or both: one inter-system bias per extra system)"),
+                                "bds_b1i, gal_e1 (4-ms E1-C pilot epochs), or any mix: one inter-system "
+                                "bias per extra system)"),
     "variant": P("adaptive_r", "str", "vector loop variant",
                  choices=tuple(REGISTRY)),
     "start_s": P(None, "float", "handover time in seconds from the first sample (empty: 5 s after "

@@ -15,16 +15,19 @@ Per channel and epoch:
                           rate_hat = e . (v_sat - v) + d - c ddt_sv
 (all times relative to the handover reference, see tracker.py; A_j is the relative transmit time of the
 channel's code period 0, a whole number of code periods in absolute GPS time).  The signal constants are the
-channel's (SIG columns, from its SignalDef: chip rate f_code, carrier wavelength lambda, code period T_code,
-the IF and the input block of its signal), so channels of several signals (GPS/QZSS L1 C/A, BeiDou B1I)
-share one filter; a channel of a system other than the reference clock's adds its system's inter-system
-bias state isb_s (column SIG_ISB: its index in x, -1 for the reference system).  The frequency
-discriminator compares the two halves of ONE correlation epoch, and the kernel's epochs never span a data
-symbol or overlay-code chip (B1I: 1 ms before NH sync, then NH wiped off and epochs aligned to the D1 bits;
-D2: epochs of at most the 2-ms symbol), so the symbol signs never enter it.  Since the NCOs are commanded
-from the prediction, the innovation rho - rho_hat is the discriminator output of the error-state
-formulation of the papers (E_code = t_b + (X - X_hat)^T a_j); the explicit form above stays exact when an
-NCO could not follow the prediction (clamped code steps, the first epoch after handover).
+channel's (SIG columns, from its SignalDef: chip rate f_code, carrier wavelength lambda, code period T_code, the
+IF and the input block of its signal, the kind of its correlation epoch), so channels of several signals
+(GPS/QZSS L1 C/A, BeiDou B1I, Galileo E1) share one filter; a channel of a system other than the reference
+clock's adds its system's inter-system bias state isb_s (column SIG_ISB: its index in x, -1 for the reference
+system). The frequency discriminator compares the two halves of ONE correlation epoch, and the kernel's epochs
+never span a data symbol or overlay-code chip (B1I: 1 ms before NH sync, then NH wiped off and epochs aligned to
+the D1 bits; D2: epochs of at most the 2-ms symbol; Galileo E1: one 4-ms E1-C pilot period with its CS25 chip
+wiped, the E1-B symbols read against the pilot's phase, galileo.py), so the symbol signs never enter it. A
+Galileo channel's epoch lasts 4 ms whatever the filter's T: with T < 4 ms it gives a measurement every 4 / T
+filter epochs (the others predict it only), with T > 4 ms its one or two epochs in the filter epoch are averaged.
+Since the NCOs are commanded from the prediction, the innovation rho - rho_hat is the discriminator output of the
+error-state formulation of the papers (E_code = t_b + (X - X_hat)^T a_j); the explicit form above stays exact
+when an NCO could not follow the prediction (clamped code steps, the first epoch after handover).
 
 NCO commands for the next correlation epoch of channel j (starting at sample s_next):
   code phase  shifted so that the replica transmit time at s_next equals tau_next - rho_hat(tau_next)/c
@@ -42,7 +45,8 @@ from numba import njit
 from .. import kernel as K
 from ..correlator import workspace
 from ...gnss.signals import C_LIGHT
-from .discriminators import code_disc_m, freq_disc_hz
+from .discriminators import code_disc_boc_m, code_disc_m, freq_disc_hz
+from .galileo import gal_epoch
 from .kalman import adapt_r, kf_predict, kf_update_isb
 
 MAX_SHIFT = 3.0          # chips per epoch (the correlator's code array has 4 chips of wrap margin)
@@ -73,7 +77,11 @@ SIG_PERIOD = 2           # primary-code period (s)
 SIG_IF = 3               # IF of the channel's input stream (Hz)
 SIG_BLOCK = 4            # row of `blocks` holding the channel's signal
 SIG_ISB = 5              # state index of the channel's inter-system bias, -1: the reference clock
-N_SIG = 6
+SIG_KIND = 6             # the channel's correlation epoch: KIND_KERNEL or KIND_GAL_E1
+N_SIG = 7
+
+KIND_KERNEL = 0          # the 1-ms tracking kernel (BPSK: GPS/QZSS L1 C/A, BeiDou B1I)
+KIND_GAL_E1 = 1          # Galileo E1: 4-ms E1-C pilot epochs, BOC(1,1) discriminator (galileo.py)
 
 # ---- per-epoch log columns (besides the state)
 L_TAU = 0
@@ -160,6 +168,7 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
     sp = np.zeros(4)
     sv = np.zeros(4)
     e = np.zeros(3)
+    halves = np.zeros(4)              # a Galileo epoch's pilot prompt halves (I1, Q1, I2, Q2)
     cap = REC.shape[1]
     ws = workspace()                  # the correlator's scratch, once per chunk (one epoch per call below)
     k = 0
@@ -187,10 +196,14 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
                 nlock += 1
             chip = SIG[j, SIG_CHIP]
             block = blocks[int(SIG[j, SIG_BLOCK])]
+            gal = SIG[j, SIG_KIND] == KIND_GAL_E1
             while ST[j, K.S_NEXT_SAMPLE] < s_end and NREC[j] < cap:
                 r0 = NREC[j]
-                got = K.track_block_ws(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
-                                       REC[j, r0:r0 + 1], 1, ws)
+                if gal:
+                    got = gal_epoch(block, block_start, ST[j], CF[j], CODE[j], REC[j, r0], halves)
+                else:
+                    got = K.track_block_ws(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
+                                           REC[j, r0:r0 + 1], 1, ws)
                 if got == 0:
                     break
                 NREC[j] = r0 + 1
@@ -200,9 +213,14 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
                 tau_mid = (o[K.O_SAMPLE] + 0.5 * ns - s_ref) / fs
                 txrel = CA[j] + o[K.O_PERIOD] * SIG[j, SIG_PERIOD] + \
                     (o[K.O_CODE_PHASE] + 0.5 * ns * o[K.O_CODE_RATE] / fs) / chip
-                rho_meas = C_LIGHT * (tau_mid - txrel) + \
-                    code_disc_m(o[K.O_E], o[K.O_L], K.el_spacing(ST[j], CF[j]), chip)
-                dop = o[K.O_DOPPLER] + freq_disc_hz(o[K.O_P1I], o[K.O_P1Q], o[K.O_P2I], o[K.O_P2Q], t_int)
+                if gal:
+                    rho_meas = C_LIGHT * (tau_mid - txrel) + \
+                        code_disc_boc_m(o[K.O_E], o[K.O_L], CF[j, K.C_EL_SPACING], chip)
+                    dop = o[K.O_DOPPLER] + freq_disc_hz(halves[0], halves[1], halves[2], halves[3], t_int)
+                else:
+                    rho_meas = C_LIGHT * (tau_mid - txrel) + \
+                        code_disc_m(o[K.O_E], o[K.O_L], K.el_spacing(ST[j], CF[j]), chip)
+                    dop = o[K.O_DOPPLER] + freq_disc_hz(o[K.O_P1I], o[K.O_P1Q], o[K.O_P2I], o[K.O_P2Q], t_int)
                 rate_meas = -SIG[j, SIG_LAMBDA] * dop
                 rho_hat, rate_hat, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_mid, tau_k,
                                                         sp, sv, e, G[j])

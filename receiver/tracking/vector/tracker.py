@@ -28,7 +28,10 @@ GPS time = t_ref + tau - b / c.
 
 Signals and systems: every channel carries its signal's constants into the compiled loop (chip rate, carrier
 wavelength, code period, the IF and the input block of its stream: ``signals``, the run's SignalDefs in the
-order of the pipeline's input blocks), so GPS and QZSS L1 C/A and BeiDou B1I channels share the filter.  In a
+order of the pipeline's input blocks), so GPS and QZSS L1 C/A, BeiDou B1I and Galileo E1 channels share the
+filter (a Galileo channel, receiver.tracking.gal_channels.GalTrack, brings a state row of the kernel's layout;
+its epochs are the compiled Galileo ones of receiver.tracking.vector.galileo; channels are not opened from the
+prediction for Galileo satellites: they join from the Galileo channel manager's acquisitions).  In a
 run over several signals the channels are keyed like the navigation engine's (receiver.gnss.satid.sat_key;
 the run's channel table, receiver.tracking.table.ChannelTable) and the filter gains one inter-system clock
 bias state per system after the reference one, in the navigation solution's order and grouping (clock group =
@@ -65,6 +68,15 @@ PROMOTE_LOCKED_S = 1.0        # a scalar channel joins the vector loop after thi
 ISB_Q_M2_S = 1e-3             # random-walk PSD of an inter-system bias state (m^2/s: a hardware delay difference,
                               # constant but for temperature; 0.3 m after 100 s)
 CLOCK_ORDER = "GJCE"          # the reference clock is the first of these (receiver.navigation.pvt._Sats)
+
+
+#: BOC(1,1) code discriminator variance relative to BPSK's at the same E-L spacing (receiver.tracking.vector.noise)
+BOC11_CODE_VAR = 1.0 / 3.0
+
+
+def _galileo(sig) -> bool:
+    """Whether a signal's vector channels run Galileo E1 epochs (receiver.tracking.vector.galileo)."""
+    return sig.system == "E"
 
 
 class VectorTracker:
@@ -278,7 +290,7 @@ class VectorTracker:
         ch.cfg[K.C_CN0_EST] = 1.0                       # M2M4: phase-lock independent
         ch.cfg[K.C_CN0_WIN_MS] = float(self.v.cn0_window_ms)
         sig, _, sig_prn = self._signal(prn)
-        max_int = self._max_int_ms(sig, sig_prn)
+        max_int = 1 if _galileo(sig) else self._max_int_ms(sig, sig_prn)    # (Galileo: one 4-ms period per epoch)
         ch.cfg[K.C_MAX_INT_MS] = max_int
         if ch.st[K.S_INT_MS] > max_int:
             ch.st[K.S_INT_MS] = 1
@@ -361,6 +373,7 @@ class VectorTracker:
             self.SIG[i, L.SIG_IF] = if_hz
             self.SIG[i, L.SIG_BLOCK] = self.block_of[sig.system]
             self.SIG[i, L.SIG_ISB] = self._isb_state(sig)
+            self.SIG[i, L.SIG_KIND] = L.KIND_GAL_E1 if _galileo(sig) else L.KIND_KERNEL
             self.HIST[i, :len(ch.hist)] = ch.hist
             ch.st = self.ST[i]                 # the channel now lives in the shared arrays
             ch.cfg = self.CF[i]
@@ -384,9 +397,14 @@ class VectorTracker:
         """vector.r_model cn0: each channel's R from its C/N0 estimate and integration (noise.py); an
         adaptive variant's channel keeps its own estimate once its window is filled."""
         m = len(self.prns)
-        r_code, r_rate = channel_r(self.ST[:, K.S_CN0], self.ST[:, K.S_INT_MS], self.T_ms,
+        # (integration in ms: code periods x the period, 4 ms for Galileo; BOC(1,1)'s code variance is a third
+        # of BPSK's at the same spacing, receiver.tracking.vector.noise)
+        gal = self.SIG[:, L.SIG_KIND] == L.KIND_GAL_E1
+        int_ms = self.ST[:, K.S_INT_MS] * np.round(self.SIG[:, L.SIG_PERIOD] * 1e3)
+        r_code, r_rate = channel_r(self.ST[:, K.S_CN0], int_ms, self.T_ms,
                                    self.CF[:, K.C_EL_SPACING], self.v.r_cn0,
-                                   C_LIGHT / self.SIG[:, L.SIG_CHIP], self.SIG[:, L.SIG_LAMBDA])
+                                   C_LIGHT / self.SIG[:, L.SIG_CHIP], self.SIG[:, L.SIG_LAMBDA],
+                                   code_factor=np.where(gal, BOC11_CODE_VAR, 1.0))
         own = np.zeros(m, bool)
         if self.filt.adaptive_form != FORM_NONE:
             own = self.WN >= min(self.filt.window, 100)
@@ -522,7 +540,8 @@ class VectorTracker:
         (vector.add_predicted), highest first, while channels are free."""
         if not (self.v.add_predicted and len(self.channels) < self.cfg.tracking.max_channels):
             return
-        cand = [p for p in sorted(self.ephs) if p not in self.channels]
+        # (Galileo satellites: their channels come from the Galileo channel manager's acquisitions only)
+        cand = [p for p in sorted(self.ephs) if p not in self.channels and not _galileo(self._signal(p)[0])]
         if not cand:
             return
         _, _, el = satellite_polys([self.ephs[p] for p in cand], self.t_ref, tau_now, 0.1, b,
@@ -541,7 +560,9 @@ class VectorTracker:
         prm[L.P_IF] = self.if_hz
         prm[L.P_GRID] = self.step
         prm[L.P_SREF] = self.s_ref
-        prm[L.P_MARGIN] = (self.T_ms + 1.0) * 1e-3 * self.fs
+        # (a Galileo channel's 4-ms epoch may start just before a grid point and end 4 ms after it)
+        longest = 4 if any(_galileo(self._signal(p)[0]) for p in self.prns) else self.T_ms
+        prm[L.P_MARGIN] = (max(self.T_ms, longest) + 1.0) * 1e-3 * self.fs
         prm[L.P_CHI2] = self.filt.chi2_threshold
         prm[L.P_CN0_MASK] = -1e9 if self.v.cn0_mask_dbhz is None else float(self.v.cn0_mask_dbhz)
         if self.v.r_model == "cn0":         # below min_cn0_dbhz a channel has no weight to give
