@@ -67,6 +67,13 @@ ISB_Q_M2_S = 1e-3             # random-walk PSD of an inter-system bias state (m
 CLOCK_ORDER = "GJCE"          # the reference clock is the first of these (receiver.navigation.pvt._Sats)
 
 
+def _slow_lock_reset() -> np.ndarray:
+    """A fresh slow lock detector state (loop.WK_*): waiting for a bit edge."""
+    wk = np.zeros(L.N_WK)
+    wk[L.WK_MS] = -1.0
+    return wk
+
+
 class VectorTracker:
     """The vector tracking stage after the scalar-to-vector handover (see the module docstring):
     :meth:`process` runs a chunk's vector channels under the navigation filter ``filt``."""
@@ -206,8 +213,7 @@ class VectorTracker:
                 self.ephs[prn] = old if self._rejected.get(prn) is e else e
                 continue
             jump = self._predict_prn(prn, tau, e)[0] - self._predict_prn(prn, tau, old)[0]
-            ch = self.channels.get(prn)
-            locked = prn in self.prns and ch is not None and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
+            locked = self._vector_lock(prn)
             if abs(jump) > EPH_JUMP_M and locked:
                 # the channel follows the signal with the set in use (its innovations are small): the new
                 # one disagrees with the signal - a decoding error that passed parity (low C/N0, words
@@ -287,7 +293,8 @@ class VectorTracker:
             for i in (K.S_ACC_ABSI, K.S_ACC_Q2, K.S_ACC_I2, K.S_ACC_M2, K.S_ACC_M4, K.S_ACC_N):
                 ch.st[i] = 0.0
         self.info[prn] = {"A": self._tx_offset(prn, ch), "Rc": self.filt.r_code, "Rf": self.filt.r_carr,
-                          "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2)}
+                          "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2),
+                          "WK": _slow_lock_reset()}
         self.prns.append(prn)
         self.pending_since.pop(prn, None)
         self._arrays_dirty = True
@@ -361,6 +368,8 @@ class VectorTracker:
             self.SIG[i, L.SIG_IF] = if_hz
             self.SIG[i, L.SIG_BLOCK] = self.block_of[sig.system]
             self.SIG[i, L.SIG_ISB] = self._isb_state(sig)
+            _, _, sig_prn = self._signal(prns[i])
+            self.SIG[i, L.SIG_SLOW] = float(sig.secondary(sig_prn) is None and int(sig.bit_ms(sig_prn)) == 20)
             self.HIST[i, :len(ch.hist)] = ch.hist
             ch.st = self.ST[i]                 # the channel now lives in the shared arrays
             ch.cfg = self.CF[i]
@@ -373,9 +382,11 @@ class VectorTracker:
         self.WI = np.zeros(m, np.int64)
         self.WN = np.zeros(m, np.int64)
         self.WS = np.zeros((m, 2))
+        self.WK = np.zeros((m, L.N_WK))
         for i, p in enumerate(prns):
             d = self.info[p]
             self.W[i], self.WI[i], self.WN[i], self.WS[i] = d["W"], d["WI"], d["WN"], d["WS"]
+            self.WK[i] = d["WK"]
         self.ACTIVE = np.ones(m, np.int64)
         self._arr_prns = list(prns)
         self._arrays_dirty = False
@@ -402,6 +413,7 @@ class VectorTracker:
             d["Rc"], d["Rf"] = float(self.RC[i]), float(self.RF[i])
             d["W"], d["WI"], d["WN"], d["WS"] = self.W[i].copy(), int(self.WI[i]), int(self.WN[i]), \
                 self.WS[i].copy()
+            d["WK"] = self.WK[i].copy()
 
     def _remove(self, prn, mark_lost):
         if prn in self.prns:
@@ -463,7 +475,7 @@ class VectorTracker:
         if m and self.v.r_model == "cn0":
             self._cn0_r()
         if m:
-            chans = (self.ST, self.CF, self.CODE, self.HIST, self.CA, self.ACTIVE, self.SIG)
+            chans = (self.ST, self.CF, self.CODE, self.HIST, self.CA, self.ACTIVE, self.SIG, self.WK)
             filt = (self.x, self.P, self.F, self.Q, self.QB, self.lay, self.RC, self.RF, self.W, self.WI, self.WN,
                     self.WS)
             nep, self.grid_next = L.run_chunk(B, start, prm, self.grid_next, max_ep, chans, (POLY, TAU_A, ATM),
@@ -481,10 +493,8 @@ class VectorTracker:
         self.last_diag = self._diagnostics(LOG[:nep], LPD[:nep], LR[:nep], self.stats["epochs"], LX[:nep])
         self.stats["epochs"] += nep
         self.stats["fired"] += int(LOG[:nep, L.L_FIRED].sum())
-        lock_min = float(self.v.lock_cn0_dbhz)
         for i, prn in enumerate(self.prns):
-            rec = to_records(REC[i, :NREC[i]])
-            rec["pll_lock"] = (rec["cn0_dbhz"] >= lock_min).astype(np.uint8)
+            rec = to_records(REC[i, :NREC[i]])          # pll_lock: vector lock (loop.vector_locked)
             if prn in recs and len(recs[prn]):          # promoted in this chunk: scalar records first
                 rec = np.concatenate([recs[prn], rec])
             recs[prn] = rec
@@ -553,7 +563,17 @@ class VectorTracker:
         prm[L.P_MIN_FILL] = min(self.filt.window, 100)
         prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
         prm[L.P_COAST_MASK] = 1.0 if self.v.coast_mask else 0.0
+        prm[L.P_SLOW_CN0] = float(self.v.weak_lock_cn0_dbhz)
+        prm[L.P_SLOW_BITS] = max(1.0, round(float(self.v.weak_lock_window_ms) / 20.0))
         return prm
+
+    def _vector_lock(self, prn) -> bool:
+        """Whether the vector channel of a key carries signal now (loop.vector_locked)."""
+        if prn not in self.prns or getattr(self, "_arr_prns", None) != list(self.prns):
+            ch = self.channels.get(prn)
+            return ch is not None and prn in self.prns and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
+        i = self.prns.index(prn)
+        return bool(L.vector_locked(self.ST[i], self.WK[i], self.SIG[i], self._chunk_params()))
 
     def _coast(self, prm, blk_end, max_ep, LOG, LX, LPD) -> int:
         """Nothing to track: predict the filter over the block's epochs; returns the epoch count."""
@@ -646,10 +666,8 @@ class VectorTracker:
     def _dops(self, tau, r, lat, lon):
         """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4), from this chunk's satellite
         polynomials (the geometry the loop itself used at receiver time tau)."""
-        lock_min = float(self.v.lock_cn0_dbhz)
         prns, POLY, tau_a = self._geo
-        rows = [i for i, p in enumerate(prns) if p in self.channels and p in self.ephs
-                and self.channels[p].st[K.S_CN0] >= lock_min]
+        rows = [i for i, p in enumerate(prns) if p in self.channels and p in self.ephs and self._vector_lock(p)]
         if len(rows) < 4:
             return (np.nan,) * 4
         c = POLY[rows, :, :3]
