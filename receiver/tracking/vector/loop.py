@@ -68,7 +68,9 @@ P_FLOOR_F = 10
 P_MIN_FILL = 11
 P_GATE = 12
 P_COAST_MASK = 13      # 1: while fewer than 4 channels carry signal, channels without signal only predict
-N_PRM = 14
+P_SLOW_CN0 = 14        # > 0: the slow lock detector's threshold (dB-Hz), see _slow_lock
+P_SLOW_BITS = 15       # data bits per slow lock window
+N_PRM = 16
 
 # ---- per-channel signal columns (SIG)
 SIG_CHIP = 0             # chip rate (chips/s)
@@ -78,10 +80,21 @@ SIG_IF = 3               # IF of the channel's input stream (Hz)
 SIG_BLOCK = 4            # row of `blocks` holding the channel's signal
 SIG_ISB = 5              # state index of the channel's inter-system bias, -1: the reference clock
 SIG_KIND = 6             # the channel's correlation epoch: KIND_KERNEL or KIND_GAL_E1
-N_SIG = 7
+SIG_SLOW = 7             # 1: the slow lock detector applies (1-ms prompts carry 20-ms data bits and no overlay)
+N_SIG = 8
 
 KIND_KERNEL = 0          # the 1-ms tracking kernel (BPSK: GPS/QZSS L1 C/A, BeiDou B1I)
 KIND_GAL_E1 = 1          # Galileo E1: 4-ms E1-C pilot epochs, BOC(1,1) discriminator (galileo.py)
+
+# ---- per-channel slow lock detector state (WK), see _slow_lock
+WK_I = 0                 # prompt sum of the current data bit
+WK_Q = 1
+WK_MS = 2                # ms summed in the current bit (-1: waiting for the next bit edge)
+WK_M2 = 3                # moments of the bit sums' power over the current window
+WK_M4 = 4
+WK_N = 5
+WK_CN0 = 6               # the last window's C/N0 (dB-Hz; 0: none)
+N_WK = 7
 
 # ---- per-epoch log columns (besides the state)
 L_TAU = 0
@@ -127,15 +140,73 @@ def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e, ig):
 
 
 @njit(cache=True)
+def _slow_lock(wk, st, o, nbits):
+    """The slow lock detector of a channel (weak signals under the vector loop): M2M4 over `nbits` bit-aligned
+    20-ms sums of the 1-ms prompts.  Over the 200-ms window of 1-ms epochs that decides vector lock, M2M4 on
+    noise alone reads 20-30 dB-Hz, so signals below ~32 dB-Hz cannot be told from noise there; 50 sums of 20 ms
+    (1 s) read noise below ~23 dB-Hz (99.99 %) and a 27 dB-Hz signal above ~25 (99 %).  Reset while the
+    presence test finds the signal absent or the bit edges are unknown."""
+    off = st[K.S_BIT_OFFSET]
+    if off < 0 or st[K.S_ABSENT_MS] > 0:
+        for a in range(N_WK):
+            wk[a] = 0.0
+        wk[WK_MS] = -1.0
+        return
+    pos = (int(o[K.O_PERIOD]) - int(off)) % 20
+    if pos == 0:
+        wk[WK_I] = 0.0
+        wk[WK_Q] = 0.0
+        wk[WK_MS] = 0.0
+    elif wk[WK_MS] != pos:                   # joined inside a bit, or an epoch was skipped
+        wk[WK_MS] = -1.0
+    if wk[WK_MS] < 0:
+        return
+    wk[WK_I] += o[K.O_PI]
+    wk[WK_Q] += o[K.O_PQ]
+    wk[WK_MS] += o[K.O_INT_MS]
+    if wk[WK_MS] < 20.0:
+        return
+    pw = wk[WK_I] * wk[WK_I] + wk[WK_Q] * wk[WK_Q]
+    wk[WK_M2] += pw
+    wk[WK_M4] += pw * pw
+    wk[WK_N] += 1.0
+    wk[WK_MS] = -1.0
+    if wk[WK_N] < nbits:
+        return
+    m2 = wk[WK_M2] / wk[WK_N]
+    m4 = wk[WK_M4] / wk[WK_N]
+    d = 2.0 * m2 * m2 - m4
+    pd = math.sqrt(d) if d > 0 else 0.0
+    pn = m2 - pd
+    cn0 = pd / (pn * 0.02) if pn > 0 and pd > 0 else 0.0
+    wk[WK_CN0] = 10.0 * math.log10(cn0) if cn0 > 1.0 else 0.0
+    wk[WK_M2] = 0.0
+    wk[WK_M4] = 0.0
+    wk[WK_N] = 0.0
+
+
+@njit(cache=True)
+def vector_locked(st, wk, sig, prm) -> bool:
+    """A vector channel carries signal: its C/N0 (M2M4, vector.cn0_window_ms) at or above vector.lock_cn0_dbhz,
+    or, for a weak GPS/QZSS channel the signal-presence test finds present, its slow detector's C/N0 at or
+    above vector.weak_lock_cn0_dbhz."""
+    if st[K.S_CN0] >= prm[P_LOCK_CN0]:
+        return True
+    return prm[P_SLOW_CN0] > 0 and sig[SIG_SLOW] > 0 and st[K.S_ABSENT_MS] == 0 and \
+        wk[WK_CN0] >= prm[P_SLOW_CN0]
+
+
+@njit(cache=True)
 def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, filt, out):
     """Run vector epochs while every channel's next correlation epoch fits in the block.
 
     blocks (n_signals, n): the chunk's samples of each signal's input stream (the same sample span).
     The arrays come in four tuples (numba unpacks them without copying):
 
-    * chans = (ST, CF, CODE, HIST, CA, ACTIVE, SIG): the channels' tracking state, configuration, codes,
-      histories, code-aiding state, ACTIVE (m,) (0 freezes a channel: not stepped, not commanded) and SIG
-      (m, N_SIG) the channel's signal constants (see the module docstring);
+    * chans = (ST, CF, CODE, HIST, CA, ACTIVE, SIG, WK): the channels' tracking state, configuration, codes,
+      histories, code-aiding state, ACTIVE (m,) (0 freezes a channel: not stepped, not commanded), SIG
+      (m, N_SIG) the channel's signal constants (see the module docstring) and WK (m, N_WK) the slow lock
+      detectors (_slow_lock);
     * geometry = (POLY, TAU_A, ATM): the satellite polynomials over the block, their time origin, the
       atmospheric delays;
     * filt = (x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS): the filter's state, covariance, transition,
@@ -146,7 +217,7 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
 
     Returns (epochs run, next grid point).
     """
-    ST, CF, CODE, HIST, CA, ACTIVE, SIG = chans
+    ST, CF, CODE, HIST, CA, ACTIVE, SIG, WK = chans
     POLY, TAU_A, ATM = geometry
     x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS = filt
     REC, NREC, LOG, LX, LPD, LR = out
@@ -192,7 +263,7 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
             valid[j] = False
             if not ACTIVE[j]:
                 continue
-            if ST[j, K.S_CN0] >= prm[P_LOCK_CN0]:
+            if vector_locked(ST[j], WK[j], SIG[j], prm):
                 nlock += 1
             chip = SIG[j, SIG_CHIP]
             block = blocks[int(SIG[j, SIG_BLOCK])]
@@ -208,6 +279,9 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
                     break
                 NREC[j] = r0 + 1
                 o = REC[j, r0]
+                if SIG[j, SIG_SLOW] > 0:
+                    _slow_lock(WK[j], ST[j], o, prm[P_SLOW_BITS])
+                o[K.O_LOCK] = 1.0 if vector_locked(ST[j], WK[j], SIG[j], prm) else 0.0
                 ns = ST[j, K.S_NEXT_SAMPLE] - o[K.O_SAMPLE]
                 t_int = ns / fs
                 tau_mid = (o[K.O_SAMPLE] + 0.5 * ns - s_ref) / fs
@@ -239,7 +313,7 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
         if prm[P_COAST_MASK] > 0 and nlock < 4:
             # coasting: a channel without signal measures noise; the filter is propagated, not pulled
             for j in range(m):
-                if ST[j, K.S_CN0] < prm[P_LOCK_CN0]:
+                if not vector_locked(ST[j], WK[j], SIG[j], prm):
                     valid[j] = False
         nvalid = 0
         for j in range(m):

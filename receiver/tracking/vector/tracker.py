@@ -8,8 +8,8 @@ Chunk by chunk (``process(block, start)``):
      ``vector.drop_elevation_deg`` are closed;
   2. the satellite geometry of the vector channels is refreshed (geometry.py);
   3. the compiled loop (loop.py) runs every vector epoch that fits in the block;
-  4. records go back to the pipeline (``pll_lock`` of a vector channel = vector lock, C/N0 above
-     vector.lock_cn0_dbhz), fixes are formed at navigation.rate_hz on round GPS times: mode 1 (vector) when
+  4. records go back to the pipeline (``pll_lock`` of a vector channel = vector lock, loop.vector_locked:
+     C/N0 above vector.lock_cn0_dbhz, or a weak GPS channel's slow detector), fixes are formed at navigation.rate_hz on round GPS times: mode 1 (vector) when
      at least 4 channels carry signal, else mode 2 (coast: the filter's prediction); n_sats = channels
      carrying signal.  While coasting, channels without signal only predict (vector.coast_mask).  When the
      coasting filter's 3D position sigma passes vector.reinit_sigma_m, ``reinit_needed`` is set and the
@@ -77,6 +77,13 @@ BOC11_CODE_VAR = 1.0 / 3.0
 def _galileo(sig) -> bool:
     """Whether a signal's vector channels run Galileo E1 epochs (receiver.tracking.vector.galileo)."""
     return sig.system == "E"
+
+
+def _slow_lock_reset() -> np.ndarray:
+    """A fresh slow lock detector state (loop.WK_*): waiting for a bit edge."""
+    wk = np.zeros(L.N_WK)
+    wk[L.WK_MS] = -1.0
+    return wk
 
 
 class VectorTracker:
@@ -218,8 +225,7 @@ class VectorTracker:
                 self.ephs[prn] = old if self._rejected.get(prn) is e else e
                 continue
             jump = self._predict_prn(prn, tau, e)[0] - self._predict_prn(prn, tau, old)[0]
-            ch = self.channels.get(prn)
-            locked = prn in self.prns and ch is not None and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
+            locked = self._vector_lock(prn)
             if abs(jump) > EPH_JUMP_M and locked:
                 # the channel follows the signal with the set in use (its innovations are small): the new
                 # one disagrees with the signal - a decoding error that passed parity (low C/N0, words
@@ -299,7 +305,8 @@ class VectorTracker:
             for i in (K.S_ACC_ABSI, K.S_ACC_Q2, K.S_ACC_I2, K.S_ACC_M2, K.S_ACC_M4, K.S_ACC_N):
                 ch.st[i] = 0.0
         self.info[prn] = {"A": self._tx_offset(prn, ch), "Rc": self.filt.r_code, "Rf": self.filt.r_carr,
-                          "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2)}
+                          "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2),
+                          "WK": _slow_lock_reset()}
         self.prns.append(prn)
         self.pending_since.pop(prn, None)
         self._arrays_dirty = True
@@ -374,6 +381,9 @@ class VectorTracker:
             self.SIG[i, L.SIG_BLOCK] = self.block_of[sig.system]
             self.SIG[i, L.SIG_ISB] = self._isb_state(sig)
             self.SIG[i, L.SIG_KIND] = L.KIND_GAL_E1 if _galileo(sig) else L.KIND_KERNEL
+            _, _, sig_prn = self._signal(prns[i])
+            self.SIG[i, L.SIG_SLOW] = float(not _galileo(sig) and sig.secondary(sig_prn) is None
+                                            and int(sig.bit_ms(sig_prn)) == 20)
             self.HIST[i, :len(ch.hist)] = ch.hist
             ch.st = self.ST[i]                 # the channel now lives in the shared arrays
             ch.cfg = self.CF[i]
@@ -386,9 +396,11 @@ class VectorTracker:
         self.WI = np.zeros(m, np.int64)
         self.WN = np.zeros(m, np.int64)
         self.WS = np.zeros((m, 2))
+        self.WK = np.zeros((m, L.N_WK))
         for i, p in enumerate(prns):
             d = self.info[p]
             self.W[i], self.WI[i], self.WN[i], self.WS[i] = d["W"], d["WI"], d["WN"], d["WS"]
+            self.WK[i] = d["WK"]
         self.ACTIVE = np.ones(m, np.int64)
         self._arr_prns = list(prns)
         self._arrays_dirty = False
@@ -420,6 +432,7 @@ class VectorTracker:
             d["Rc"], d["Rf"] = float(self.RC[i]), float(self.RF[i])
             d["W"], d["WI"], d["WN"], d["WS"] = self.W[i].copy(), int(self.WI[i]), int(self.WN[i]), \
                 self.WS[i].copy()
+            d["WK"] = self.WK[i].copy()
 
     def _remove(self, prn, mark_lost):
         if prn in self.prns:
@@ -481,7 +494,7 @@ class VectorTracker:
         if m and self.v.r_model == "cn0":
             self._cn0_r()
         if m:
-            chans = (self.ST, self.CF, self.CODE, self.HIST, self.CA, self.ACTIVE, self.SIG)
+            chans = (self.ST, self.CF, self.CODE, self.HIST, self.CA, self.ACTIVE, self.SIG, self.WK)
             filt = (self.x, self.P, self.F, self.Q, self.QB, self.lay, self.RC, self.RF, self.W, self.WI, self.WN,
                     self.WS)
             nep, self.grid_next = L.run_chunk(B, start, prm, self.grid_next, max_ep, chans, (POLY, TAU_A, ATM),
@@ -499,10 +512,8 @@ class VectorTracker:
         self.last_diag = self._diagnostics(LOG[:nep], LPD[:nep], LR[:nep], self.stats["epochs"], LX[:nep])
         self.stats["epochs"] += nep
         self.stats["fired"] += int(LOG[:nep, L.L_FIRED].sum())
-        lock_min = float(self.v.lock_cn0_dbhz)
         for i, prn in enumerate(self.prns):
-            rec = to_records(REC[i, :NREC[i]])
-            rec["pll_lock"] = (rec["cn0_dbhz"] >= lock_min).astype(np.uint8)
+            rec = to_records(REC[i, :NREC[i]])          # pll_lock: vector lock (loop.vector_locked)
             if prn in recs and len(recs[prn]):          # promoted in this chunk: scalar records first
                 rec = np.concatenate([recs[prn], rec])
             recs[prn] = rec
@@ -574,7 +585,17 @@ class VectorTracker:
         prm[L.P_MIN_FILL] = min(self.filt.window, 100)
         prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
         prm[L.P_COAST_MASK] = 1.0 if self.v.coast_mask else 0.0
+        prm[L.P_SLOW_CN0] = float(self.v.weak_lock_cn0_dbhz)
+        prm[L.P_SLOW_BITS] = max(1.0, round(float(self.v.weak_lock_window_ms) / 20.0))
         return prm
+
+    def _vector_lock(self, prn) -> bool:
+        """Whether the vector channel of a key carries signal now (loop.vector_locked)."""
+        if prn not in self.prns or getattr(self, "_arr_prns", None) != list(self.prns):
+            ch = self.channels.get(prn)
+            return ch is not None and prn in self.prns and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
+        i = self.prns.index(prn)
+        return bool(L.vector_locked(self.ST[i], self.WK[i], self.SIG[i], self._chunk_params()))
 
     def _coast(self, prm, blk_end, max_ep, LOG, LX, LPD) -> int:
         """Nothing to track: predict the filter over the block's epochs; returns the epoch count."""
@@ -667,10 +688,8 @@ class VectorTracker:
     def _dops(self, tau, r, lat, lon):
         """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4), from this chunk's satellite
         polynomials (the geometry the loop itself used at receiver time tau)."""
-        lock_min = float(self.v.lock_cn0_dbhz)
         prns, POLY, tau_a = self._geo
-        rows = [i for i, p in enumerate(prns) if p in self.channels and p in self.ephs
-                and self.channels[p].st[K.S_CN0] >= lock_min]
+        rows = [i for i, p in enumerate(prns) if p in self.channels and p in self.ephs and self._vector_lock(p)]
         if len(rows) < 4:
             return (np.nan,) * 4
         c = POLY[rows, :, :3]
