@@ -44,7 +44,7 @@ def test_signals_config():
             load_receiver_config(REPO / "configs/gps_bds_nav.yaml", ["vector.enabled=true"])
     finally:
         C.VECTOR_SIGNALS = known
-    # and GPS + Galileo + BeiDou ones (Galileo E1: tests/system/test_vector_galileo.py)
+    # and GPS + Galileo + BeiDou ones (Galileo E1: tests/system/test_vector_galileo_run.py)
     assert load_receiver_config(REPO / "configs/gps_gal_bds_nav.yaml", ["vector.enabled=true"]).vector.enabled
 
 

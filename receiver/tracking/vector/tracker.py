@@ -9,11 +9,12 @@ Chunk by chunk (``process(block, start)``):
   2. the satellite geometry of the vector channels is refreshed (geometry.py);
   3. the compiled loop (loop.py) runs every vector epoch that fits in the block;
   4. records go back to the pipeline (``pll_lock`` of a vector channel = vector lock, loop.vector_locked:
-     C/N0 above vector.lock_cn0_dbhz, or a weak GPS channel's slow detector), fixes are formed at navigation.rate_hz on round GPS times: mode 1 (vector) when
-     at least 4 channels carry signal, else mode 2 (coast: the filter's prediction); n_sats = channels
-     carrying signal.  While coasting, channels without signal only predict (vector.coast_mask).  When the
-     coasting filter's 3D position sigma passes vector.reinit_sigma_m, ``reinit_needed`` is set and the
-     pipeline falls back to scalar tracking (receiver.tracking.vector.Handover.fall_back).
+     C/N0 above vector.lock_cn0_dbhz, or a weak GPS channel's slow detector), fixes are formed at
+     navigation.rate_hz on round GPS times: mode 1 (vector) when at least 4 channels carry signal, else
+     mode 2 (coast: the filter's prediction); n_sats = channels carrying signal.  While coasting, channels
+     without signal only predict (vector.coast_mask).  When the coasting filter's 3D position sigma passes
+     vector.reinit_sigma_m, ``reinit_needed`` is set and the pipeline falls back to scalar tracking
+     (receiver.tracking.vector.Handover.fall_back).
 
 Navigation interface used (receiver.navigation.engine.NavigationEngine): ``week()``, ``ephemerides(t)``,
 ``iono()``, ``iono_params()``, ``channels[prn].has_time / tx_offset / bit_offset`` (satellite memory),

@@ -67,7 +67,7 @@ def test_config_accepts_gal_e1_with_the_vector_loop():
     assert run_signals(cfg) == ["gal_e1"] and cfg.acquisition.prns == [11, 12]
     assert run_signals(load_receiver_config(None, [("signals", ["gps_l1ca", "gal_e1", "bds_b1i"])])) == \
         ["gps_l1ca", "gal_e1", "bds_b1i"]
-    # the vector loops track Galileo E1 channels (tests/system/test_vector_galileo.py)
+    # the vector loops track Galileo E1 channels (tests/system/test_vector_galileo_run.py)
     assert load_receiver_config(None, [("signal", "gal_e1"), ("vector.enabled", True)]).vector.enabled
     cfg = load_receiver_config(None, [])
     assert cfg.signal == "gps_l1ca"
