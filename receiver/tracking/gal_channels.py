@@ -15,6 +15,12 @@ Records (:data:`receiver.runfile.record.EPOCH_DTYPE`), one per 4-ms E1 code peri
 * ``pll_lock``: the low-passed phase-lock indicator cos(2 phi) of the pilot above LOCK_PLI and the C/N0
   above tracking.lock_cn0_min_dbhz; ``lost`` after tracking.lost_ms without lock.
 
+Vector tracking (receiver.tracking.vector): the channel's NCO and loop state live in a kernel-style state row
+``st`` (receiver.tracking.kernel S_* slots, the Galileo-only quantities in G_* slots of the bit-sync ring, which a
+Galileo channel does not use), with ``cfg`` and ``code_ext`` (the E1-C and E1-B replicas and CS25, one row), so
+that the vector tracker can hand its NCOs to the vector loop, which runs its epochs compiled
+(receiver.tracking.vector.galileo) on the same row, and give them back (``set_external``).
+
 The lifecycle is simpler than the scalar channels' (receiver.tracking.channels): a lost Galileo satellite
 goes back to the cold round-robin search (no hot re-acquisition around the prediction), and there are no
 carrier false-lock restarts (the pilot's four-quadrant PLL has no data to slip on).
@@ -26,7 +32,9 @@ import math
 import numpy as np
 
 from ..gnss.satid import sat_label
+from ..gnss.signals_gal import GAL_E1
 from ..runfile import record
+from . import kernel as K
 from .gal import GalChannel, _correlate_block
 
 PULL_IN_EPOCHS = 50          # 200 ms: the PLL settles from the refined Doppler
@@ -39,6 +47,13 @@ DLL_SPACING = 0.2            # early-late spacing (chips)
 REFINE_PERIODS = 50          # 200 ms of pilot periods refine the Doppler and find the CS25 phase
 REACQ_PER_ATTEMPT = 4        # cold searches per attempt
 
+# ---- Galileo slots of the state row (kernel slots S_RING.. are the 1-ms bit-sync ring, unused here)
+G_CARR_PHASE01 = K.S_RING        # carrier NCO phase at S_NEXT_SAMPLE modulo 1 (cycles; S_CARR_PHASE accumulates)
+G_FREQ_INT = K.S_RING + 1        # PLL integrator (Hz, IF included)
+G_CS25 = K.S_RING + 2            # CS25 phase: the pilot's secondary chip of code period k is (k + this) % 25
+G_PLI = K.S_RING + 3             # low-passed cos(2 phi) of the pilot prompt
+N_REPLICA = 8184                 # BOC(1,1) half-chips of one replica (code_ext: E1-C, E1-B, then CS25)
+
 
 class GalTrack(GalChannel):
     """One Galileo E1 channel of the pipeline: ``process(block, block_start)`` runs every 4-ms epoch that fits
@@ -47,18 +62,157 @@ class GalTrack(GalChannel):
     compiled call per epoch."""
 
     def __init__(self, prn, fs, if_hz, sample, code_phase_chips, doppler_hz, cs25_offset, trk_cfg,
-                 channel_id: int = 0):
+                 channel_id: int = 0, signal=GAL_E1):
+        self.st = np.zeros(K.N_STATE)           # (before the base class sets the NCO state through the properties)
+        self.cfg = np.zeros(K.N_CONFIG)
+        self.hist = np.zeros(20, np.int64)
         super().__init__(prn, fs, if_hz, sample, code_phase_chips, doppler_hz, cs25_offset, pll_bw_hz=PLL_BW_HZ,
                          dll_bw_hz=DLL_BW_HZ, dll_spacing=DLL_SPACING)
+        self.signal = signal
         self.id = channel_id
+        c = self.cfg
+        c[K.C_FS], c[K.C_IF], c[K.C_CHIP_RATE], c[K.C_CARRIER_HZ] = self.fs, self.if_hz, signal.chip_rate, \
+            signal.carrier_hz
+        c[K.C_CODE_LEN], c[K.C_EL_SPACING], c[K.C_BIT_MS] = signal.code_len, self.d, 1.0
+        c[K.C_MAX_INT_MS], c[K.C_CN0_WIN_MS] = 1.0, float(getattr(trk_cfg, "cn0_window_ms", 200))
+        c[K.C_LOCK_CN0_MIN], c[K.C_LOST_MS] = float(trk_cfg.lock_cn0_min_dbhz), float(trk_cfg.lost_ms)
+        self.st[K.S_INT_MS] = 1.0
         self.lock_cn0 = float(trk_cfg.lock_cn0_min_dbhz)
         self.lost_epochs = max(1, int(math.ceil(trk_cfg.lost_ms / 4.0)))
         self.lost = False
         self.vector_carrier = self.vector_code = False
-        self._pli = 0.0
         self._epochs = 0
         self._unlocked = 0
         self._cn0 = float("nan")
+
+    # ---------------------------------------------------------------- state (in the state row)
+    @property
+    def next_sample(self) -> int:
+        """File sample index of the next epoch's first sample."""
+        return int(self.st[K.S_NEXT_SAMPLE])
+
+    @next_sample.setter
+    def next_sample(self, v):
+        self.st[K.S_NEXT_SAMPLE] = v
+
+    @property
+    def code_phase(self) -> float:
+        """Replica code phase at next_sample (chips)."""
+        return self.st[K.S_CODE_PHASE]
+
+    @code_phase.setter
+    def code_phase(self, v):
+        self.st[K.S_CODE_PHASE] = v
+
+    @property
+    def carr_hz(self) -> float:
+        """Carrier NCO frequency (Hz, IF included)."""
+        return self.st[K.S_CARR_FREQ]
+
+    @carr_hz.setter
+    def carr_hz(self, v):
+        self.st[K.S_CARR_FREQ] = v
+
+    @property
+    def carr_phase(self) -> float:
+        """Carrier NCO phase at next_sample, modulo 1 (cycles)."""
+        return self.st[G_CARR_PHASE01]
+
+    @carr_phase.setter
+    def carr_phase(self, v):
+        self.st[G_CARR_PHASE01] = v
+
+    @property
+    def carr_cycles(self) -> float:
+        """Accumulated carrier NCO phase at next_sample (cycles, IF included)."""
+        return self.st[K.S_CARR_PHASE]
+
+    @carr_cycles.setter
+    def carr_cycles(self, v):
+        self.st[K.S_CARR_PHASE] = v
+
+    @property
+    def period(self) -> int:
+        """Code periods since the channel start (the first epoch is period 1 of the acquisition block)."""
+        return int(self.st[K.S_CODE_PERIOD])
+
+    @period.setter
+    def period(self, v):
+        self.st[K.S_CODE_PERIOD] = v
+
+    @property
+    def dll_rate(self) -> float:
+        """DLL code-rate correction (chips/s) on top of the carrier-aided rate."""
+        return self.st[K.S_DLL_RATE]
+
+    @dll_rate.setter
+    def dll_rate(self, v):
+        self.st[K.S_DLL_RATE] = v
+
+    @property
+    def freq_int(self) -> float:
+        """PLL integrator (Hz, IF included)."""
+        return self.st[G_FREQ_INT]
+
+    @freq_int.setter
+    def freq_int(self, v):
+        self.st[G_FREQ_INT] = v
+
+    @property
+    def cs25_offset(self) -> int:
+        """CS25 phase: code period k carries the pilot's secondary chip (k + cs25_offset) % 25."""
+        return int(self.st[G_CS25])
+
+    @cs25_offset.setter
+    def cs25_offset(self, v):
+        self.st[G_CS25] = v
+
+    @property
+    def _pli(self) -> float:
+        return self.st[G_PLI]
+
+    @_pli.setter
+    def _pli(self, v):
+        self.st[G_PLI] = v
+
+    @property
+    def lost(self) -> bool:
+        """The channel gave up (or the vector tracker closed it)."""
+        return self.st[K.S_MODE] == K.MODE_LOST
+
+    @lost.setter
+    def lost(self, v):
+        if v:
+            self.st[K.S_MODE] = K.MODE_LOST
+
+    @property
+    def code_ext(self) -> np.ndarray:
+        """The replicas of the vector loop's code row: E1-C and E1-B BOC(1,1) half-chips, then the CS25 signs."""
+        return np.concatenate([self.rep_c, self.rep_b, self.cs25.astype(np.float32)])
+
+    # ---------------------------------------------------------------- vector tracking
+    def set_external(self, carrier: bool, code: bool):
+        """Hand the NCOs to the vector loop (True, True) or take them back (False, False): on the way back the
+        PLL integrator starts from the vector loop's last carrier command and the channel pulls in again (the
+        pilot phase is not locked after frequency-locked vector tracking)."""
+        back = (self.vector_carrier or self.vector_code) and not (carrier or code)
+        self.vector_carrier, self.vector_code = carrier, code
+        self.cfg[K.C_CARRIER_EXTERNAL] = 1.0 if carrier else 0.0
+        self.cfg[K.C_CODE_EXTERNAL] = 1.0 if code else 0.0
+        if carrier or code:
+            # the state row as the vector loop's Galileo epoch reads it (receiver.tracking.vector.galileo)
+            self.st[K.S_CODE_RATE] = self._epoch_length()[1] * self.fs
+            self.st[K.S_PLL_FREQ] = self.carr_hz - self.if_hz
+            self.st[K.S_INT_MS] = 1.0
+            self.st[K.S_ABSENT_MS] = 0.0
+            for i in (K.S_ACC_M2, K.S_ACC_M4, K.S_ACC_I2, K.S_ACC_Q2, K.S_ACC_N):
+                self.st[i] = 0.0
+        elif back:
+            self.freq_int = self.carr_hz
+            self.dll_rate = 0.0
+            self._m = None
+            self._epochs = 0
+            self._unlocked = 0
 
     @property
     def bit_offset(self) -> int:
@@ -117,6 +271,11 @@ class GalTrack(GalChannel):
         self._unlocked = 0 if (lock or pulling) else self._unlocked + 1
         if self._unlocked >= self.lost_epochs:
             self.lost = True
+        st = self.st
+        st[K.S_CN0] = cn0
+        st[K.S_LOCK] = 1.0 if lock else 0.0
+        if not self.lost:
+            st[K.S_MODE] = K.MODE_PULL_IN if pulling else K.MODE_BIT_SYNC
         r["time_s"] = sample / self.fs
         r["sample_index"] = sample
         r["code_period"] = period
@@ -176,7 +335,7 @@ class GalChannelManager:
                                 n_periods=REFINE_PERIODS)
         cid = self._ids.setdefault(r.prn, len(self._ids))
         ch = GalTrack(r.prn, self.fs, self.if_hz, int(r.sample_index), r.code_phase_chips, dop, off,
-                      self.cfg.tracking, channel_id=cid)
+                      self.cfg.tracking, channel_id=cid, signal=self.signal)
         self.channels[r.prn] = ch
         st = self._state.setdefault(r.prn, {"state": "tracking", "reacquisitions": 0, "false_locks": 0})
         st["state"] = "tracking"

@@ -12,11 +12,12 @@ from ...gnss.clock import OSCILLATORS
 from . import REGISTRY
 
 #: the signals the vector loops track (any mix of them, one clock bias per system)
-VECTOR_SIGNALS = ("gps_l1ca", "bds_b1i")
+VECTOR_SIGNALS = ("gps_l1ca", "bds_b1i", "gal_e1")
 
 SCHEMA = {
     "enabled": P(False, "bool", "hand scalar channels over to a vector loop (gps_l1ca incl. QZSS, "
-                                "bds_b1i, or both: one inter-system bias per extra system)"),
+                                "bds_b1i, gal_e1 (4-ms E1-C pilot epochs), or any mix: one inter-system "
+                                "bias per extra system)"),
     "variant": P("adaptive_r", "str", "vector loop variant",
                  choices=tuple(REGISTRY)),
     "start_s": P(None, "float", "handover time in seconds from the first sample (empty: 5 s after "
@@ -73,6 +74,13 @@ SCHEMA = {
     "lock_cn0_dbhz": P(32.0, "float", "vector lock: C/N0 (M2M4, vector.cn0_window_ms) above which a "
                                       "vector channel counts as tracked (records' pll_lock, fixes' "
                                       "n_sats and DOPs; M2M4 on noise alone reads 20-30 dB-Hz)"),
+    "weak_lock_cn0_dbhz": P(24.0, "float", "vector lock of weak GPS / QZSS L1 C/A channels: a channel below "
+                                           "lock_cn0_dbhz counts as tracked while the C/N0 of its bit-aligned "
+                                           "20-ms prompt sums (M2M4 over vector.weak_lock_window_ms) is at least "
+                                           "this and the signal-presence test finds it present (0 = off; over "
+                                           "1 s noise alone reads below ~23 dB-Hz)", lo=0.0),
+    "weak_lock_window_ms": P(1000, "int", "window of the weak-channel lock detector (ms, whole data bits)",
+                             lo=100),
     "coast_mask": P(True, "bool", "while fewer than 4 channels carry signal (C/N0 above lock_cn0_dbhz) the "
                                   "channels without signal are predicted only (no measurement update): "
                                   "the filter coasts on its motion model instead of on noise"),

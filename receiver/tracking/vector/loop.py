@@ -15,16 +15,19 @@ Per channel and epoch:
                           rate_hat = e . (v_sat - v) + d - c ddt_sv
 (all times relative to the handover reference, see tracker.py; A_j is the relative transmit time of the
 channel's code period 0, a whole number of code periods in absolute GPS time).  The signal constants are the
-channel's (SIG columns, from its SignalDef: chip rate f_code, carrier wavelength lambda, code period T_code,
-the IF and the input block of its signal), so channels of several signals (GPS/QZSS L1 C/A, BeiDou B1I)
-share one filter; a channel of a system other than the reference clock's adds its system's inter-system
-bias state isb_s (column SIG_ISB: its index in x, -1 for the reference system).  The frequency
-discriminator compares the two halves of ONE correlation epoch, and the kernel's epochs never span a data
-symbol or overlay-code chip (B1I: 1 ms before NH sync, then NH wiped off and epochs aligned to the D1 bits;
-D2: epochs of at most the 2-ms symbol), so the symbol signs never enter it.  Since the NCOs are commanded
-from the prediction, the innovation rho - rho_hat is the discriminator output of the error-state
-formulation of the papers (E_code = t_b + (X - X_hat)^T a_j); the explicit form above stays exact when an
-NCO could not follow the prediction (clamped code steps, the first epoch after handover).
+channel's (SIG columns, from its SignalDef: chip rate f_code, carrier wavelength lambda, code period T_code, the
+IF and the input block of its signal, the kind of its correlation epoch), so channels of several signals
+(GPS/QZSS L1 C/A, BeiDou B1I, Galileo E1) share one filter; a channel of a system other than the reference
+clock's adds its system's inter-system bias state isb_s (column SIG_ISB: its index in x, -1 for the reference
+system). The frequency discriminator compares the two halves of ONE correlation epoch, and the kernel's epochs
+never span a data symbol or overlay-code chip (B1I: 1 ms before NH sync, then NH wiped off and epochs aligned to
+the D1 bits; D2: epochs of at most the 2-ms symbol; Galileo E1: one 4-ms E1-C pilot period with its CS25 chip
+wiped, the E1-B symbols read against the pilot's phase, galileo.py), so the symbol signs never enter it. A
+Galileo channel's epoch lasts 4 ms whatever the filter's T: with T < 4 ms it gives a measurement every 4 / T
+filter epochs (the others predict it only), with T > 4 ms its one or two epochs in the filter epoch are averaged.
+Since the NCOs are commanded from the prediction, the innovation rho - rho_hat is the discriminator output of the
+error-state formulation of the papers (E_code = t_b + (X - X_hat)^T a_j); the explicit form above stays exact
+when an NCO could not follow the prediction (clamped code steps, the first epoch after handover).
 
 NCO commands for the next correlation epoch of channel j (starting at sample s_next):
   code phase  shifted so that the replica transmit time at s_next equals tau_next - rho_hat(tau_next)/c
@@ -42,7 +45,8 @@ from numba import njit
 from .. import kernel as K
 from ..correlator import workspace
 from ...gnss.signals import C_LIGHT
-from .discriminators import code_disc_m, freq_disc_hz
+from .discriminators import code_disc_boc_m, code_disc_m, freq_disc_hz
+from .galileo import gal_epoch
 from .kalman import adapt_r, kf_predict, kf_update_isb
 
 MAX_SHIFT = 3.0          # chips per epoch (the correlator's code array has 4 chips of wrap margin)
@@ -64,7 +68,9 @@ P_FLOOR_F = 10
 P_MIN_FILL = 11
 P_GATE = 12
 P_COAST_MASK = 13      # 1: while fewer than 4 channels carry signal, channels without signal only predict
-N_PRM = 14
+P_SLOW_CN0 = 14        # > 0: the slow lock detector's threshold (dB-Hz), see _slow_lock
+P_SLOW_BITS = 15       # data bits per slow lock window
+N_PRM = 16
 
 # ---- per-channel signal columns (SIG)
 SIG_CHIP = 0             # chip rate (chips/s)
@@ -73,7 +79,22 @@ SIG_PERIOD = 2           # primary-code period (s)
 SIG_IF = 3               # IF of the channel's input stream (Hz)
 SIG_BLOCK = 4            # row of `blocks` holding the channel's signal
 SIG_ISB = 5              # state index of the channel's inter-system bias, -1: the reference clock
-N_SIG = 6
+SIG_KIND = 6             # the channel's correlation epoch: KIND_KERNEL or KIND_GAL_E1
+SIG_SLOW = 7             # 1: the slow lock detector applies (1-ms prompts carry 20-ms data bits and no overlay)
+N_SIG = 8
+
+KIND_KERNEL = 0          # the 1-ms tracking kernel (BPSK: GPS/QZSS L1 C/A, BeiDou B1I)
+KIND_GAL_E1 = 1          # Galileo E1: 4-ms E1-C pilot epochs, BOC(1,1) discriminator (galileo.py)
+
+# ---- per-channel slow lock detector state (WK), see _slow_lock
+WK_I = 0                 # prompt sum of the current data bit
+WK_Q = 1
+WK_MS = 2                # ms summed in the current bit (-1: waiting for the next bit edge)
+WK_M2 = 3                # moments of the bit sums' power over the current window
+WK_M4 = 4
+WK_N = 5
+WK_CN0 = 6               # the last window's C/N0 (dB-Hz; 0: none)
+N_WK = 7
 
 # ---- per-epoch log columns (besides the state)
 L_TAU = 0
@@ -119,15 +140,73 @@ def _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau, tau_k, sp, sv, e, ig):
 
 
 @njit(cache=True)
+def _slow_lock(wk, st, o, nbits):
+    """The slow lock detector of a channel (weak signals under the vector loop): M2M4 over `nbits` bit-aligned
+    20-ms sums of the 1-ms prompts.  Over the 200-ms window of 1-ms epochs that decides vector lock, M2M4 on
+    noise alone reads 20-30 dB-Hz, so signals below ~32 dB-Hz cannot be told from noise there; 50 sums of 20 ms
+    (1 s) read noise below ~23 dB-Hz (99.99 %) and a 27 dB-Hz signal above ~25 (99 %).  Reset while the
+    presence test finds the signal absent or the bit edges are unknown."""
+    off = st[K.S_BIT_OFFSET]
+    if off < 0 or st[K.S_ABSENT_MS] > 0:
+        for a in range(N_WK):
+            wk[a] = 0.0
+        wk[WK_MS] = -1.0
+        return
+    pos = (int(o[K.O_PERIOD]) - int(off)) % 20
+    if pos == 0:
+        wk[WK_I] = 0.0
+        wk[WK_Q] = 0.0
+        wk[WK_MS] = 0.0
+    elif wk[WK_MS] != pos:                   # joined inside a bit, or an epoch was skipped
+        wk[WK_MS] = -1.0
+    if wk[WK_MS] < 0:
+        return
+    wk[WK_I] += o[K.O_PI]
+    wk[WK_Q] += o[K.O_PQ]
+    wk[WK_MS] += o[K.O_INT_MS]
+    if wk[WK_MS] < 20.0:
+        return
+    pw = wk[WK_I] * wk[WK_I] + wk[WK_Q] * wk[WK_Q]
+    wk[WK_M2] += pw
+    wk[WK_M4] += pw * pw
+    wk[WK_N] += 1.0
+    wk[WK_MS] = -1.0
+    if wk[WK_N] < nbits:
+        return
+    m2 = wk[WK_M2] / wk[WK_N]
+    m4 = wk[WK_M4] / wk[WK_N]
+    d = 2.0 * m2 * m2 - m4
+    pd = math.sqrt(d) if d > 0 else 0.0
+    pn = m2 - pd
+    cn0 = pd / (pn * 0.02) if pn > 0 and pd > 0 else 0.0
+    wk[WK_CN0] = 10.0 * math.log10(cn0) if cn0 > 1.0 else 0.0
+    wk[WK_M2] = 0.0
+    wk[WK_M4] = 0.0
+    wk[WK_N] = 0.0
+
+
+@njit(cache=True)
+def vector_locked(st, wk, sig, prm) -> bool:
+    """A vector channel carries signal: its C/N0 (M2M4, vector.cn0_window_ms) at or above vector.lock_cn0_dbhz,
+    or, for a weak GPS/QZSS channel the signal-presence test finds present, its slow detector's C/N0 at or
+    above vector.weak_lock_cn0_dbhz."""
+    if st[K.S_CN0] >= prm[P_LOCK_CN0]:
+        return True
+    return prm[P_SLOW_CN0] > 0 and sig[SIG_SLOW] > 0 and st[K.S_ABSENT_MS] == 0 and \
+        wk[WK_CN0] >= prm[P_SLOW_CN0]
+
+
+@njit(cache=True)
 def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, filt, out):
     """Run vector epochs while every channel's next correlation epoch fits in the block.
 
     blocks (n_signals, n): the chunk's samples of each signal's input stream (the same sample span).
     The arrays come in four tuples (numba unpacks them without copying):
 
-    * chans = (ST, CF, CODE, HIST, CA, ACTIVE, SIG): the channels' tracking state, configuration, codes,
-      histories, code-aiding state, ACTIVE (m,) (0 freezes a channel: not stepped, not commanded) and SIG
-      (m, N_SIG) the channel's signal constants (see the module docstring);
+    * chans = (ST, CF, CODE, HIST, CA, ACTIVE, SIG, WK): the channels' tracking state, configuration, codes,
+      histories, code-aiding state, ACTIVE (m,) (0 freezes a channel: not stepped, not commanded), SIG
+      (m, N_SIG) the channel's signal constants (see the module docstring) and WK (m, N_WK) the slow lock
+      detectors (_slow_lock);
     * geometry = (POLY, TAU_A, ATM): the satellite polynomials over the block, their time origin, the
       atmospheric delays;
     * filt = (x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS): the filter's state, covariance, transition,
@@ -138,7 +217,7 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
 
     Returns (epochs run, next grid point).
     """
-    ST, CF, CODE, HIST, CA, ACTIVE, SIG = chans
+    ST, CF, CODE, HIST, CA, ACTIVE, SIG, WK = chans
     POLY, TAU_A, ATM = geometry
     x, P, F, Q, QB, lay, Rc, Rf, W, WI, WN, WS = filt
     REC, NREC, LOG, LX, LPD, LR = out
@@ -160,6 +239,7 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
     sp = np.zeros(4)
     sv = np.zeros(4)
     e = np.zeros(3)
+    halves = np.zeros(4)              # a Galileo epoch's pilot prompt halves (I1, Q1, I2, Q2)
     cap = REC.shape[1]
     ws = workspace()                  # the correlator's scratch, once per chunk (one epoch per call below)
     k = 0
@@ -183,26 +263,38 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
             valid[j] = False
             if not ACTIVE[j]:
                 continue
-            if ST[j, K.S_CN0] >= prm[P_LOCK_CN0]:
+            if vector_locked(ST[j], WK[j], SIG[j], prm):
                 nlock += 1
             chip = SIG[j, SIG_CHIP]
             block = blocks[int(SIG[j, SIG_BLOCK])]
+            gal = SIG[j, SIG_KIND] == KIND_GAL_E1
             while ST[j, K.S_NEXT_SAMPLE] < s_end and NREC[j] < cap:
                 r0 = NREC[j]
-                got = K.track_block_ws(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
-                                       REC[j, r0:r0 + 1], 1, ws)
+                if gal:
+                    got = gal_epoch(block, block_start, ST[j], CF[j], CODE[j], REC[j, r0], halves)
+                else:
+                    got = K.track_block_ws(block, block_start, ST[j], CF[j], CODE[j], HIST[j],
+                                           REC[j, r0:r0 + 1], 1, ws)
                 if got == 0:
                     break
                 NREC[j] = r0 + 1
                 o = REC[j, r0]
+                if SIG[j, SIG_SLOW] > 0:
+                    _slow_lock(WK[j], ST[j], o, prm[P_SLOW_BITS])
+                o[K.O_LOCK] = 1.0 if vector_locked(ST[j], WK[j], SIG[j], prm) else 0.0
                 ns = ST[j, K.S_NEXT_SAMPLE] - o[K.O_SAMPLE]
                 t_int = ns / fs
                 tau_mid = (o[K.O_SAMPLE] + 0.5 * ns - s_ref) / fs
                 txrel = CA[j] + o[K.O_PERIOD] * SIG[j, SIG_PERIOD] + \
                     (o[K.O_CODE_PHASE] + 0.5 * ns * o[K.O_CODE_RATE] / fs) / chip
-                rho_meas = C_LIGHT * (tau_mid - txrel) + \
-                    code_disc_m(o[K.O_E], o[K.O_L], K.el_spacing(ST[j], CF[j]), chip)
-                dop = o[K.O_DOPPLER] + freq_disc_hz(o[K.O_P1I], o[K.O_P1Q], o[K.O_P2I], o[K.O_P2Q], t_int)
+                if gal:
+                    rho_meas = C_LIGHT * (tau_mid - txrel) + \
+                        code_disc_boc_m(o[K.O_E], o[K.O_L], CF[j, K.C_EL_SPACING], chip)
+                    dop = o[K.O_DOPPLER] + freq_disc_hz(halves[0], halves[1], halves[2], halves[3], t_int)
+                else:
+                    rho_meas = C_LIGHT * (tau_mid - txrel) + \
+                        code_disc_m(o[K.O_E], o[K.O_L], K.el_spacing(ST[j], CF[j]), chip)
+                    dop = o[K.O_DOPPLER] + freq_disc_hz(o[K.O_P1I], o[K.O_P1Q], o[K.O_P2I], o[K.O_P2Q], t_int)
                 rate_meas = -SIG[j, SIG_LAMBDA] * dop
                 rho_hat, rate_hat, _ = _predict_channel(x, lay, POLY, TAU_A, ATM, j, tau_mid, tau_k,
                                                         sp, sv, e, G[j])
@@ -221,7 +313,7 @@ def run_chunk(blocks, block_start, prm, grid_next, max_epochs, chans, geometry, 
         if prm[P_COAST_MASK] > 0 and nlock < 4:
             # coasting: a channel without signal measures noise; the filter is propagated, not pulled
             for j in range(m):
-                if ST[j, K.S_CN0] < prm[P_LOCK_CN0]:
+                if not vector_locked(ST[j], WK[j], SIG[j], prm):
                     valid[j] = False
         nvalid = 0
         for j in range(m):

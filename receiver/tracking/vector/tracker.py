@@ -8,12 +8,13 @@ Chunk by chunk (``process(block, start)``):
      ``vector.drop_elevation_deg`` are closed;
   2. the satellite geometry of the vector channels is refreshed (geometry.py);
   3. the compiled loop (loop.py) runs every vector epoch that fits in the block;
-  4. records go back to the pipeline (``pll_lock`` of a vector channel = vector lock, C/N0 above
-     vector.lock_cn0_dbhz), fixes are formed at navigation.rate_hz on round GPS times: mode 1 (vector) when
-     at least 4 channels carry signal, else mode 2 (coast: the filter's prediction); n_sats = channels
-     carrying signal.  While coasting, channels without signal only predict (vector.coast_mask).  When the
-     coasting filter's 3D position sigma passes vector.reinit_sigma_m, ``reinit_needed`` is set and the
-     pipeline falls back to scalar tracking (receiver.tracking.vector.Handover.fall_back).
+  4. records go back to the pipeline (``pll_lock`` of a vector channel = vector lock, loop.vector_locked:
+     C/N0 above vector.lock_cn0_dbhz, or a weak GPS channel's slow detector), fixes are formed at
+     navigation.rate_hz on round GPS times: mode 1 (vector) when at least 4 channels carry signal, else
+     mode 2 (coast: the filter's prediction); n_sats = channels carrying signal.  While coasting, channels
+     without signal only predict (vector.coast_mask).  When the coasting filter's 3D position sigma passes
+     vector.reinit_sigma_m, ``reinit_needed`` is set and the pipeline falls back to scalar tracking
+     (receiver.tracking.vector.Handover.fall_back).
 
 Navigation interface used (receiver.navigation.engine.NavigationEngine): ``week()``, ``ephemerides(t)``,
 ``iono()``, ``iono_params()``, ``channels[prn].has_time / tx_offset / bit_offset`` (satellite memory),
@@ -28,7 +29,10 @@ GPS time = t_ref + tau - b / c.
 
 Signals and systems: every channel carries its signal's constants into the compiled loop (chip rate, carrier
 wavelength, code period, the IF and the input block of its stream: ``signals``, the run's SignalDefs in the
-order of the pipeline's input blocks), so GPS and QZSS L1 C/A and BeiDou B1I channels share the filter.  In a
+order of the pipeline's input blocks), so GPS and QZSS L1 C/A, BeiDou B1I and Galileo E1 channels share the
+filter (a Galileo channel, receiver.tracking.gal_channels.GalTrack, brings a state row of the kernel's layout;
+its epochs are the compiled Galileo ones of receiver.tracking.vector.galileo; channels are not opened from the
+prediction for Galileo satellites: they join from the Galileo channel manager's acquisitions).  In a
 run over several signals the channels are keyed like the navigation engine's (receiver.gnss.satid.sat_key;
 the run's channel table, receiver.tracking.table.ChannelTable) and the filter gains one inter-system clock
 bias state per system after the reference one, in the navigation solution's order and grouping (clock group =
@@ -65,6 +69,22 @@ PROMOTE_LOCKED_S = 1.0        # a scalar channel joins the vector loop after thi
 ISB_Q_M2_S = 1e-3             # random-walk PSD of an inter-system bias state (m^2/s: a hardware delay difference,
                               # constant but for temperature; 0.3 m after 100 s)
 CLOCK_ORDER = "GJCE"          # the reference clock is the first of these (receiver.navigation.pvt._Sats)
+
+
+#: BOC(1,1) code discriminator variance relative to BPSK's at the same E-L spacing (receiver.tracking.vector.noise)
+BOC11_CODE_VAR = 1.0 / 3.0
+
+
+def _galileo(sig) -> bool:
+    """Whether a signal's vector channels run Galileo E1 epochs (receiver.tracking.vector.galileo)."""
+    return sig.system == "E"
+
+
+def _slow_lock_reset() -> np.ndarray:
+    """A fresh slow lock detector state (loop.WK_*): waiting for a bit edge."""
+    wk = np.zeros(L.N_WK)
+    wk[L.WK_MS] = -1.0
+    return wk
 
 
 class VectorTracker:
@@ -206,8 +226,7 @@ class VectorTracker:
                 self.ephs[prn] = old if self._rejected.get(prn) is e else e
                 continue
             jump = self._predict_prn(prn, tau, e)[0] - self._predict_prn(prn, tau, old)[0]
-            ch = self.channels.get(prn)
-            locked = prn in self.prns and ch is not None and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
+            locked = self._vector_lock(prn)
             if abs(jump) > EPH_JUMP_M and locked:
                 # the channel follows the signal with the set in use (its innovations are small): the new
                 # one disagrees with the signal - a decoding error that passed parity (low C/N0, words
@@ -278,7 +297,7 @@ class VectorTracker:
         ch.cfg[K.C_CN0_EST] = 1.0                       # M2M4: phase-lock independent
         ch.cfg[K.C_CN0_WIN_MS] = float(self.v.cn0_window_ms)
         sig, _, sig_prn = self._signal(prn)
-        max_int = self._max_int_ms(sig, sig_prn)
+        max_int = 1 if _galileo(sig) else self._max_int_ms(sig, sig_prn)    # (Galileo: one 4-ms period per epoch)
         ch.cfg[K.C_MAX_INT_MS] = max_int
         if ch.st[K.S_INT_MS] > max_int:
             ch.st[K.S_INT_MS] = 1
@@ -287,7 +306,8 @@ class VectorTracker:
             for i in (K.S_ACC_ABSI, K.S_ACC_Q2, K.S_ACC_I2, K.S_ACC_M2, K.S_ACC_M4, K.S_ACC_N):
                 ch.st[i] = 0.0
         self.info[prn] = {"A": self._tx_offset(prn, ch), "Rc": self.filt.r_code, "Rf": self.filt.r_carr,
-                          "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2)}
+                          "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2),
+                          "WK": _slow_lock_reset()}
         self.prns.append(prn)
         self.pending_since.pop(prn, None)
         self._arrays_dirty = True
@@ -361,6 +381,10 @@ class VectorTracker:
             self.SIG[i, L.SIG_IF] = if_hz
             self.SIG[i, L.SIG_BLOCK] = self.block_of[sig.system]
             self.SIG[i, L.SIG_ISB] = self._isb_state(sig)
+            self.SIG[i, L.SIG_KIND] = L.KIND_GAL_E1 if _galileo(sig) else L.KIND_KERNEL
+            _, _, sig_prn = self._signal(prns[i])
+            self.SIG[i, L.SIG_SLOW] = float(not _galileo(sig) and sig.secondary(sig_prn) is None
+                                            and int(sig.bit_ms(sig_prn)) == 20)
             self.HIST[i, :len(ch.hist)] = ch.hist
             ch.st = self.ST[i]                 # the channel now lives in the shared arrays
             ch.cfg = self.CF[i]
@@ -373,9 +397,11 @@ class VectorTracker:
         self.WI = np.zeros(m, np.int64)
         self.WN = np.zeros(m, np.int64)
         self.WS = np.zeros((m, 2))
+        self.WK = np.zeros((m, L.N_WK))
         for i, p in enumerate(prns):
             d = self.info[p]
             self.W[i], self.WI[i], self.WN[i], self.WS[i] = d["W"], d["WI"], d["WN"], d["WS"]
+            self.WK[i] = d["WK"]
         self.ACTIVE = np.ones(m, np.int64)
         self._arr_prns = list(prns)
         self._arrays_dirty = False
@@ -384,9 +410,14 @@ class VectorTracker:
         """vector.r_model cn0: each channel's R from its C/N0 estimate and integration (noise.py); an
         adaptive variant's channel keeps its own estimate once its window is filled."""
         m = len(self.prns)
-        r_code, r_rate = channel_r(self.ST[:, K.S_CN0], self.ST[:, K.S_INT_MS], self.T_ms,
+        # (integration in ms: code periods x the period, 4 ms for Galileo; BOC(1,1)'s code variance is a third
+        # of BPSK's at the same spacing, receiver.tracking.vector.noise)
+        gal = self.SIG[:, L.SIG_KIND] == L.KIND_GAL_E1
+        int_ms = self.ST[:, K.S_INT_MS] * np.round(self.SIG[:, L.SIG_PERIOD] * 1e3)
+        r_code, r_rate = channel_r(self.ST[:, K.S_CN0], int_ms, self.T_ms,
                                    self.CF[:, K.C_EL_SPACING], self.v.r_cn0,
-                                   C_LIGHT / self.SIG[:, L.SIG_CHIP], self.SIG[:, L.SIG_LAMBDA])
+                                   C_LIGHT / self.SIG[:, L.SIG_CHIP], self.SIG[:, L.SIG_LAMBDA],
+                                   code_factor=np.where(gal, BOC11_CODE_VAR, 1.0))
         own = np.zeros(m, bool)
         if self.filt.adaptive_form != FORM_NONE:
             own = self.WN >= min(self.filt.window, 100)
@@ -402,6 +433,7 @@ class VectorTracker:
             d["Rc"], d["Rf"] = float(self.RC[i]), float(self.RF[i])
             d["W"], d["WI"], d["WN"], d["WS"] = self.W[i].copy(), int(self.WI[i]), int(self.WN[i]), \
                 self.WS[i].copy()
+            d["WK"] = self.WK[i].copy()
 
     def _remove(self, prn, mark_lost):
         if prn in self.prns:
@@ -463,7 +495,7 @@ class VectorTracker:
         if m and self.v.r_model == "cn0":
             self._cn0_r()
         if m:
-            chans = (self.ST, self.CF, self.CODE, self.HIST, self.CA, self.ACTIVE, self.SIG)
+            chans = (self.ST, self.CF, self.CODE, self.HIST, self.CA, self.ACTIVE, self.SIG, self.WK)
             filt = (self.x, self.P, self.F, self.Q, self.QB, self.lay, self.RC, self.RF, self.W, self.WI, self.WN,
                     self.WS)
             nep, self.grid_next = L.run_chunk(B, start, prm, self.grid_next, max_ep, chans, (POLY, TAU_A, ATM),
@@ -481,10 +513,8 @@ class VectorTracker:
         self.last_diag = self._diagnostics(LOG[:nep], LPD[:nep], LR[:nep], self.stats["epochs"], LX[:nep])
         self.stats["epochs"] += nep
         self.stats["fired"] += int(LOG[:nep, L.L_FIRED].sum())
-        lock_min = float(self.v.lock_cn0_dbhz)
         for i, prn in enumerate(self.prns):
-            rec = to_records(REC[i, :NREC[i]])
-            rec["pll_lock"] = (rec["cn0_dbhz"] >= lock_min).astype(np.uint8)
+            rec = to_records(REC[i, :NREC[i]])          # pll_lock: vector lock (loop.vector_locked)
             if prn in recs and len(recs[prn]):          # promoted in this chunk: scalar records first
                 rec = np.concatenate([recs[prn], rec])
             recs[prn] = rec
@@ -522,7 +552,8 @@ class VectorTracker:
         (vector.add_predicted), highest first, while channels are free."""
         if not (self.v.add_predicted and len(self.channels) < self.cfg.tracking.max_channels):
             return
-        cand = [p for p in sorted(self.ephs) if p not in self.channels]
+        # (Galileo satellites: their channels come from the Galileo channel manager's acquisitions only)
+        cand = [p for p in sorted(self.ephs) if p not in self.channels and not _galileo(self._signal(p)[0])]
         if not cand:
             return
         _, _, el = satellite_polys([self.ephs[p] for p in cand], self.t_ref, tau_now, 0.1, b,
@@ -541,7 +572,9 @@ class VectorTracker:
         prm[L.P_IF] = self.if_hz
         prm[L.P_GRID] = self.step
         prm[L.P_SREF] = self.s_ref
-        prm[L.P_MARGIN] = (self.T_ms + 1.0) * 1e-3 * self.fs
+        # (a Galileo channel's 4-ms epoch may start just before a grid point and end 4 ms after it)
+        longest = 4 if any(_galileo(self._signal(p)[0]) for p in self.prns) else self.T_ms
+        prm[L.P_MARGIN] = (max(self.T_ms, longest) + 1.0) * 1e-3 * self.fs
         prm[L.P_CHI2] = self.filt.chi2_threshold
         prm[L.P_CN0_MASK] = -1e9 if self.v.cn0_mask_dbhz is None else float(self.v.cn0_mask_dbhz)
         if self.v.r_model == "cn0":         # below min_cn0_dbhz a channel has no weight to give
@@ -553,7 +586,17 @@ class VectorTracker:
         prm[L.P_MIN_FILL] = min(self.filt.window, 100)
         prm[L.P_GATE] = float(self.v.innovation_gate_sigma)
         prm[L.P_COAST_MASK] = 1.0 if self.v.coast_mask else 0.0
+        prm[L.P_SLOW_CN0] = float(self.v.weak_lock_cn0_dbhz)
+        prm[L.P_SLOW_BITS] = max(1.0, round(float(self.v.weak_lock_window_ms) / 20.0))
         return prm
+
+    def _vector_lock(self, prn) -> bool:
+        """Whether the vector channel of a key carries signal now (loop.vector_locked)."""
+        if prn not in self.prns or getattr(self, "_arr_prns", None) != list(self.prns):
+            ch = self.channels.get(prn)
+            return ch is not None and prn in self.prns and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
+        i = self.prns.index(prn)
+        return bool(L.vector_locked(self.ST[i], self.WK[i], self.SIG[i], self._chunk_params()))
 
     def _coast(self, prm, blk_end, max_ep, LOG, LX, LPD) -> int:
         """Nothing to track: predict the filter over the block's epochs; returns the epoch count."""
@@ -646,10 +689,8 @@ class VectorTracker:
     def _dops(self, tau, r, lat, lon):
         """(pdop, hdop, vdop, gdop) of the channels in vector lock (NaN below 4), from this chunk's satellite
         polynomials (the geometry the loop itself used at receiver time tau)."""
-        lock_min = float(self.v.lock_cn0_dbhz)
         prns, POLY, tau_a = self._geo
-        rows = [i for i, p in enumerate(prns) if p in self.channels and p in self.ephs
-                and self.channels[p].st[K.S_CN0] >= lock_min]
+        rows = [i for i, p in enumerate(prns) if p in self.channels and p in self.ephs and self._vector_lock(p)]
         if len(rows) < 4:
             return (np.nan,) * 4
         c = POLY[rows, :, :3]

@@ -3,7 +3,6 @@ what the BOC(1,1) replica loses against the transmitted CBOC(6,1,1/11)."""
 import numpy as np
 import pytest
 
-from receiver.errors import UserError
 from receiver.gnss import gal_codes as G
 from receiver.gnss.registry import get_signal
 
@@ -62,13 +61,13 @@ def test_cboc_approximation_cost():
     assert -0.05 < _boc11_loss_db(8e6) < _boc11_loss_db(4e6)
 
 
-def test_config_accepts_gal_e1_but_not_with_the_vector_loop():
+def test_config_accepts_gal_e1_with_the_vector_loop():
     from receiver.schema import load_receiver_config, run_signals
     cfg = load_receiver_config(None, [("signal", "gal_e1"), ("acquisition.prns", [11, 12])])
     assert run_signals(cfg) == ["gal_e1"] and cfg.acquisition.prns == [11, 12]
     assert run_signals(load_receiver_config(None, [("signals", ["gps_l1ca", "gal_e1", "bds_b1i"])])) == \
         ["gps_l1ca", "gal_e1", "bds_b1i"]
-    with pytest.raises(UserError, match="config key .vector.enabled.: .* not gal_e1"):
-        load_receiver_config(None, [("signal", "gal_e1"), ("vector.enabled", True)])
+    # the vector loops track Galileo E1 channels (tests/system/test_vector_galileo_run.py)
+    assert load_receiver_config(None, [("signal", "gal_e1"), ("vector.enabled", True)]).vector.enabled
     cfg = load_receiver_config(None, [])
     assert cfg.signal == "gps_l1ca"
