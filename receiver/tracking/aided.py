@@ -29,11 +29,11 @@ SEARCH_DTYPE = np.dtype([("time_s", "f8"), ("prn", "i4"), ("aided", "u1"), ("det
 
 
 def aiding_state(ch) -> tuple:
-    """(still pulling in, code phase in chips at ``ch.next_sample``) of an aiding channel: a scalar
-    Channel (kernel state) or a Galileo E1 GalTrack (``pulling_in``, ``code_phase``)."""
-    if hasattr(ch, "st"):
-        return int(ch.st[K.S_MODE]) == K.MODE_PULL_IN, float(ch.st[K.S_CODE_PHASE])
-    return bool(ch.pulling_in), float(ch.code_phase)
+    """(still pulling in, code phase in chips at ``ch.next_sample``) of an aiding channel: a Galileo E1
+    GalTrack (``pulling_in``, ``code_phase``) or a scalar Channel (kernel state)."""
+    if hasattr(ch, "pulling_in"):
+        return bool(ch.pulling_in), float(ch.code_phase)
+    return int(ch.st[K.S_MODE]) == K.MODE_PULL_IN, float(ch.st[K.S_CODE_PHASE])
 
 
 class AidedBand:
