@@ -63,3 +63,26 @@ def test_weak_dll_converges_at_the_normal_rate_first(hold_ms, converged):
         err = (r["code_phase_chips"][sel] - sig_chips + 511.5) % 1023 - 511.5
         errs.append(abs(np.mean(err)))
     assert (max(errs) < 0.06) == converged, errs
+
+
+@pytest.mark.parametrize("narrow", [True, False])
+def test_weak_channel_spacing_narrows_after_the_dll_hold(narrow):
+    """The whole-sample E-L spacing (0.79 chip at 2.6 MS/s) while a weak channel pulls in and holds its wide
+    DLL; after the hold the exact 0.5 chip (tracking.weak.narrow_el_after_hold), or whole samples as long as
+    it is weak when the key is off.  A strong channel has the exact spacing from its pull-in's end."""
+    from receiver.tracking import kernel as K
+    cfg = load_receiver_config(None, [("tracking.weak.narrow_el_after_hold", narrow)])
+    ch = Channel(5, 1000.0, 100.0, 0, cfg.tracking, 2.6e6, 0.0, weak=True)
+    st, c = ch.st.copy(), ch.cfg
+    wide, exact = c[K.C_EL_SPACING_WIDE], c[K.C_EL_SPACING]
+    assert wide == pytest.approx(2 * round(0.25 * 2.6e6 / CA_CHIP_RATE) * CA_CHIP_RATE / 2.6e6)
+    assert exact == pytest.approx(0.5)
+    st[K.S_MODE] = K.MODE_PULL_IN
+    assert K.el_spacing(st, c) == wide
+    st[K.S_MODE], st[K.S_WEAK] = K.MODE_TRACK, 1.0
+    st[K.S_MODE_MS] = c[K.C_WEAK_DLL_HOLD_MS] - 1
+    assert K.el_spacing(st, c) == wide
+    st[K.S_MODE_MS] = c[K.C_WEAK_DLL_HOLD_MS]
+    assert K.el_spacing(st, c) == (exact if narrow else wide)
+    st[K.S_WEAK] = 0.0
+    assert K.el_spacing(st, c) == exact
