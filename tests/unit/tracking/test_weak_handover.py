@@ -50,14 +50,17 @@ def test_truly_weak_channel_stays_weak():
 def test_weak_dll_converges_at_the_normal_rate_first(hold_ms, converged):
     """30 dB-Hz opened weak with a 0.25-chip code error (half a sample at 2.048 MS/s, the acquisition's
     straddle): 1 s after the pull-in (navigation.settle_s) the code error is below 0.06 chip (18 m) with
-    the DLL hold; narrowed to 0.5 Hz at once (as before) it is not."""
+    the DLL hold; narrowed to 0.5 Hz at once (as before) it is not.  On the whole-sample spacing
+    (narrow_el_after_hold off: with the exact 0.5 chip a weak channel's DLL converges within 0.06 chip without
+    the hold too, 0.025-0.042 chip on these seeds)."""
     bits = np.random.default_rng(7).choice([-1, 1], size=200)
     dop = 870.0
     sat = dict(prn=21, doppler_hz=dop, code_phase_chips=500.0, cn0_dbhz=30.0, bits=bits, bit_start_ms=2)
     errs = []
     for seed in (11, 12, 13):
         x = make_signal([sat], FS, 1.6, seed=seed)
-        ch, r = _track(x, 21, dop + 2.0, 500.25, [("tracking.weak.dll_hold_ms", hold_ms)])
+        ch, r = _track(x, 21, dop + 2.0, 500.25, [("tracking.weak.dll_hold_ms", hold_ms),
+                                                  ("tracking.weak.narrow_el_after_hold", False)])
         sel = (r["time_s"] > 1.3) & (r["time_s"] < 1.5)
         sig_chips = (500.0 + r["time_s"][sel] * CA_CHIP_RATE * (1 + dop / L1_HZ)) % 1023
         err = (r["code_phase_chips"][sel] - sig_chips + 511.5) % 1023 - 511.5
