@@ -93,6 +93,11 @@ SCHEMA = {
                                       "normal rate; its rate integrator at dll_bw_hz throughout), then "
                                       "narrows to dll_bw_hz; the navigation uses its measurements "
                                       "navigation.settle_s after that", lo=0),
+        "narrow_el_after_hold": P(True, "bool", "a weak channel's early-late spacing is tracking.early_late_chips "
+                                                "once its DLL hold (dll_hold_ms) is over, instead of the "
+                                                "whole-sample spacing of the pull-in for as long as it is weak: "
+                                                "the settled code noise goes as the spacing (at 2.6 MS/s 0.5 "
+                                                "against 0.79 chip)"),
         "exit_cn0_dbhz": P(35.0, "float", "a weak channel whose C/N0 estimates reach this in 3 windows in a "
                                           "row (tracking.cn0_window_ms each) while locked is handed over to "
                                           "the normal loops (the acquisition's estimate reads up to ~3 dB "

@@ -119,7 +119,9 @@ C_WEAK_EXIT_CN0 = 41   # > 0: a weak channel whose C/N0 reaches this for WEAK_EX
                        # over to the normal loops (tracking.weak.exit_cn0_dbhz)
 C_WEAK_FADE = 42       # 1: a strong channel about to be declared lost is handed down to the weak loops instead
                        # (tracking.weak.fade)
-N_CONFIG = 43
+C_WEAK_NARROW_EL = 43  # 1: a weak channel's E-L spacing is C_EL_SPACING once its DLL hold is over
+                       # (tracking.weak.narrow_el_after_hold), else C_EL_SPACING_WIDE while weak
+N_CONFIG = 44
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -141,9 +143,11 @@ MODE_LOST = 3
 @njit(cache=True)
 def el_spacing(st, cfg):
     """E-L spacing (chips) of this epoch: the whole-sample one (C_EL_SPACING_WIDE, when set) while the
-    channel pulls in and on weak channels -- a narrow correlator's +/- d/2 linear range loses weak signals
-    and codes not yet settled -- else the configured one."""
-    if cfg[C_EL_SPACING_WIDE] > 0 and (st[S_MODE] == MODE_PULL_IN or st[S_WEAK] > 0):
+    channel pulls in and on weak channels until their DLL hold (C_WEAK_DLL_HOLD_MS) is over -- a narrow
+    correlator's +/- d/2 linear range loses weak signals and codes not yet settled -- else the configured one
+    (the code noise of a settled DLL goes as the spacing: at 2.6 MS/s 0.79 against 0.5 chip)."""
+    if cfg[C_EL_SPACING_WIDE] > 0 and (st[S_MODE] == MODE_PULL_IN or (st[S_WEAK] > 0 and (
+            cfg[C_WEAK_NARROW_EL] == 0 or st[S_MODE_MS] < cfg[C_WEAK_DLL_HOLD_MS]))):
         return cfg[C_EL_SPACING_WIDE]
     return cfg[C_EL_SPACING]
 

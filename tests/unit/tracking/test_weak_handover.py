@@ -50,16 +50,42 @@ def test_truly_weak_channel_stays_weak():
 def test_weak_dll_converges_at_the_normal_rate_first(hold_ms, converged):
     """30 dB-Hz opened weak with a 0.25-chip code error (half a sample at 2.048 MS/s, the acquisition's
     straddle): 1 s after the pull-in (navigation.settle_s) the code error is below 0.06 chip (18 m) with
-    the DLL hold; narrowed to 0.5 Hz at once (as before) it is not."""
+    the DLL hold; narrowed to 0.5 Hz at once (as before) it is not.  On the whole-sample spacing
+    (narrow_el_after_hold off: with the exact 0.5 chip a weak channel's DLL converges within 0.06 chip without
+    the hold too, 0.025-0.042 chip on these seeds)."""
     bits = np.random.default_rng(7).choice([-1, 1], size=200)
     dop = 870.0
     sat = dict(prn=21, doppler_hz=dop, code_phase_chips=500.0, cn0_dbhz=30.0, bits=bits, bit_start_ms=2)
     errs = []
     for seed in (11, 12, 13):
         x = make_signal([sat], FS, 1.6, seed=seed)
-        ch, r = _track(x, 21, dop + 2.0, 500.25, [("tracking.weak.dll_hold_ms", hold_ms)])
+        ch, r = _track(x, 21, dop + 2.0, 500.25, [("tracking.weak.dll_hold_ms", hold_ms),
+                                                  ("tracking.weak.narrow_el_after_hold", False)])
         sel = (r["time_s"] > 1.3) & (r["time_s"] < 1.5)
         sig_chips = (500.0 + r["time_s"][sel] * CA_CHIP_RATE * (1 + dop / L1_HZ)) % 1023
         err = (r["code_phase_chips"][sel] - sig_chips + 511.5) % 1023 - 511.5
         errs.append(abs(np.mean(err)))
     assert (max(errs) < 0.06) == converged, errs
+
+
+@pytest.mark.parametrize("narrow", [True, False])
+def test_weak_channel_spacing_narrows_after_the_dll_hold(narrow):
+    """The whole-sample E-L spacing (0.79 chip at 2.6 MS/s) while a weak channel pulls in and holds its wide
+    DLL; after the hold the exact 0.5 chip (tracking.weak.narrow_el_after_hold), or whole samples as long as
+    it is weak when the key is off.  A strong channel has the exact spacing from its pull-in's end."""
+    from receiver.tracking import kernel as K
+    cfg = load_receiver_config(None, [("tracking.weak.narrow_el_after_hold", narrow)])
+    ch = Channel(5, 1000.0, 100.0, 0, cfg.tracking, 2.6e6, 0.0, weak=True)
+    st, c = ch.st.copy(), ch.cfg
+    wide, exact = c[K.C_EL_SPACING_WIDE], c[K.C_EL_SPACING]
+    assert wide == pytest.approx(2 * round(0.25 * 2.6e6 / CA_CHIP_RATE) * CA_CHIP_RATE / 2.6e6)
+    assert exact == pytest.approx(0.5)
+    st[K.S_MODE] = K.MODE_PULL_IN
+    assert K.el_spacing(st, c) == wide
+    st[K.S_MODE], st[K.S_WEAK] = K.MODE_TRACK, 1.0
+    st[K.S_MODE_MS] = c[K.C_WEAK_DLL_HOLD_MS] - 1
+    assert K.el_spacing(st, c) == wide
+    st[K.S_MODE_MS] = c[K.C_WEAK_DLL_HOLD_MS]
+    assert K.el_spacing(st, c) == (exact if narrow else wide)
+    st[K.S_WEAK] = 0.0
+    assert K.el_spacing(st, c) == exact
