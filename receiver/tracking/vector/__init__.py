@@ -127,13 +127,17 @@ class Handover:
                         signals=self.signals)
 
     def fall_back(self, tracker, start):
-        """The tracker cannot bridge the outage: every channel back to its scalar loop; the next handover
+        """The tracker cannot bridge the outage: every channel that still carries signal back to its scalar
+        loop, the others closed as lost (the channel manager re-acquires them around the prediction: handed
+        back in the outage, a channel's loops would hold noise -- its weak loops' lock detectors read noise
+        at 20-ms integration as ~20 dB-Hz and fed aided fixes hundreds of metres off); the next handover
         waits for a scalar fix computed after this moment."""
         cfg = self.cfg
         for prn in list(tracker.prns):
             ch = self.channels.get(prn)
-            tracker._remove(prn, False)
-            if ch is not None:
+            carries = tracker._vector_lock(prn)
+            tracker._remove(prn, not carries)
+            if ch is not None and carries:
                 _scalar_again(cfg, ch)
         self.reinits += 1
         self.state["not_before"] = start
