@@ -100,6 +100,7 @@ def test_boc_and_cboc_subcarriers():
     assert np.isclose(np.dot(x, rep) / len(x), G.CBOC_ALPHA, atol=1e-6)
 
 
+@pytest.mark.slow                    # pdftotext over the ICD (~4 s)
 @pytest.mark.skipif(ICD_PDF is None or shutil.which("pdftotext") is None,
                     reason="the Galileo ICD PDF (../shared/reference) or pdftotext (poppler-utils) is absent")
 def test_extraction_script_reproduces_the_shipped_table(tmp_path):

@@ -141,6 +141,7 @@ def test_bad_arguments():
     assert G.bits_hex([1, 1, 1, 0, 1, 1, 0, 0, 0, 1]) == "EC4"     # ICD Table 80's example
 
 
+@pytest.mark.slow                    # pdftotext over the ICD (~4 s)
 @needs_icd
 def test_every_code_equals_the_annex_c_printout():
     script = _load_script()
@@ -151,6 +152,7 @@ def test_every_code_equals_the_annex_c_printout():
     assert bad == []
 
 
+@pytest.mark.slow                    # pdftotext over the ICD (~4 s)
 @needs_icd
 def test_extraction_script_reproduces_the_shipped_table(tmp_path):
     out = tmp_path / "codes.txt"

@@ -23,6 +23,7 @@ def _track(x, prn, dop, cp, overrides=(), weak=True):
     return ch, np.concatenate(recs)
 
 
+@pytest.mark.slow                    # seconds of simulated signal tracked
 def test_weak_channel_on_a_strong_signal_is_handed_over():
     """40 dB-Hz opened weak (an acquisition estimate read low): after bit sync and 3 C/N0 windows at >= 35
     dB-Hz the channel integrates 1 ms again (the normal loops); with the hand-over off it stays at 20 ms."""
@@ -36,6 +37,7 @@ def test_weak_channel_on_a_strong_signal_is_handed_over():
     assert np.all(r[r["time_s"] > 2.5]["integration_ms"] == 20)
 
 
+@pytest.mark.slow                    # seconds of simulated signal tracked
 def test_truly_weak_channel_stays_weak():
     """28 dB-Hz: below the exit level, the channel keeps its 20-ms weak loops."""
     bits = np.random.default_rng(5).choice([-1, 1], size=200)
@@ -46,6 +48,7 @@ def test_truly_weak_channel_stays_weak():
     assert not ch.lost and np.all(late["integration_ms"] == 20)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("hold_ms, converged", [(2000, True), (0, False)])
 def test_weak_dll_converges_at_the_normal_rate_first(hold_ms, converged):
     """30 dB-Hz opened weak with a 0.25-chip code error (half a sample at 2.048 MS/s, the acquisition's
