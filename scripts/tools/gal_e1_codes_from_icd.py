@@ -15,15 +15,13 @@ from __future__ import annotations
 
 import argparse
 import re
-import shutil
-import subprocess
 import sys
 from pathlib import Path
 
+from receiver.gnss.icd_text import ICD_IN_SHARED, find_icd, pdf_text
+
 ROOT = Path(__file__).resolve().parents[2]
-_ICD = Path("shared") / "reference" / "galileo_os_sis_icd_issue1.1_2010.pdf"
-# ../shared beside the checkout (or beside the folder of git worktrees)
-DEFAULT_PDF = next((d / _ICD for d in (ROOT.parent, ROOT.parent.parent) if (d / _ICD).exists()), ROOT.parent / _ICD)
+DEFAULT_PDF = find_icd(ROOT) or ROOT.parent / ICD_IN_SHARED
 DEFAULT_OUT = ROOT / "receiver" / "gnss" / "data" / "gal_e1_codes.txt"
 N_HEX = 1023
 N_PRN = 50
@@ -32,16 +30,6 @@ _HEAD = re.compile(r"^\s*E1([BC]) Code No\s+(\d+)\s*$")
 _HEX = re.compile(r"^\s*([0-9A-F]+)\s*$")
 _SECTION = re.compile(r"^\s*C\.(\d+)\.\s")
 _CS25 = re.compile(r"^\s*CS251\s+25\s+7\s+3\s+([0-9A-F]{7})\s*$")
-
-
-def pdf_text(pdf: Path) -> str:
-    exe = shutil.which("pdftotext")
-    if exe is None:
-        raise SystemExit("pdftotext (poppler-utils) not found: apt-get install poppler-utils")
-    r = subprocess.run([exe, "-layout", str(pdf), "-"], capture_output=True, text=True)
-    if r.returncode:
-        raise SystemExit(f"pdftotext failed on {pdf}: {r.stderr.strip()}")
-    return r.stdout
 
 
 def parse(text: str) -> tuple[dict[tuple[str, int], str], str]:

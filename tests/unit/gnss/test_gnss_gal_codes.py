@@ -6,7 +6,6 @@ standard, typed in here); the shipped table is produced from the PDF by scripts/
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +13,9 @@ import pytest
 from receiver.gnss import gal_codes as G
 
 from repo_paths import ROOT
-_ICD = Path("shared") / "reference" / "galileo_os_sis_icd_issue1.1_2010.pdf"
-ICD_PDF = next((d / _ICD for d in (ROOT.parent, ROOT.parent.parent) if (d / _ICD).exists()), None)
+
+from receiver.gnss.icd_text import find_icd
+ICD_PDF = find_icd(ROOT)
 
 # (component, code number): (first 8 hex digits, last 8 hex digits) as printed in the ICD
 ICD_PRINTED = {

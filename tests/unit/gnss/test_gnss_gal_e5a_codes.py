@@ -11,7 +11,6 @@ import importlib.util
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,8 +19,9 @@ from receiver.errors import UserError
 from receiver.gnss import gal_e5a_codes as G
 
 from repo_paths import ROOT
-_ICD = Path("shared") / "reference" / "galileo_os_sis_icd_issue1.1_2010.pdf"
-ICD_PDF = next((d / _ICD for d in (ROOT.parent, ROOT.parent.parent) if (d / _ICD).exists()), None)
+
+from receiver.gnss.icd_text import find_icd
+ICD_PDF = find_icd(ROOT)
 SCRIPT = ROOT / "scripts" / "tools" / "gal_e5a_codes_from_icd.py"
 needs_icd = pytest.mark.skipif(ICD_PDF is None or shutil.which("pdftotext") is None,
                                reason="the Galileo ICD PDF (../shared/reference) or pdftotext (poppler-utils) "

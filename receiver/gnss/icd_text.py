@@ -1,0 +1,30 @@
+"""The Galileo OS SIS ICD as text: where the shared copy is and its text through ``pdftotext -layout``
+(poppler-utils), for the scripts that take the codes from it (``scripts/tools/gal_e1_codes_from_icd.py``,
+``scripts/tools/gal_e5a_codes_from_icd.py``) and their tests.  The receiver itself reads only the data files
+those scripts write."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+#: the ICD inside ../shared (OS SIS ICD issue 1.1, 2010)
+ICD_IN_SHARED = Path("shared") / "reference" / "galileo_os_sis_icd_issue1.1_2010.pdf"
+
+
+def find_icd(root: Path) -> Path | None:
+    """The ICD in ../shared beside the checkout ``root`` (or beside its folder of git worktrees), or None."""
+    return next((d / ICD_IN_SHARED for d in (root.parent, root.parent.parent) if (d / ICD_IN_SHARED).exists()),
+                None)
+
+
+def pdf_text(pdf: Path) -> str:
+    """The PDF's text with its layout kept (``pdftotext -layout``); SystemExit when pdftotext is missing or
+    fails."""
+    exe = shutil.which("pdftotext")
+    if exe is None:
+        raise SystemExit("pdftotext (poppler-utils) not found: apt-get install poppler-utils")
+    r = subprocess.run([exe, "-layout", str(pdf), "-"], capture_output=True, text=True)
+    if r.returncode:
+        raise SystemExit(f"pdftotext failed on {pdf}: {r.stderr.strip()}")
+    return r.stdout
