@@ -33,7 +33,7 @@ SCHEMA = {
     "weighting": P("elevation", "str", "WLS weights: sin^2(el), C/N0, none, or rtklib (RTKLIB's default "
                                            "single-point error model, to compare with rnx2rtkp)",
                    choices=tuple(WEIGHTING)),
-    "weighting_per_system": P("fixed", "str", "relative weight of each system in a fix mixing systems "
+    "weighting_per_system": P("vce", "str", "relative weight of each system in a fix mixing systems "
                                               "(elevation and cn0 weightings): fixed (each signal's code "
                                               "variance relative to L1 C/A, docs: Combining GNSS systems) or "
                                               "vce (that times a variance factor per system estimated from "

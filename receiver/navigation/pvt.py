@@ -199,9 +199,12 @@ def broadcast_accuracy_m(eph) -> float:
 CODE_VAR_REL_CA = {"C": (CA_CHIP_RATE / B1I_CHIP_RATE) ** 2, "E": 2.0}
 
 #: weighting_per_system vce: a system's factor is estimated once its satellites' redundancy numbers summed over
-#: the window reach this (a few satellites' worth), and the factors are kept within [1/VCE_MAX_RATIO,
+#: the window reach VCE_MIN_REDUNDANCY and average VCE_MIN_MEAN_REDUNDANCY per fix (a system of 1-3 satellites,
+#: e.g. QZSS, has almost none left after its own inter-system bias: its residuals say little about its
+#: variance, so such fixes keep the fixed weights), and the factors are kept within [1/VCE_MAX_RATIO,
 #: VCE_MAX_RATIO] of the first system's
 VCE_MIN_REDUNDANCY = 5.0
+VCE_MIN_MEAN_REDUNDANCY = 2.0
 VCE_MAX_RATIO = 100.0
 
 
@@ -279,15 +282,17 @@ class NavSolver:
         """{system: variance factor} for a fix of ``systems`` (the first one the reference, 1), estimated over
         the window: sum of w r^2 over sum of redundancy numbers per system (the simplified Helmert estimator
         of a variance component, w the satellite's weight without the factor); {} while a system has too
-        little redundancy in the window (VCE_MIN_REDUNDANCY) or VCE is off."""
+        little redundancy in the window (VCE_MIN_REDUNDANCY, VCE_MIN_MEAN_REDUNDANCY) or VCE is off."""
         if not self._vce_on(systems):
             return {}
-        num, den = {}, {}
+        num, den, cnt = {}, {}, {}
         for _, st in self._vce_hist:
             for c, (n, d) in st.items():
                 num[c] = num.get(c, 0.0) + n
                 den[c] = den.get(c, 0.0) + d
-        if any(den.get(c, 0.0) < VCE_MIN_REDUNDANCY for c in systems):
+                cnt[c] = cnt.get(c, 0) + 1
+        if any(den.get(c, 0.0) < max(VCE_MIN_REDUNDANCY, VCE_MIN_MEAN_REDUNDANCY * cnt.get(c, 0))
+               for c in systems):
             return {}
         var = {c: num[c] / den[c] for c in systems}
         ref = var[systems[0]]

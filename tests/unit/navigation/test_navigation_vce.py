@@ -115,3 +115,19 @@ def test_vce_is_a_no_op_for_one_system_and_for_trial_fixes(sky):
         short.fix(WEEK, T + k, both, ephs, x0=X)
     assert [t - WEEK * 604800.0 for t, _ in short._vce_hist] == [T + 3, T + 4, T + 5]
     assert short.vce_factors(["G", "C"])       # enough redundancy in 3 fixes of ~20 satellites
+
+
+def test_vce_keeps_the_fixed_weights_for_a_system_of_two_satellites(sky):
+    """Two BeiDou satellites beside GPS: after their own inter-system bias almost no redundancy is left to them
+    (less than VCE_MIN_MEAN_REDUNDANCY per fix), so no factor is estimated and the fixes are those of the fixed
+    weights, even with a threefold BeiDou noise."""
+    sats, ephs = sky
+    two = [t for t in sats if t[0].system == "G"] + [t for t in sats if t[0].system == "C"][:2]
+    rng = np.random.default_rng(7)
+    fixed, vce = NavSolver(_cfg()), NavSolver(_cfg(weighting_per_system="vce"))
+    for _ in range(20):
+        obs = _noisy(two, rng, {"G": 0.5, "C": 1.5})
+        fa, fb = fixed.fix(WEEK, T, obs, ephs, x0=X), vce.fix(WEEK, T, obs, ephs, x0=X)
+        assert fb.var_factors == {}
+        np.testing.assert_allclose(fb.ecef, fa.ecef, rtol=0, atol=1e-9)
+    assert len(vce._vce_hist) == 20 and vce.vce_factors(["G", "C"]) == {}
