@@ -195,7 +195,8 @@ def broadcast_accuracy_m(eph) -> float:
 #: in chips), (1.023 / 2.046)^2 = 1/4.  Galileo E1 (E1-C pilot, BOC(1,1), 8-Hz DLL, carrier smoothed): 2, a
 #: measured value -- over 7 GPS + Galileo recordings of our simulator and both weightings, 2 gave the fewest
 #: combined fixes worse than the better system alone (2 of 14; 1: 3, 0.5 and 4: 4) at the same mean error as 1.
-#: Other systems (GPS, QZSS): 1.
+#: Other systems (GPS, QZSS): 1.  With navigation.weighting_per_system vce (default) each system's variance is
+#: this times the factor estimated from the residuals (NavSolver.vce_factors), once there is enough redundancy.
 CODE_VAR_REL_CA = {"C": (CA_CHIP_RATE / B1I_CHIP_RATE) ** 2, "E": 2.0}
 
 #: weighting_per_system vce: a system's factor is estimated once its satellites' redundancy numbers summed over
@@ -243,7 +244,10 @@ class NavSolver:
     'none'), ionosphere ('klobuchar'|'none'), residual_threshold_m, max_pdop); missing ones default.
 
     Weights: elevation -> sin^2(el); cn0 -> 10^(cn0/10); none -> 1; all scaled so the largest
-    weight is 1.  Residual check: the normalised residual of satellite i is
+    weight is 1.  A fix mixing systems (elevation, cn0) divides them by each signal's code variance
+    (CODE_VAR_REL_CA) and, with weighting_per_system 'vce', by its system's variance factor estimated over the
+    previous fixes (:meth:`vce_factors`): the solver then keeps state from one fix to the next.
+    Residual check: the normalised residual of satellite i is
     sqrt(w_i) r_i / sqrt(1 - h_ii) (h_ii: diagonal of the weighted hat matrix), i.e. a metre
     value referred to a weight-1 satellite; while more than 5 satellites are used and the
     largest exceeds residual_threshold_m, that satellite is dropped and the fix recomputed.
