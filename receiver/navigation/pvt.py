@@ -285,7 +285,9 @@ class NavSolver:
     def vce_factors(self, systems) -> dict:
         """{system: variance factor} for a fix of ``systems`` (the first one the reference, 1), estimated over
         the window: sum of w r^2 over sum of redundancy numbers per system (the simplified Helmert estimator
-        of a variance component, w the satellite's weight without the factor); {} while a system has too
+        of a variance component, w the satellite's weight without the factor), each fix's w r^2 divided by
+        that fix's variance of unit weight (a common scale that may change from fix to fix, e.g. as the
+        smoothing of every channel converges; only the ratios are estimated); {} while a system has too
         little redundancy in the window (VCE_MIN_REDUNDANCY, VCE_MIN_MEAN_REDUNDANCY) or VCE is off."""
         if not self._vce_on(systems):
             return {}
@@ -305,16 +307,23 @@ class NavSolver:
         return {c: min(max(v / ref, 1.0 / VCE_MAX_RATIO), VCE_MAX_RATIO) for c, v in var.items()}
 
     def _vce_learn(self, t_s: float, s, sol, base_var):
-        """Add an unaided fix's per-system sums (w r^2, redundancy numbers) to the window ending at t_s."""
+        """Add an unaided fix's per-system sums (w r^2 over the fix's variance of unit weight, redundancy numbers)
+        to the window ending at t_s."""
         idx = sol["idx"]
         el = sol["el"]
         w = self._base_weights(el, s.cn0[idx], sol["iono"], s.ura_m[idx]) / base_var[idx]
         r2 = w * np.square(sol["resid"])
         red = sol["red"]
+        # each fix's sums in units of its own variance of unit weight (all systems): the variances of smoothed
+        # ranges fall by an order of magnitude over the first seconds of a channel, alike for every system, and
+        # unnormalised sums would be the first fixes' alone; the ratios between the systems are what is kept
+        total = float(np.sum(r2)) / max(float(np.sum(red)), 1e-9)
+        if not total > 0.0 or not np.isfinite(total):
+            return
         st = {}
         for g in sorted(set(s.group[idx].tolist())):
             m = s.group[idx] == g
-            st[s.systems[g]] = (float(np.sum(r2[m])), float(np.sum(red[m])))
+            st[s.systems[g]] = (float(np.sum(r2[m])) / total, float(np.sum(red[m])))
         hist = self._vce_hist
         if hist and t_s < hist[-1][0]:          # time went back (a new run through the same solver): restart
             hist.clear()
