@@ -273,8 +273,9 @@ class NavSolver:
         if self.per_system not in ("fixed", "vce"):
             raise ValueError(f"unknown weighting_per_system {self.per_system!r}")
         self.vce_window_s = float(g("vce_window_s"))
-        # weighting_per_system vce: (time s, {system: (sum of w r^2, sum of redundancy numbers)}) of the recent
-        # unaided fixes mixing systems (w: the satellite's weight without the factor, not normalised)
+        # weighting_per_system vce: (time s, {system: (sum of w r^2 over the fix's variance of unit weight, sum of
+        # redundancy numbers)}) of the recent unaided fixes mixing systems (w: the satellite's weight without the
+        # factor, not normalised to a largest 1)
         self._vce_hist = deque()
 
     # -------------------------------------------------------------------------------------
