@@ -22,7 +22,8 @@ from ..navigation.config import default
 from ..navigation.pvt import NavSolver, Observation
 
 #: navigation settings the re-solved fixes take from the run's configuration
-NAV_KEYS = ("elevation_mask_deg", "weighting", "troposphere", "ionosphere", "residual_threshold_m", "max_pdop")
+NAV_KEYS = ("elevation_mask_deg", "weighting", "troposphere", "ionosphere", "residual_threshold_m", "max_pdop",
+            "weighting_per_system", "vce_window_s")
 FIX_ROWS = np.dtype([("gps_tow", "f8"), ("ecef", "f8", (3,)), ("n_sats", "i4"), ("pdop", "f8")])
 
 

@@ -33,6 +33,15 @@ SCHEMA = {
     "weighting": P("elevation", "str", "WLS weights: sin^2(el), C/N0, none, or rtklib (RTKLIB's default "
                                            "single-point error model, to compare with rnx2rtkp)",
                    choices=tuple(WEIGHTING)),
+    "weighting_per_system": P("vce", "str", "relative weight of each system in a fix mixing systems "
+                                              "(elevation and cn0 weightings): fixed (each signal's code "
+                                              "variance relative to L1 C/A, docs: Combining GNSS systems) or "
+                                              "vce (that times a variance factor per system estimated from "
+                                              "the fixes' residuals over the last vce_window_s: variance "
+                                              "component estimation); one-system fixes are unchanged",
+                                      choices=("fixed", "vce")),
+    "vce_window_s": P(30.0, "float", "weighting_per_system vce: the sliding window of fixes (s) over which "
+                                     "each system's variance factor is estimated", lo=0.1),
     "residual_threshold_m": P(30.0, "float", "drop the worst satellite when a residual exceeds this",
                               lo=0.0),
     "max_pdop": P(20.0, "float", "no fix when the PDOP of the satellites used exceeds this (4-satellite "

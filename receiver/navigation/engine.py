@@ -275,7 +275,7 @@ class NavigationEngine(EphemerisStore):
                 continue
             tried.add(key)
             ephs = {o.prn: select(self.rinex_ephs[o.prn], T) for o in obs}
-            fix = self.solver.fix(week, T, obs, ephs, self.iono())
+            fix = self.solver.fix(week, T, obs, ephs, self.iono(), learn=False)
             # a common 20 ms shift of every transmit time fits almost as well (only the satellites'
             # along-track motion differs) but needs a 20 ms clock bias: input.start_gps_tow_s must be
             # within +/-10 ms for the search to pick the right assignment

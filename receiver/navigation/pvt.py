@@ -14,6 +14,7 @@ are one measurement model and one least-squares iteration; split, each part woul
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -110,6 +111,8 @@ class Fix:
     iterations: int = 0
     isb_m: dict = field(default_factory=dict)   # system letter -> inter-system clock bias (m) vs clock_bias_m
     aiding: tuple = ()                  # constraints used ("clock", "height"); () for an unaided fix
+    var_factors: dict = field(default_factory=dict)   # weighting_per_system vce: system letter -> variance
+    #                                   factor used (the first system's 1); {} when the fixed weights were used
 
     @property
     def lla(self):
@@ -192,8 +195,18 @@ def broadcast_accuracy_m(eph) -> float:
 #: in chips), (1.023 / 2.046)^2 = 1/4.  Galileo E1 (E1-C pilot, BOC(1,1), 8-Hz DLL, carrier smoothed): 2, a
 #: measured value -- over 7 GPS + Galileo recordings of our simulator and both weightings, 2 gave the fewest
 #: combined fixes worse than the better system alone (2 of 14; 1: 3, 0.5 and 4: 4) at the same mean error as 1.
-#: Other systems (GPS, QZSS): 1.
+#: Other systems (GPS, QZSS): 1.  With navigation.weighting_per_system vce (default) each system's variance is
+#: this times the factor estimated from the residuals (NavSolver.vce_factors), once there is enough redundancy.
 CODE_VAR_REL_CA = {"C": (CA_CHIP_RATE / B1I_CHIP_RATE) ** 2, "E": 2.0}
+
+#: weighting_per_system vce: a system's factor is estimated once its satellites' redundancy numbers summed over
+#: the window reach VCE_MIN_REDUNDANCY and average VCE_MIN_MEAN_REDUNDANCY per fix (a system of 1-3 satellites,
+#: e.g. QZSS, has almost none left after its own inter-system bias: its residuals say little about its
+#: variance, so such fixes keep the fixed weights), and the factors are kept within [1/VCE_MAX_RATIO,
+#: VCE_MAX_RATIO] of the first system's
+VCE_MIN_REDUNDANCY = 5.0
+VCE_MIN_MEAN_REDUNDANCY = 2.0
+VCE_MAX_RATIO = 100.0
 
 
 class _Sats:
@@ -231,7 +244,10 @@ class NavSolver:
     'none'), ionosphere ('klobuchar'|'none'), residual_threshold_m, max_pdop); missing ones default.
 
     Weights: elevation -> sin^2(el); cn0 -> 10^(cn0/10); none -> 1; all scaled so the largest
-    weight is 1.  Residual check: the normalised residual of satellite i is
+    weight is 1.  A fix mixing systems (elevation, cn0) divides them by each signal's code variance
+    (CODE_VAR_REL_CA) and, with weighting_per_system 'vce', by its system's variance factor estimated over the
+    previous fixes (:meth:`vce_factors`): the solver then keeps state from one fix to the next.
+    Residual check: the normalised residual of satellite i is
     sqrt(w_i) r_i / sqrt(1 - h_ii) (h_ii: diagonal of the weighted hat matrix), i.e. a metre
     value referred to a weight-1 satellite; while more than 5 satellites are used and the
     largest exceeds residual_threshold_m, that satellite is dropped and the fix recomputed.
@@ -253,6 +269,68 @@ class NavSolver:
         self.max_pdop = float(g("max_pdop"))
         if self.weighting not in WEIGHTING:
             raise ValueError(f"unknown weighting {self.weighting!r}")
+        self.per_system = str(g("weighting_per_system"))
+        if self.per_system not in ("fixed", "vce"):
+            raise ValueError(f"unknown weighting_per_system {self.per_system!r}")
+        self.vce_window_s = float(g("vce_window_s"))
+        # weighting_per_system vce: (time s, {system: (sum of w r^2 over the fix's variance of unit weight, sum of
+        # redundancy numbers)}) of the recent unaided fixes mixing systems (w: the satellite's weight without the
+        # factor, not normalised to a largest 1)
+        self._vce_hist = deque()
+
+    # -------------------------------------------------------------------------------------
+    # variance component estimation (weighting_per_system vce)
+    def _vce_on(self, systems) -> bool:
+        return self.per_system == "vce" and self.weighting in ("elevation", "cn0") and len(systems) > 1
+
+    def vce_factors(self, systems) -> dict:
+        """{system: variance factor} for a fix of ``systems`` (the first one the reference, 1), estimated over
+        the window: sum of w r^2 over sum of redundancy numbers per system (the simplified Helmert estimator
+        of a variance component, w the satellite's weight without the factor), each fix's w r^2 divided by
+        that fix's variance of unit weight (a common scale that may change from fix to fix, e.g. as the
+        smoothing of every channel converges; only the ratios are estimated); {} while a system has too
+        little redundancy in the window (VCE_MIN_REDUNDANCY, VCE_MIN_MEAN_REDUNDANCY) or VCE is off."""
+        if not self._vce_on(systems):
+            return {}
+        num, den, cnt = {}, {}, {}
+        for _, st in self._vce_hist:
+            for c, (n, d) in st.items():
+                num[c] = num.get(c, 0.0) + n
+                den[c] = den.get(c, 0.0) + d
+                cnt[c] = cnt.get(c, 0) + 1
+        if any(den.get(c, 0.0) < max(VCE_MIN_REDUNDANCY, VCE_MIN_MEAN_REDUNDANCY * cnt.get(c, 0))
+               for c in systems):
+            return {}
+        var = {c: num[c] / den[c] for c in systems}
+        ref = var[systems[0]]
+        if not (ref > 0.0 and all(np.isfinite(v) and v > 0.0 for v in var.values())):
+            return {}
+        return {c: min(max(v / ref, 1.0 / VCE_MAX_RATIO), VCE_MAX_RATIO) for c, v in var.items()}
+
+    def _vce_learn(self, t_s: float, s, sol, base_var):
+        """Add an unaided fix's per-system sums (w r^2 over the fix's variance of unit weight, redundancy numbers)
+        to the window ending at t_s."""
+        idx = sol["idx"]
+        el = sol["el"]
+        w = self._base_weights(el, s.cn0[idx], sol["iono"], s.ura_m[idx]) / base_var[idx]
+        r2 = w * np.square(sol["resid"])
+        red = sol["red"]
+        # each fix's sums in units of its own variance of unit weight (all systems): the variances of smoothed
+        # ranges fall by an order of magnitude over the first seconds of a channel, alike for every system, and
+        # unnormalised sums would be the first fixes' alone; the ratios between the systems are what is kept
+        total = float(np.sum(r2)) / max(float(np.sum(red)), 1e-9)
+        if not total > 0.0 or not np.isfinite(total):
+            return
+        st = {}
+        for g in sorted(set(s.group[idx].tolist())):
+            m = s.group[idx] == g
+            st[s.systems[g]] = (float(np.sum(r2[m])) / total, float(np.sum(red[m])))
+        hist = self._vce_hist
+        if hist and t_s < hist[-1][0]:          # time went back (a new run through the same solver): restart
+            hist.clear()
+        hist.append((t_s, st))
+        while hist and hist[0][0] < t_s - self.vce_window_s:
+            hist.popleft()
 
     # -------------------------------------------------------------------------------------
     def _prepare(self, rx_tow, observations, ephemerides, week):
@@ -440,6 +518,7 @@ class NavSolver:
         h_dop = h if not n_aid else np.vstack([h[:ns], h[ns:] * sw[ns:, None]])
         return dict(idx=idx, x=x, b=b, isb={s.systems[g]: float(v) for g, v in zip(extra, isb)},
                     resid=resid[:ns], norm_res=norm_res[:ns], aid_norm_res=norm_res[ns:], h=h[:ns],
+                    red=np.clip(1.0 - hat_diag[:ns], 0.0, 1.0),
                     h_dop=h_dop, w=w[:ns], los=los, tau=tau, redundancy=len(resid) - h.shape[1],
                     az=az, el=el, iono=iono, tropo=tropo, rho_c=rho_c, iterations=it)
 
@@ -470,20 +549,27 @@ class NavSolver:
         return best[2]
 
     # -------------------------------------------------------------------------------------
-    def fix(self, week, rx_tow, observations, ephemerides, iono_utc=None, x0=None, aid: Aiding | None = None):
+    def fix(self, week, rx_tow, observations, ephemerides, iono_utc=None, x0=None, aid: Aiding | None = None,
+            learn: bool = True):
         """Position/velocity/time fix at receiver time rx_tow (receiver clock, s of week).
 
         ephemerides: dict prn -> Ephemeris (or prn -> list of Ephemeris, the nearest healthy
         one is selected).  x0: initial ECEF position (e.g. the previous fix); without it the
         iteration starts from the Earth's centre.  aid: clock/height constraints (:class:`Aiding`; needs
         x0): with them 3 satellites can give a fix.  Returns a Fix or None (too few usable satellites, bad
-        geometry, no convergence, or an aided fix failing its residual test).
+        geometry, no convergence, or an aided fix failing its residual test).  learn (weighting_per_system
+        vce): an unaided fix mixing systems adds its residuals to the variance factors' window; False for
+        trial fixes (e.g. the assisted ambiguity search).
         """
         if aid is not None and (aid.count() == 0 or x0 is None):
             aid = None
         s = self._prepare(rx_tow, observations, ephemerides, week)
         if s is None or len(s) < (4 if aid is None else 3):
             return None
+        base_var = s.code_var
+        factors = self.vce_factors(s.systems)
+        if factors:
+            s.code_var = base_var * np.array([factors[c] for c in s.systems])[s.group]
         active = np.ones(len(s), dtype=bool)
         rejected = []
         start = self._initial_state(s, active, x0, iono_utc, rx_tow, rejected)
@@ -501,7 +587,12 @@ class NavSolver:
             return None
         if aid is not None and not dops[0] <= aid.max_pdop:    # the same for an aided fix (its own limit)
             return None
-        return self._build_fix(s, sol, dops, week, rx_tow, aid, rejected)
+        used = [s.systems[g] for g in sorted(set(s.group[sol["idx"]].tolist()))]
+        if learn and aid is None and self._vce_on(used):
+            self._vce_learn(int(week) * 604800.0 + float(rx_tow), s, sol, base_var)
+        fix = self._build_fix(s, sol, dops, week, rx_tow, aid, rejected)
+        fix.var_factors = factors
+        return fix
 
     def _initial_state(self, s: _Sats, active, x0, iono_utc, rx_tow, rejected):
         """(x, b) to start the corrected iteration from: an uncorrected solution from the Earth's centre when

@@ -108,6 +108,17 @@ def simulate(scenario, out_path, overrides=(), progress=True) -> dict:
     return paths
 
 
+def write_broadcast_nav(scenario, path, overrides=()) -> int:
+    """Write the ephemerides and Klobuchar set the scenario's satellites broadcast (every system of the
+    scenario: GPS / QZSS LNAV, Galileo I/NAV, BeiDou D1/D2; the satellites the recording holds) as a RINEX 3
+    navigation file, mixed when the scenario has several systems: ``navigation.ephemeris`` of an assisted run
+    (scripts/tools/scenario_nav.py).  Returns the number of records."""
+    from ..gnss.rinex import write_rinex_nav
+    sim = _Simulator(load_scenario(scenario, overrides))
+    write_rinex_nav(os.fspath(path), list(sim.ephs.values()), sim.iono_b, program="gnssrx simulate")
+    return len(sim.ephs)
+
+
 def scale_ionosphere(sim, factor: float):
     """The true ionosphere of simulator ``sim`` is ``factor`` times its model (atmosphere.iono_scale; the
     broadcast parameters unchanged; exactly no change for 1.0)."""
