@@ -20,7 +20,7 @@ demo: venv
 	$(PY) scripts/tools/demo.py
 
 test: venv
-	$(PY) -m pytest -q -n auto --dist loadfile
+	$(PY) -m pytest -q -n auto --dist loadfile --durations=15
 
 # the fast lane (< 1 min): everything not marked slow
 test-fast: venv
