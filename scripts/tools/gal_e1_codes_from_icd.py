@@ -13,15 +13,13 @@ Usage:  python scripts/tools/gal_e1_codes_from_icd.py [ICD.pdf] [-o receiver/gns
 """
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 from pathlib import Path
 
-from receiver.gnss.icd_text import ICD_IN_SHARED, find_icd, pdf_text
+from receiver.gnss.icd_text import extraction_args, pdf_text
 
 ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_PDF = find_icd(ROOT) or ROOT.parent / ICD_IN_SHARED
 DEFAULT_OUT = ROOT / "receiver" / "gnss" / "data" / "gal_e1_codes.txt"
 N_HEX = 1023
 N_PRN = 50
@@ -86,17 +84,13 @@ def write(codes, cs25, out: Path, source: str) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("pdf", nargs="?", default=str(DEFAULT_PDF))
-    ap.add_argument("-o", "--out", default=str(DEFAULT_OUT))
-    a = ap.parse_args(argv)
-    pdf = Path(a.pdf)
-    if not pdf.exists():
-        print(f"error: {pdf} not found", file=sys.stderr)
+    args = extraction_args(__doc__, ROOT, DEFAULT_OUT, argv)
+    if args is None:
         return 2
+    pdf, out = args
     codes, cs25 = parse(pdf_text(pdf))
-    write(codes, cs25, Path(a.out), pdf.name)
-    print(f"wrote {len(codes)} codes and CS25 {cs25} to {a.out}")
+    write(codes, cs25, out, pdf.name)
+    print(f"wrote {len(codes)} codes and CS25 {cs25} to {out}")
     return 0
 
 

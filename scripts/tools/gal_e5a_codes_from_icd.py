@@ -20,15 +20,13 @@ Usage:  python scripts/tools/gal_e5a_codes_from_icd.py [ICD.pdf] [-o receiver/gn
 """
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 from pathlib import Path
 
-from receiver.gnss.icd_text import ICD_IN_SHARED, find_icd, pdf_text
+from receiver.gnss.icd_text import extraction_args, pdf_text
 
 ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_PDF = find_icd(ROOT) or ROOT.parent / ICD_IN_SHARED
 DEFAULT_OUT = ROOT / "receiver" / "gnss" / "data" / "gal_e5a_codes.txt"
 N_PRN = 50
 N_ANNEX_HEX = 2558                    # 10230 chips + 2 fill zeros (ICD Table 81)
@@ -161,18 +159,14 @@ def write(facts: dict, out: Path, source: str) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("pdf", nargs="?", default=str(DEFAULT_PDF))
-    ap.add_argument("-o", "--out", default=str(DEFAULT_OUT))
-    a = ap.parse_args(argv)
-    pdf = Path(a.pdf)
-    if not pdf.exists():
-        print(f"error: {pdf} not found", file=sys.stderr)
+    args = extraction_args(__doc__, ROOT, DEFAULT_OUT, argv)
+    if args is None:
         return 2
+    pdf, out = args
     facts = parse(pdf_text(pdf))
-    write(facts, Path(a.out), pdf.name)
+    write(facts, out, pdf.name)
     print(f"wrote the E5a taps, {len(facts['start'])} start values, CS20 and {len(facts['cs100'])} CS100 codes "
-          f"to {a.out}")
+          f"to {out}")
     return 0
 
 
