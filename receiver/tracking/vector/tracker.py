@@ -491,7 +491,7 @@ class VectorTracker:
         LX = np.zeros((max_ep, n))
         LPD = np.zeros((max_ep, n))
         LR = np.zeros((max_ep, m, 2))
-        prm = self._chunk_params()
+        prm = self._prm = self._chunk_params()
         if m and self.v.r_model == "cn0":
             self._cn0_r()
         if m:
@@ -596,7 +596,10 @@ class VectorTracker:
             ch = self.channels.get(prn)
             return ch is not None and prn in self.prns and ch.st[K.S_CN0] >= float(self.v.lock_cn0_dbhz)
         i = self.prns.index(prn)
-        return bool(L.vector_locked(self.ST[i], self.WK[i], self.SIG[i], self._chunk_params()))
+        prm = getattr(self, "_prm", None)
+        if prm is None:
+            prm = self._prm = self._chunk_params()
+        return bool(L.vector_locked(self.ST[i], self.WK[i], self.SIG[i], prm))
 
     def _coast(self, prm, blk_end, max_ep, LOG, LX, LPD) -> int:
         """Nothing to track: predict the filter over the block's epochs; returns the epoch count."""
