@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 #: the ICD inside ../shared (OS SIS ICD issue 1.1, 2010)
@@ -32,15 +31,11 @@ def pdf_text(pdf: Path) -> str:
     return r.stdout
 
 
-def extraction_args(doc: str, root: Path, default_out: Path, argv=None) -> tuple[Path, Path] | None:
-    """The command line of an extraction script (``[ICD.pdf] [-o OUT]``, the ICD of :func:`find_icd` by
-    default): (pdf, out), or None after a one-line error when the PDF does not exist."""
+def extraction_args(doc: str, root: Path, default_out: Path, argv=None) -> tuple[Path, Path]:
+    """The command line of an extraction script, ``[ICD.pdf] [-o OUT]`` (the ICD of :func:`find_icd` by
+    default): (pdf, out)."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("pdf", nargs="?", default=str(find_icd(root) or root.parent / ICD_IN_SHARED))
     ap.add_argument("-o", "--out", default=str(default_out))
     a = ap.parse_args(argv)
-    pdf = Path(a.pdf)
-    if not pdf.exists():
-        print(f"error: {pdf} not found", file=sys.stderr)
-        return None
-    return pdf, Path(a.out)
+    return Path(a.pdf), Path(a.out)

@@ -84,10 +84,10 @@ def write(codes, cs25, out: Path, source: str) -> None:
 
 
 def main(argv=None) -> int:
-    args = extraction_args(__doc__, ROOT, DEFAULT_OUT, argv)
-    if args is None:
+    pdf, out = extraction_args(__doc__, ROOT, DEFAULT_OUT, argv)
+    if not pdf.exists():
+        print(f"error: {pdf} not found", file=sys.stderr)
         return 2
-    pdf, out = args
     codes, cs25 = parse(pdf_text(pdf))
     write(codes, cs25, out, pdf.name)
     print(f"wrote {len(codes)} codes and CS25 {cs25} to {out}")

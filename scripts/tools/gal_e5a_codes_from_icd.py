@@ -159,10 +159,10 @@ def write(facts: dict, out: Path, source: str) -> None:
 
 
 def main(argv=None) -> int:
-    args = extraction_args(__doc__, ROOT, DEFAULT_OUT, argv)
-    if args is None:
+    pdf, out = extraction_args(__doc__, ROOT, DEFAULT_OUT, argv)
+    if not pdf.exists():
+        print(f"error: {pdf} not found", file=sys.stderr)
         return 2
-    pdf, out = args
     facts = parse(pdf_text(pdf))
     write(facts, out, pdf.name)
     print(f"wrote the E5a taps, {len(facts['start'])} start values, CS20 and {len(facts['cs100'])} CS100 codes "
