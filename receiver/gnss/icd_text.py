@@ -5,6 +5,7 @@ those scripts write."""
 from __future__ import annotations
 
 import argparse
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -39,3 +40,39 @@ def extraction_args(doc: str, root: Path, default_out: Path, argv=None) -> tuple
     ap.add_argument("-o", "--out", default=str(default_out))
     a = ap.parse_args(argv)
     return Path(a.pdf), Path(a.out)
+
+
+_HEX_LINE = re.compile(r"^\s*([0-9A-F]+)\s*$")
+_ANNEX_SECTION = re.compile(r"^\s*C\.(\d+)\.\s")
+
+
+def annex_hex_codes(text: str, head: re.Pattern, n_hex: int, label: str) -> dict[tuple[str, int], str]:
+    """The codes Annex C prints as hex: each under a heading matched by ``head`` (groups: component letter,
+    code number), its digits the hex-only lines after it until ``n_hex`` digits (a code's print-out ends at the
+    next Annex C section).  {(component, code no): digits}; SystemExit on a code printed twice or longer than
+    n_hex (``label`` names the codes in the message, e.g. "E1" -> "E1B code 3")."""
+    codes: dict[tuple[str, int], str] = {}
+    cur = None            # key of the code being read
+    digits: list[str] = []
+    for line in text.splitlines():
+        m = head.match(line)
+        if m:
+            cur, digits = (m.group(1), int(m.group(2))), []
+            if cur in codes:
+                raise SystemExit(f"{label}{cur[0]} code {cur[1]} appears twice")
+            continue
+        if cur is None:
+            continue
+        if _ANNEX_SECTION.match(line):      # the next Annex C section (C.8 after C.7, Annex D after C.8)
+            cur = None
+            continue
+        m = _HEX_LINE.match(line)
+        if m:
+            digits.append(m.group(1))
+            n = sum(len(d) for d in digits)
+            if n == n_hex:
+                codes[cur] = "".join(digits)
+                cur = None
+            elif n > n_hex:
+                raise SystemExit(f"{label}{cur[0]} code {cur[1]}: more than {n_hex} hex digits ({n})")
+    return codes

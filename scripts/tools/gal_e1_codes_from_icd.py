@@ -17,7 +17,7 @@ import re
 import sys
 from pathlib import Path
 
-from receiver.gnss.icd_text import extraction_args, pdf_text
+from receiver.gnss.icd_text import annex_hex_codes, extraction_args, pdf_text
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "receiver" / "gnss" / "data" / "gal_e1_codes.txt"
@@ -25,41 +25,14 @@ N_HEX = 1023
 N_PRN = 50
 
 _HEAD = re.compile(r"^\s*E1([BC]) Code No\s+(\d+)\s*$")
-_HEX = re.compile(r"^\s*([0-9A-F]+)\s*$")
-_SECTION = re.compile(r"^\s*C\.(\d+)\.\s")
 _CS25 = re.compile(r"^\s*CS251\s+25\s+7\s+3\s+([0-9A-F]{7})\s*$")
 
 
 def parse(text: str) -> tuple[dict[tuple[str, int], str], str]:
     """{("B"|"C", prn): 1023 hex digits}, and the CS25 hex string (7 digits, 3 fill zeros)."""
-    codes: dict[tuple[str, int], str] = {}
-    cs25 = None
-    cur = None            # key of the code being read
-    digits: list[str] = []
-    for line in text.splitlines():
-        m = _CS25.match(line)
-        if m:
-            cs25 = m.group(1)
-        m = _HEAD.match(line)
-        if m:
-            cur, digits = (m.group(1), int(m.group(2))), []
-            if cur in codes:
-                raise SystemExit(f"E1{cur[0]} code {cur[1]} appears twice")
-            continue
-        if cur is None:
-            continue
-        if _SECTION.match(line):      # the next Annex C section (C.8 after C.7, Annex D after C.8)
-            cur = None
-            continue
-        m = _HEX.match(line)
-        if m:
-            digits.append(m.group(1))
-            n = sum(len(d) for d in digits)
-            if n == N_HEX:
-                codes[cur] = "".join(digits)
-                cur = None
-            elif n > N_HEX:
-                raise SystemExit(f"E1{cur[0]} code {cur[1]}: more than {N_HEX} hex digits ({n})")
+    codes = annex_hex_codes(text, _HEAD, N_HEX, "E1")
+    found = [m.group(1) for m in map(_CS25.match, text.splitlines()) if m]
+    cs25 = found[-1] if found else None
     if cs25 is None:
         raise SystemExit("CS25_1 (Table 19) not found")
     for comp in "BC":

@@ -24,7 +24,7 @@ import re
 import sys
 from pathlib import Path
 
-from receiver.gnss.icd_text import extraction_args, pdf_text
+from receiver.gnss.icd_text import annex_hex_codes, extraction_args, pdf_text
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "receiver" / "gnss" / "data" / "gal_e5a_codes.txt"
@@ -39,8 +39,6 @@ _START_ROW = re.compile(r"^\s*(\d{1,2})\s+([0-7]{5})\s+([0-9A-F]{6})\s+(\d{1,2})
 _CS20 = re.compile(r"^\s*CS201\s+20\s+5\s+0\s+([0-9A-F]{5})\s*$")
 _CS100 = re.compile(r"^\s*CS100(\d{1,3})\s+100\s+25\s+0\s+([0-9A-F]{25})\s*$")
 _ANNEX_HEAD = re.compile(r"^\s*E5a([IQ]) Code No\s+(\d+)\s*$")
-_ANNEX_HEX = re.compile(r"^\s*([0-9A-F]+)\s*$")
-_ANNEX_SECTION = re.compile(r"^\s*C\.(\d+)\.\s")
 
 
 def parse(text: str) -> dict:
@@ -101,30 +99,7 @@ def parse(text: str) -> dict:
 
 def annex_codes(text: str) -> dict[tuple[str, int], str]:
     """The full E5a-I / E5a-Q codes printed in Annex C.3 / C.4: {("I"|"Q", code no): 2558 hex digits}."""
-    codes: dict[tuple[str, int], str] = {}
-    cur = None
-    digits: list[str] = []
-    for line in text.splitlines():
-        m = _ANNEX_HEAD.match(line)
-        if m:
-            cur, digits = (m.group(1), int(m.group(2))), []
-            if cur in codes:
-                raise SystemExit(f"Annex C: E5a-{cur[0]} code {cur[1]} appears twice")
-            continue
-        if cur is None:
-            continue
-        if _ANNEX_SECTION.match(line):
-            cur = None
-            continue
-        m = _ANNEX_HEX.match(line)
-        if m:
-            digits.append(m.group(1))
-            n = sum(len(d) for d in digits)
-            if n == N_ANNEX_HEX:
-                codes[cur] = "".join(digits)
-                cur = None
-            elif n > N_ANNEX_HEX:
-                raise SystemExit(f"Annex C: E5a-{cur[0]} code {cur[1]}: more than {N_ANNEX_HEX} hex digits ({n})")
+    codes = annex_hex_codes(text, _ANNEX_HEAD, N_ANNEX_HEX, "Annex C: E5a-")
     for c in "IQ":
         missing = [p for p in range(1, N_PRN + 1) if (c, p) not in codes]
         if missing:

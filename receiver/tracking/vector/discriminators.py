@@ -71,24 +71,23 @@ def freq_disc_mps(i1, q1, i2, q2, t_int, carrier_hz):
     return -(C_LIGHT / carrier_hz) * freq_disc_hz(i1, q1, i2, q2, t_int)
 
 
-def code_discriminator(early, late, spacing_chips=0.5, chip_rate=CA_CHIP_RATE):
-    """numpy version of :func:`code_disc_m` (arrays allowed)."""
+def _normalised_el(early, late):
+    """(E - L) / (E + L) of envelope arrays, 0 where both are 0."""
     e = np.asarray(early, dtype=float)
     l = np.asarray(late, dtype=float)
     s = e + l
     with np.errstate(invalid="ignore", divide="ignore"):
-        d = np.where(s > 0, (e - l) / np.where(s > 0, s, 1.0), 0.0)
-    return -(C_LIGHT / chip_rate) * (1.0 - 0.5 * spacing_chips) * d
+        return np.where(s > 0, (e - l) / np.where(s > 0, s, 1.0), 0.0)
+
+
+def code_discriminator(early, late, spacing_chips=0.5, chip_rate=CA_CHIP_RATE):
+    """numpy version of :func:`code_disc_m` (arrays allowed)."""
+    return -(C_LIGHT / chip_rate) * (1.0 - 0.5 * spacing_chips) * _normalised_el(early, late)
 
 
 def code_discriminator_boc(early, late, spacing_chips=0.2, chip_rate=CA_CHIP_RATE):
     """numpy version of :func:`code_disc_boc_m` (arrays allowed)."""
-    e = np.asarray(early, dtype=float)
-    l = np.asarray(late, dtype=float)
-    s = e + l
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = np.where(s > 0, (e - l) / np.where(s > 0, s, 1.0), 0.0)
-    return -(C_LIGHT / chip_rate) * (2.0 - 3.0 * spacing_chips) / 6.0 * d
+    return -(C_LIGHT / chip_rate) * (2.0 - 3.0 * spacing_chips) / 6.0 * _normalised_el(early, late)
 
 
 def frequency_discriminator(i1, q1, i2, q2, t_int, carrier_hz=L1_HZ):
