@@ -25,8 +25,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+
+from ..estimation.stats import median_last_axis
 
 GATE_DB = 15.0          # tf_test: per-bin level over the floor that counts
 MIN_FRAMES = 0.05       # share of the span's frames with such a bin
@@ -38,8 +41,11 @@ def frame_size(fs: float, frame_us: float = 50.0) -> int:
     return max(32, 1 << int(round(math.log2(max(fs * frame_us * 1e-6, 1.0)))))
 
 
+@lru_cache(maxsize=8)
 def _hann(n: int) -> np.ndarray:
-    return (0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)).astype(np.float32)
+    w = (0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)).astype(np.float32)
+    w.flags.writeable = False                   # (cached: shared by every call)
+    return w
 
 
 def _spectra(x: np.ndarray, n: int, hop: int, light: bool = False) -> np.ndarray:
@@ -50,7 +56,7 @@ def _spectra(x: np.ndarray, n: int, hop: int, light: bool = False) -> np.ndarray
         return np.zeros((0, n), np.complex64)
     fr = np.lib.stride_tricks.sliding_window_view(np.asarray(x, np.complex64), n)[::hop][:f]
     if light:
-        return np.fft.fft(fr * _hann(n)[None, :], axis=1).astype(np.complex64)
+        return np.fft.fft(fr * _hann(n)[None, :], axis=1).astype(np.complex64, copy=False)
     from scipy import fft as sfft
     return sfft.fft(fr * _hann(n)[None, :], axis=1, overwrite_x=True)
 
@@ -73,7 +79,8 @@ class TfTest:
 
 def bin_floor(p: np.ndarray) -> np.ndarray:
     """Per-bin noise floor (mean power) from frame spectra powers ``p`` (frames x bins)."""
-    return np.maximum(np.median(p, axis=0) / LN2, 1e-30)
+    # (np.median's values, from one partition of the contiguous transpose: ~4x faster)
+    return np.maximum(median_last_axis(np.ascontiguousarray(p.T)) / LN2, 1e-30)
 
 
 def tf_test(x: np.ndarray, n: int, gate_db: float = GATE_DB) -> TfTest:

@@ -162,6 +162,16 @@ def byte_table(f: Format, bit_order: str = "msb_first", encoding: str = "sign_ma
 
 
 @njit(cache=True, nogil=True)
+def _deinterleave(raw, swap, offset, out):
+    """out[k] = complex(raw[2k], raw[2k+1]) - offset (I, Q swapped when ``swap``): interleaved integer I/Q
+    samples as complex64, in one pass (numpy's strided real / imag assignments take three); the integers
+    convert exactly, so the values are numpy's."""
+    a, b = (1, 0) if swap else (0, 1)
+    for k in range(out.shape[0]):
+        out[k] = complex(np.float32(raw[2 * k + a]) - offset.real, np.float32(raw[2 * k + b]) - offset.imag)
+
+
+@njit(cache=True, nogil=True)
 def _unpack(raw, table, first_field, ncomp, out):
     """Fields first_field, first_field+1, ... of the bytes `raw` (via `table`) into the complex64 array
     `out` viewed as float32 pairs: I, Q for ncomp 2, real and 0 for ncomp 1."""
@@ -274,7 +284,9 @@ class SampleReader:
                 out.real[(1 - start % 2)::2] *= -1.0      # odd file indices: consistent across reads
             return out
         raw = self._raw[start * c:stop * c]
-        if c == 2:
+        if c == 2 and raw.dtype.kind in "iu" and raw.dtype.itemsize <= 2:
+            _deinterleave(raw, bool(self.iq_swap), np.complex64(127.5 + 127.5j if f.kind == "uint" else 0.0), out)
+        elif c == 2:
             i, q = raw[0::2], raw[1::2]
             if self.iq_swap:
                 i, q = q, i

@@ -17,8 +17,10 @@ Tone detector (:func:`detect_tones`)
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from ..estimation.stats import gamma_isf, gamma_median, median_last_axis
 
@@ -50,10 +52,49 @@ class Detection:
     dc: complex = 0j              # mean of the detection span (DC offset)
 
 
+@lru_cache(maxsize=8)
 def _bh_window(n):
-    # 4-term Blackman-Harris (periodic form: the DFT-even window of an n-point segment)
+    # (cached: read-only, shared by every call) 4-term Blackman-Harris (periodic form: the DFT-even window of an n-point segment)
     x = 2.0 * np.pi * np.arange(n) / n
-    return 0.35875 - 0.48829 * np.cos(x) + 0.14128 * np.cos(2 * x) - 0.01168 * np.cos(3 * x)
+    w = 0.35875 - 0.48829 * np.cos(x) + 0.14128 * np.cos(2 * x) - 0.01168 * np.cos(3 * x)
+    w.flags.writeable = False
+    return w
+
+
+@njit(cache=True, nogil=True)
+def _running_median_circular(x, w):
+    """Median of the ``w`` (odd, <= len(x)) values of ``x`` centred on each index, wrapping around: the
+    middle of a window kept sorted (one value out, one in per step), the same values as numpy's median of
+    each window."""
+    n, h = len(x), w // 2
+    win = np.empty(w)
+    for j in range(w):
+        win[j] = x[(j - h) % n]
+    win.sort()
+    out = np.empty(n)
+    out[0] = win[h]
+    for i in range(1, n):
+        old, new = x[(i - 1 - h) % n], x[(i + h) % n]
+        j = np.searchsorted(win, old)          # (old is in the window: win[j] == old)
+        while j + 1 < w and win[j + 1] < new:  # new above: shift the values between down one
+            win[j] = win[j + 1]
+            j += 1
+        while j > 0 and win[j - 1] > new:      # new below: shift the values between up one
+            win[j] = win[j - 1]
+            j -= 1
+        win[j] = new
+        out[i] = win[h]
+    return out
+
+
+def running_median_circular(x: np.ndarray, w: int) -> np.ndarray:
+    """Median over the ``w`` (odd) neighbouring values of each element of the 1-D ``x``, circularly (the
+    noise floor of a periodogram); numpy's median of each window where ``x`` is not finite."""
+    x = np.ascontiguousarray(x, np.float64)
+    h = w // 2
+    if w % 2 == 0 or w > len(x) or not np.isfinite(x).all():
+        return median_last_axis(np.lib.stride_tricks.sliding_window_view(np.concatenate([x[-h:], x, x[:h]]), w))
+    return _running_median_circular(x, int(w))
 
 
 def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e-3, min_db: float = 6.0,
@@ -73,9 +114,7 @@ def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e
     spec = np.fft.fftshift(np.mean(np.abs(np.fft.fft(seg * w[None, :], axis=1)) ** 2, axis=0))
     freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
     fb = min(floor_bins, nfft // 4) | 1
-    h = fb // 2                                        # running median over fb bins, wrapping around
-    med = median_last_axis(np.lib.stride_tricks.sliding_window_view(np.concatenate([spec[-h:], spec, spec[:h]]),
-                                                                     fb))
+    med = running_median_circular(spec, fb)            # running median over fb bins, wrapping around
     floor = med / gamma_median(k)
     floor = np.maximum(floor, 1e-30)
     thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
