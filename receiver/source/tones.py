@@ -54,7 +54,7 @@ class Detection:
 
 @lru_cache(maxsize=8)
 def _bh_window(n):
-    # (cached: read-only, shared by every call) 4-term Blackman-Harris (periodic form: the DFT-even window of an n-point segment)
+    # 4-term Blackman-Harris (periodic form: the DFT-even window of an n-point segment); cached, read-only
     x = 2.0 * np.pi * np.arange(n) / n
     w = 0.35875 - 0.48829 * np.cos(x) + 0.14128 * np.cos(2 * x) - 0.01168 * np.cos(3 * x)
     w.flags.writeable = False
