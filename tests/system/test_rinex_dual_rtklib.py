@@ -27,6 +27,7 @@ import pytest
 
 from receiver.export.rinex_obs import write_nav, write_rinex_obs
 from receiver.gnss.geodesy import ecef2enu
+from receiver.gnss.signals import C_LIGHT
 from receiver.pipeline import run
 from receiver.runfile.reader import load_run
 from receiver.schema import load_receiver_config
@@ -83,6 +84,27 @@ def test_header_has_the_l5_codes(exported):
     head = d.joinpath("run.obs").read_text().split("END OF HEADER")[0].splitlines()
     types = [ln[:60].split() for ln in head if ln[60:].strip() == "SYS / # / OBS TYPES"]
     assert types == [["G", "8", "C1C", "L1C", "D1C", "S1C", "C5Q", "L5Q", "D5Q", "S5Q"]]
+
+
+def test_l5q_phase_follows_l1c(exported):
+    """L1C and L5Q as ranges (cycles x wavelength) change alike within the ionosphere's divergence (mm over 7 s):
+    the same sign convention and no half-cycle jump on L5Q; every L1 epoch of an L5 satellite has its L5 fields."""
+    d, _ = exported
+    text = d.joinpath("run.obs").read_text().split("END OF HEADER")[1].splitlines()[1:]
+    lam1, lam5 = C_LIGHT / 1575.42e6, C_LIGHT / 1176.45e6
+    series: dict = {}
+    for ln in text:
+        if ln.startswith(">"):
+            continue
+        f = [ln[3 + 16 * k:3 + 16 * k + 14].strip() for k in range(8)]
+        if f[5]:
+            series.setdefault(ln[:3], []).append((float(f[1]) * lam1, float(f[5]) * lam5))
+    assert len(series) >= 6
+    for sat, v in series.items():
+        a = np.array(v)
+        assert len(a) >= 40, sat
+        diff = (a[:, 0] - a[0, 0]) - (a[:, 1] - a[0, 1])
+        assert np.max(np.abs(diff)) < 0.05, sat
 
 
 def test_l1_broadcast_iono_solution_agrees_with_gnssrx(exported):
