@@ -6,7 +6,8 @@ gps_l5, gal_e5a]``): each band's channels aided by the same satellites' L1 / E1 
 
 * ``/acquisition_l5`` (``/acquisition_e5a``): every band search (time, PRN, aided, detected, statistic,
   threshold, code phase, Doppler);
-* ``/observables_l5`` (``/observables_e5a``): OBS_DTYPE rows of the band pseudoranges at the navigation epochs;
+* ``/observables_l5`` (``/observables_e5a``): OBS_DTYPE rows of the band at the navigation epochs (pseudorange,
+  the band channel's carrier phase, Doppler, C/N0, lock time, pilot half-cycle state);
 * ``/navigation_ionofree``: FIX_DTYPE rows of the ionosphere-free fixes of all the run's pairs together (the
   single-frequency fixes stay in ``/navigation``, computed as without the second bands).
 

@@ -21,6 +21,21 @@ so, also in a Galileo-only file whose default would be GAL).  Conventions:
   known, has none once the channel tracks).
 * SYS / PHASE SHIFT: no cycle shift is applied to any phase (0.00000 written for each system's phase code).
 * Signal strength indicator (C1C and L1C): 1..9 from C/N0 in 6 dB-Hz steps (RINEX 3 table).
+
+Second band (a dual-frequency run's ``/observables_l5``, ``/observables_e5a``; receiver.dualband): the system's
+SYS / # / OBS TYPES line goes on with C5Q, L5Q, D5Q, S5Q for GPS L5 and for Galileo E5a (band 5, attribute Q:
+gnssrx's L5 channel tracks the Q5 pilot -- code and carrier, NH20 wiped -- and its E5a channel the E5a-Q pilot,
+CS100 wiped; neither correlates with the I5 / E5a-I data component, so I and X would claim what the measurements
+do not use), only when the run has that band for that system, with a SYS / PHASE SHIFT line (0.00000) for L5Q.
+A band measurement belongs to the epoch of the first-band row with the same receiver time and satellite (the
+band's observables are computed at the first band's navigation epochs); a satellite without one has blank
+band fields.  C5Q is the band's pseudorange (its code phase, the whole milliseconds from C1C: unsmoothed, or
+Hatch-smoothed with the band's carrier when navigation.smoothing_s is set); L5Q is minus the band channel's
+carrier NCO phase (cycles of the band's wavelength, the L1C convention), half a cycle added when the pilot
+reads negative once its secondary code is wiped; D5Q the band channel's own carrier NCO Doppler.  The LLI
+of L5Q follows the L1C rules with the band channel's lock time (bit 0) and bit 1 until the pilot's secondary
+code is wiped; the SSI is that of the band's C/N0.  Runs without a second band give the file they gave
+before the band existed, byte for byte.
 """
 from __future__ import annotations
 
@@ -33,12 +48,16 @@ from .. import __version__
 from ..gnss.satid import sat_label, sat_system
 from ..gnss.time import split_gps_time
 from ..errors import UserError
-from ..runfile.reader import RunData
+from ..runfile.reader import RunData, RunFile
+from ..runfile.record import OBS_DTYPE
 
 OBS_TYPES = ("C1C", "L1C", "D1C", "S1C")
 #: observation codes per system letter (same four quantities, same order as OBS_TYPES)
 SYS_OBS_TYPES = {"G": OBS_TYPES, "J": OBS_TYPES, "C": ("C2I", "L2I", "D2I", "S2I"),
                  "E": ("C1C", "L1C", "D1C", "S1C")}
+#: second bands: run-file table suffix (``/observables_<tag>``) -> RINEX codes (module docstring: pilots, Q)
+BAND_OBS_TYPES = {"l5": ("C5Q", "L5Q", "D5Q", "S5Q"), "e5a": ("C5Q", "L5Q", "D5Q", "S5Q")}
+BAND_NAMES = {"l5": "GPS L5 (Q5 pilot)", "e5a": "Galileo E5a (E5a-Q pilot)"}
 LLI_LOSS = 1
 LLI_HALF_CYCLE = 2
 
@@ -91,8 +110,51 @@ def lli_flags(obs) -> np.ndarray:
     return lli
 
 
-def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
-    """Write the observation file.  Returns a small summary (epochs, satellites, first/last epoch)."""
+def band_tables(run: RunData) -> dict:
+    """{tag: OBS_DTYPE rows of ``/observables_<tag>``} of the run's second bands (BAND_OBS_TYPES), read from
+    its run file; empty without one (or without a run file behind the data)."""
+    tags = [t for t in BAND_OBS_TYPES if f"observables_{t}" in (run.groups or ())]
+    if not tags:
+        return {}
+    out = {}
+    try:
+        with RunFile(run.path) as rf:
+            for t in tags:
+                cols = rf.columns(f"observables_{t}", OBS_DTYPE.names)
+                n = len(cols["time_s"]) if "time_s" in cols else 0
+                a = np.zeros(n, OBS_DTYPE)
+                for name in OBS_DTYPE.names:
+                    if name in cols:
+                        a[name] = cols[name]
+                    elif a[name].dtype.kind == "f":
+                        a[name] = np.nan
+                if n:
+                    out[t] = a
+    except UserError:
+        return {}
+    return out
+
+
+def _band_index(obs, bands: dict, system: str):
+    """({(time_s, prn): (tag, row)} of the band rows that have a first-band row of the same receiver time and
+    satellite, {system letter: band tags with such rows}, {tag: LLI of its rows})."""
+    have = {(float(t), int(p)) for t, p in zip(obs["time_s"], obs["prn"])}
+    index, letters, lli = {}, {}, {}
+    for tag, b in bands.items():
+        lli[tag] = lli_flags(b)
+        for i, (t, p) in enumerate(zip(b["time_s"].tolist(), b["prn"].tolist())):
+            if (t, p) in have and (t, p) not in index:
+                index[(t, p)] = (tag, i)
+                tags = letters.setdefault(sat_system(p, system), [])
+                if tag not in tags:
+                    tags.append(tag)
+    return index, letters, lli
+
+
+def write_rinex_obs(path, run: RunData, marker: str | None = None, bands: dict | None = None) -> dict:
+    """Write the observation file.  Returns a small summary (epochs, satellites, first/last epoch).
+
+    bands: {tag: OBS_DTYPE rows} of the second bands (default: :func:`band_tables` of the run)."""
     obs = run.obs
     groups = _epoch_groups(obs)
     if not groups:
@@ -100,6 +162,11 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
     rx_tow = run.rx_tow()
     system = run.system
     lli = lli_flags(obs)
+    bands = band_tables(run) if bands is None else bands
+    b_index, b_letters, b_lli = _band_index(obs, bands, system)
+    sys_types = {c: SYS_OBS_TYPES[c] + sum((BAND_OBS_TYPES[t] for t in b_letters.get(c, ())), ())
+                 for c in SYS_OBS_TYPES}
+    b_counts: dict[int, np.ndarray] = {}
     lines_body = []
     epochs = []
     for rows in groups:
@@ -112,11 +179,27 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
         for r in rows:
             ssi = ssi_from_cn0(float(obs["cn0_dbhz"][r]))
             phase = -float(obs["carrier_phase_cycles"][r])
-            lines_body.append((sat_label(int(obs['prn'][r]), system)
-                               + _field(float(obs["pseudorange_m"][r]), 0, ssi)
-                               + _field(phase, int(lli[r]), ssi)
-                               + _field(float(obs["doppler_hz"][r]))
-                               + _field(float(obs["cn0_dbhz"][r]))).rstrip())
+            prn = int(obs['prn'][r])
+            line = (sat_label(prn, system)
+                    + _field(float(obs["pseudorange_m"][r]), 0, ssi)
+                    + _field(phase, int(lli[r]), ssi)
+                    + _field(float(obs["doppler_hz"][r]))
+                    + _field(float(obs["cn0_dbhz"][r])))
+            for tag in b_letters.get(sat_system(prn, system), ()):
+                hit = b_index.get((float(obs["time_s"][r]), prn))
+                if hit is None or hit[0] != tag:
+                    line += " " * 64
+                    continue
+                b, i = bands[tag][hit[1]], hit[1]
+                vals = (float(b["pseudorange_m"]), -float(b["carrier_phase_cycles"]), float(b["doppler_hz"]),
+                        float(b["cn0_dbhz"]))
+                b_ssi = ssi_from_cn0(vals[3])
+                line += (_field(vals[0], 0, b_ssi) + _field(vals[1], int(b_lli[tag][i]), b_ssi)
+                         + _field(vals[2]) + _field(vals[3]))
+                c = b_counts.setdefault(prn, np.zeros(4 * len(BAND_OBS_TYPES), int))
+                k = 4 * list(BAND_OBS_TYPES).index(tag)
+                c[k:k + 4] += [int(np.isfinite(v) and abs(v) < 1e10) for v in vals]
+            lines_body.append(line.rstrip())
     first_t, first_f = epochs[0]
     last_t, last_f = epochs[-1]
     if len(epochs) > 1:
@@ -139,6 +222,11 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
         _hdr(f"{'gnssrx ' + __version__:<20}{'':<20}{now:<20}", "PGM / RUN BY / DATE"),
         _hdr("gnssrx software receiver, " + ", ".join(signal_name[c] for c in letters), "COMMENT"),
         _hdr(f"run file {os.path.basename(run.path)}, {mode}", "COMMENT"),
+    ]
+    band_tags = [t for t in BAND_OBS_TYPES if any(t in v for v in b_letters.values())]
+    if band_tags:
+        h.append(_hdr("second band: " + ", ".join(BAND_NAMES[t] for t in band_tags), "COMMENT"))
+    h += [
         _hdr("phase = -(accumulated carrier NCO phase); epochs = receiver", "COMMENT"),
         _hdr("clock (GPS time of fix + clock bias / c)", "COMMENT"),
         _hdr(marker[:60], "MARKER NAME"),
@@ -149,7 +237,7 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
         _hdr("".join(f"{v:14.4f}" for v in approx), "APPROX POSITION XYZ"),
         _hdr("".join(f"{0.0:14.4f}" for _ in range(3)), "ANTENNA: DELTA H/E/N"),
     ]
-    h += [_hdr(f"{c}  {len(SYS_OBS_TYPES[c]):3d}" + "".join(f" {t}" for t in SYS_OBS_TYPES[c]),
+    h += [_hdr(f"{c}  {len(sys_types[c]):3d}" + "".join(f" {t}" for t in sys_types[c]),
                "SYS / # / OBS TYPES") for c in letters]
     h.append(_hdr("DBHZ", "SIGNAL STRENGTH UNIT"))
     if interval is not None and interval > 0:
@@ -159,7 +247,8 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
     h.append(_hdr(f"{last_t.year:6d}{last_t.month:6d}{last_t.day:6d}{last_t.hour:6d}{last_t.minute:6d}"
                   f"{last_t.second + last_f:13.7f}{'':5}GPS", "TIME OF LAST OBS"))
     for c in letters:
-        h.append(_hdr(f"{c} {SYS_OBS_TYPES[c][1]} {0.0:8.5f}", "SYS / PHASE SHIFT"))
+        for code in sys_types[c][1::4]:
+            h.append(_hdr(f"{c} {code} {0.0:8.5f}", "SYS / PHASE SHIFT"))
     leap = run.leap_seconds()
     if leap:
         h.append(_hdr(f"{leap:6d}", "LEAP SECONDS"))
@@ -168,6 +257,10 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None) -> dict:
         sel = obs["prn"] == p
         counts = [int(np.count_nonzero(np.isfinite(obs[c][sel]))) for c in
                   ("pseudorange_m", "carrier_phase_cycles", "doppler_hz", "cn0_dbhz")]
+        bc = b_counts.get(p, np.zeros(4 * len(BAND_OBS_TYPES), int))
+        for tag in b_letters.get(sat_system(p, system), ()):
+            k = 4 * list(BAND_OBS_TYPES).index(tag)
+            counts += bc[k:k + 4].tolist()
         h.append(_hdr(f"   {sat_label(p, system)}" + "".join(f"{c:6d}" for c in counts), "PRN / # OF OBS"))
     h.append(_hdr("", "END OF HEADER"))
     with open(path, "w", newline="\n") as fh:
@@ -234,4 +327,5 @@ def write_nav(path, run: RunData) -> dict:
             "iono": run.iono() is not None}
 
 
-__all__ = ["write_rinex_obs", "write_nav", "nav_ephemerides", "lli_flags", "ssi_from_cn0", "OBS_TYPES"]
+__all__ = ["write_rinex_obs", "write_nav", "nav_ephemerides", "lli_flags", "ssi_from_cn0", "OBS_TYPES",
+           "BAND_OBS_TYPES", "band_tables"]

@@ -119,17 +119,19 @@ class DualFrequency:
             prn = keys.get(key)
             if prn is None:
                 continue
-            m = bd.band.code_phase_at(prn, float(r["time_s"]))
+            m = bd.band.measure_at(prn, float(r["time_s"]))
             if m is None:
                 continue
-            p5 = band_pseudorange(float(r["pseudorange_m"]), rx_tow, m[0], sig.chip_rate)
-            p5 = self._smooth(key, float(r["time_s"]), p5, -bd.lam * m[2])
+            p5 = band_pseudorange(float(r["pseudorange_m"]), rx_tow, m["chips"], sig.chip_rate)
+            p5 = self._smooth(key, float(r["time_s"]), p5, -bd.lam * m["nco_cycles"])
             pr[key] = (p5, bd)
             o = r.copy()
-            o["pseudorange_m"], o["cn0_dbhz"], o["residual_m"] = p5, m[1], np.nan
-            o["doppler_hz"] = r["doppler_hz"] * sig.carrier_hz / L1_HZ
+            o["pseudorange_m"], o["cn0_dbhz"], o["residual_m"] = p5, m["cn0_dbhz"], np.nan
+            o["doppler_hz"] = m["doppler_hz"]
             o["pseudorange_rate_mps"] = -o["doppler_hz"] * bd.lam
-            o["carrier_phase_cycles"] = np.nan
+            o["carrier_phase_cycles"] = m["carrier_cycles"]
+            o["lock_time_s"] = m["lock_time_s"]
+            o["half_cycle_resolved"] = 1 if m["half_cycle_resolved"] else 0
             out.append(o)
         return out, pr
 

@@ -308,11 +308,12 @@ class RunData:
         return None
 
     def signal_letters(self) -> list:
-        """The RINEX letters of the run's signals (``signals``, else ``signal``; G when the config has neither)."""
+        """The RINEX letters of the run's systems, once each in the order of ``signals`` (else ``signal``; G when
+        the config has neither): a second band (gal_e5a beside gal_e1) adds no system."""
         from ..gnss.registry import get_signal
         names = self.cfg("signals") or [self.cfg("signal") or "gps_l1ca"]
         try:
-            return [get_signal(n).system for n in names]
+            return list(dict.fromkeys(get_signal(n).system for n in names))
         except (ValueError, TypeError):
             return [self.system if self.system != "M" else "G"]
 

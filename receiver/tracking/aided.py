@@ -11,6 +11,11 @@ scalar L1 C/A ones or the Galileo E1 ones (receiver.tracking.gal_channels.GalTra
 (``aiding=False``) it searches every code phase over the full Doppler range instead.  A failed search is
 retried ``retry_s`` later; a lost channel is searched for again.  Only the last ``keep_s`` of each channel's
 records are kept (for the observables): memory does not grow with the run.
+
+:meth:`AidedBand.measure_at` also gives the carrier of the band (RINEX L5Q / E5a-Q): the channel's Costas loop
+is blind to half a cycle, which the pilot resolves once its secondary code is wiped (records in bit_sync): the
+prompt's sign over the current lock run is then the carrier's polarity.  The lock time counts from the first
+record of the channel's current run of phase-locked records (a new channel, or ``pll_lock`` 0, starts a run).
 """
 from __future__ import annotations
 
@@ -55,6 +60,7 @@ class AidedBand:
         self.recs: dict[int, np.ndarray] = {}
         self.next_try: dict[int, float] = {}
         self.searches: list = []             # SEARCH_DTYPE rows not yet written
+        self.lock_runs: dict[int, list] = {}  # PRN -> start times of its channel's runs of phase-locked records
 
     def to_band(self, n_l1: int) -> int:
         """The band's sample index at the instant of L1 sample ``n_l1``."""
@@ -76,10 +82,23 @@ class AidedBand:
                 old = self.recs.get(prn, np.zeros(0, record.EPOCH_DTYPE))
                 both = np.concatenate([old, r])
                 self.recs[prn] = both[both["time_s"] >= both["time_s"][-1] - self.keep_s]
+                self._note_lock_runs(prn, r, len(old) > 0 and bool(old["pll_lock"][-1]))
             if ch.lost:
                 del self.channels[prn]
                 self.recs.pop(prn, None)
+                self.lock_runs.pop(prn, None)
         return out
+
+    def _note_lock_runs(self, prn: int, r: np.ndarray, locked_before: bool):
+        """Record the start times of the runs of phase-locked records in the new records ``r`` (``locked_before``:
+        the previous record was locked); only the starts a record still kept can belong to are kept."""
+        lock = r["pll_lock"] > 0
+        prev = np.concatenate([[locked_before], lock[:-1]])
+        runs = self.lock_runs.setdefault(prn, [])
+        runs.extend(r["time_s"][lock & ~prev].tolist())
+        t_old = float(self.recs[prn]["time_s"][0])
+        while len(runs) > 1 and runs[1] <= t_old:
+            runs.pop(0)
 
     def start(self, l1_channels: dict, end_l1: int):
         """Search for the band's signal of every satellite tracked in phase lock on L1 (``l1_channels``:
@@ -137,3 +156,23 @@ class AidedBand:
         # the carrier NCO's Doppler phase (cycles; the IF's share taken out): the range changes by -lambda x it
         cyc = r["carrier_phase_cycles"][i] + dt * (r["doppler_hz"][i] + self.if_hz) - self.if_hz * t_s
         return float(chips % self.signal.code_len), float(r["cn0_dbhz"][i]), float(cyc)
+
+    def measure_at(self, prn: int, t_s: float) -> dict | None:
+        """The band's measurements of ``prn`` at receiver time ``t_s`` (None when :meth:`code_phase_at` is):
+        {"chips", "cn0_dbhz", "nco_cycles" (the NCO's Doppler phase, :meth:`code_phase_at`), "carrier_cycles"
+        (that plus half a cycle when the pilot reads negative), "doppler_hz" (the carrier NCO's), "lock_time_s",
+        "half_cycle_resolved"}."""
+        m = self.code_phase_at(prn, t_s)
+        if m is None:
+            return None
+        r = self.recs[prn]
+        i = int(np.searchsorted(r["time_s"], t_s, side="right")) - 1
+        runs = [t for t in self.lock_runs.get(prn, ()) if t <= r["time_s"][i]]
+        t0 = runs[-1] if runs else float(r["time_s"][0])
+        sel = (r["time_s"] >= t0) & (r["time_s"] <= r["time_s"][i]) & (r["state"] == record.STATE_BIT_SYNC)
+        resolved = bool(r["state"][i] == record.STATE_BIT_SYNC)
+        polarity = float(np.sum(r["prompt_i"][sel].astype(float))) if resolved else 0.0
+        return {"chips": m[0], "cn0_dbhz": m[1], "nco_cycles": m[2],
+                "carrier_cycles": m[2] + (0.5 if polarity < 0 else 0.0),
+                "doppler_hz": float(r["doppler_hz"][i]), "lock_time_s": float(t_s - t0),
+                "half_cycle_resolved": resolved}
