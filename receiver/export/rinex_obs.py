@@ -151,21 +151,9 @@ def _band_index(obs, bands: dict, system: str):
     return index, letters, lli
 
 
-def write_rinex_obs(path, run: RunData, marker: str | None = None, bands: dict | None = None) -> dict:
-    """Write the observation file.  Returns a small summary (epochs, satellites, first/last epoch).
-
-    bands: {tag: OBS_DTYPE rows} of the second bands (default: :func:`band_tables` of the run)."""
-    obs = run.obs
-    groups = _epoch_groups(obs)
-    if not groups:
-        raise ValueError("the run has no observables")
-    rx_tow = run.rx_tow()
-    system = run.system
-    lli = lli_flags(obs)
-    bands = band_tables(run) if bands is None else bands
-    b_index, b_letters, b_lli = _band_index(obs, bands, system)
-    sys_types = {c: SYS_OBS_TYPES[c] + sum((BAND_OBS_TYPES[t] for t in b_letters.get(c, ())), ())
-                 for c in SYS_OBS_TYPES}
+def _body_lines(obs, groups, rx_tow, system, lli, bands, b_index, b_letters, b_lli):
+    """The epoch records of the observation file: (lines, [(epoch datetime, fraction s)], {prn: the second
+    bands' observation counts})."""
     b_counts: dict[int, np.ndarray] = {}
     lines_body = []
     epochs = []
@@ -200,6 +188,25 @@ def write_rinex_obs(path, run: RunData, marker: str | None = None, bands: dict |
                 k = 4 * list(BAND_OBS_TYPES).index(tag)
                 c[k:k + 4] += [int(np.isfinite(v) and abs(v) < 1e10) for v in vals]
             lines_body.append(line.rstrip())
+    return lines_body, epochs, b_counts
+
+
+def write_rinex_obs(path, run: RunData, marker: str | None = None, bands: dict | None = None) -> dict:
+    """Write the observation file.  Returns a small summary (epochs, satellites, first/last epoch).
+
+    bands: {tag: OBS_DTYPE rows} of the second bands (default: :func:`band_tables` of the run)."""
+    obs = run.obs
+    groups = _epoch_groups(obs)
+    if not groups:
+        raise ValueError("the run has no observables")
+    rx_tow = run.rx_tow()
+    system = run.system
+    lli = lli_flags(obs)
+    bands = band_tables(run) if bands is None else bands
+    b_index, b_letters, b_lli = _band_index(obs, bands, system)
+    sys_types = {c: SYS_OBS_TYPES[c] + sum((BAND_OBS_TYPES[t] for t in b_letters.get(c, ())), ())
+                 for c in SYS_OBS_TYPES}
+    lines_body, epochs, b_counts = _body_lines(obs, groups, rx_tow, system, lli, bands, b_index, b_letters, b_lli)
     first_t, first_f = epochs[0]
     last_t, last_f = epochs[-1]
     if len(epochs) > 1:
