@@ -82,6 +82,21 @@ SCHEMA = {
         "cold": P(True, "bool", "the periodic cold searches of missing satellites use this pass too while "
                                 "fewer than min_found channels track"),
     },
+    "predicted": {
+        "enabled": P(True, "bool", "after a fix, search every satellite in view that no channel tracks (GPS / "
+                                   "QZSS L1 C/A, with an ephemeris) around its code phase and Doppler "
+                                   "predicted from a tracked satellite and the fix, with a long integration "
+                                   "(docs: acquisition, predicted search): finds satellites far weaker than "
+                                   "the cold search does"),
+        "coherent_ms": P(10, "int", "coherent block (ms; divides 20)", choices=(1, 2, 4, 5, 10)),
+        "noncoherent": P(50, "int", "blocks summed non-coherently (alternate half-bit sums, each block "
+                                    "moved back by its code drift)", lo=2, hi=200),
+        "window_chips": P(2.0, "float", "code-phase half-window around the prediction (chips)", lo=0.5, hi=100.0),
+        "doppler_hz": P(50.0, "float", "Doppler half-window around the prediction (Hz)", lo=0.0, hi=2000.0),
+        "pfa": P(1e-4, "float", "false-alarm probability over the window's cells", lo=1e-12, hi=0.5),
+        "every_s": P(2.0, "float", "a satellite not found is searched again after this long, the interval "
+                                   "doubling after each failure up to 4 x this", lo=0.1),
+    },
 }
 
 

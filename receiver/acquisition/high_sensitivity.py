@@ -302,3 +302,50 @@ def second_pass(a, reader, start: int, if_hz: float, results: list[AcqResult], s
             f"over {len(missing)} PRNs found {len(new)} more" + (": " + " ".join(f"G{p:02d}" for p in new)
                                                                   if new else ""))
     return merged, line
+
+
+def search_predicted(samples: np.ndarray, start_index: int, fs: float, if_hz: float, prn: int, doppler_hz: float,
+                     doppler_half_hz: float, code_phase_chips: float, window_chips: float, coherent_ms: int = 10,
+                     noncoherent: int = 50, pfa: float = 1e-4, signal=None) -> AcqResult:
+    """A satellite predicted from the ephemeris and the fix (code phase ``code_phase_chips`` at file index
+    ``start_index``, the first of ``samples``; Doppler ``doppler_hz``), searched within ``window_chips`` and
+    ``doppler_half_hz`` of the prediction with the high-sensitivity statistics (``coherent_ms`` blocks, each
+    moved back by its code drift, ``noncoherent`` of them, alternate half-bit sums): the threshold is set by
+    ``pfa`` over those few cells only, so weaker satellites pass than a search of the whole grid finds (the
+    aiding gain).  The detection's Doppler is refined (:func:`refine_doppler_hs`)."""
+    sig = signal if signal is not None else GPS_L1CA
+    if coherent_ms > 10 or 20 % coherent_ms:
+        raise ValueError("predicted search: coherent_ms must divide 20 and be <= 10")
+    n1 = int(round(fs * 1e-3))
+    m, K = int(coherent_ms), int(noncoherent)
+    need = n1 * m * K
+    if len(samples) < need:
+        raise ValueError(f"predicted search needs {need} samples, got {len(samples)}")
+    step = 1.0 / (2.0 * m * 1e-3)
+    nb = int(np.ceil(max(doppler_half_hz, 0.0) / step))
+    dopplers = doppler_hz + step * np.arange(-nb, nb + 1)
+    sp = _BlockSpectra(samples[:need], fs, if_hz, dopplers, m, K)
+    acc = sp.powers(_code_fft(sig, prn, fs, n1), fs, sig.carrier_hz, [np.arange(len(dopplers))], workers=1)[0]
+    stats = _stats(acc, (K + 1) // 2, K // 2)
+    spc = fs / sig.chip_rate
+    si0 = int(round(-(code_phase_chips % sig.code_len) * spc)) % n1
+    w = int(np.ceil(window_chips * spc))
+    cols = (si0 + np.arange(-w, w + 1)) % n1
+    n_cells = len(dopplers) * cols.size
+    best = None                                  # (statistic / threshold, row, column)
+    for pn, k in stats:
+        win = pn[:, cols]
+        di, ci = np.unravel_index(int(np.argmax(win)), win.shape)
+        met = float(win[di, ci]) / _thr(pfa, n_cells, k)
+        if best is None or met > best[0]:
+            best = (met, int(di), int(cols[ci]))
+    met, di, col = best
+    ptm = float(stats[0][0][di, col])
+    cn0 = 10 * np.log10(max(ptm - 1.0, 1e-3) / (m * 1e-3))
+    detected = met >= 1.0
+    res = AcqResult(prn, detected, float(dopplers[di]), float((-col / spc) % sig.code_len), int(start_index), met,
+                    ptm, float(cn0), "" if detected else "threshold")
+    if detected:
+        res.doppler_hz = refine_doppler_hs(samples[:need], fs, if_hz, prn, res.code_phase_chips, res.doppler_hz,
+                                           step, m, sig)
+    return res

@@ -118,6 +118,7 @@ class ChannelManager:
         self.sats: dict[int, SatTrack] = {}
         self.events: list = []          # (time_s, prn, event, detail)
         self._rr = 0
+        self._pred_due: dict = {}       # prn -> (next sample of its predicted search, interval s)
         self._next_cold = None
         self._ids = 0
         self.max_ch = cfg.tracking.max_channels
@@ -376,7 +377,79 @@ class ChannelManager:
                         if p < next_start and prn in self.channels:
                             self._catch_up(prn, p, next_start)
                         break
+        self._predicted_search()
         self._cold(start, next_start)
+
+    def _start_on_prediction(self, ch, ref, s, dt, dop):
+        """A channel opened on its prediction from the reference channel ``ref`` (T_p - T_q = dt at sample s):
+        its code-period count continues the reference's, so the reference's bit alignment is its own (a
+        weak channel integrates whole bits at once instead of finding the edges in 1-ms prompts), and its
+        pull-in is the hot start's (the Doppler is known to a few Hz)."""
+        st, chip = ch.st, self.signal.chip_rate
+        tx = float(ref.st[K.S_CODE_PERIOD]) * 1e-3 + float(ref.st[K.S_CODE_PHASE]) / chip + dt
+        tx_first = tx + (float(st[K.S_NEXT_SAMPLE]) - s) / self.fs * (1.0 + dop / self.signal.carrier_hz)
+        st[K.S_CODE_PERIOD] = int(round((tx_first - st[K.S_CODE_PHASE] / chip) * 1e3))
+        bit_off = ref.bit_offset
+        if bit_off >= 0:
+            st[K.S_BIT_OFFSET] = bit_off
+            ch.hist[bit_off % self.signal.bit_ms(ch.prn)] = 12     # bit sync known: confirmed at once
+        ch.cfg[K.C_PULL_IN_MS] = self.rc.pull_in_ms
+
+    def _predicted_search(self):
+        """Satellites in view that no channel tracks, searched around their prediction from a tracked one
+        and the fix (receiver/tracking/predicted.py; ``acquisition.predicted``)."""
+        pc = self.cfg.acquisition.predicted
+        n1 = self.fs * 1e-3
+        if not pc.enabled or self.nav is None or self.nav.last_fix is None or len(self.channels) >= self.max_ch \
+                or self.signal.name != "gps_l1ca" or abs(n1 - round(n1)) > 1e-6:
+            return
+        fix = self.nav.last_fix[1]
+        lock_min = self.cfg.tracking.lock_cn0_min_dbhz
+        refs = [(p, ch) for p, ch in self.channels.items()
+                if not ch.lost and ch.st[K.S_LOCK] > 0 and ch.cn0_dbhz >= lock_min]
+        if not refs or not np.all(np.isfinite(fix.ecef)):
+            return
+        q, ref = max(refs, key=lambda x: x[1].cn0_dbhz)
+        s = ref.next_sample
+        n = int(round(n1)) * pc.coherent_ms * pc.noncoherent
+        t = self.nav.gps_time(s)
+        eph_q = self.nav.ephemeris(q, t) if t is not None else None
+        if eph_q is None or s + n >= self.reader.end:
+            return
+        from ..acquisition.high_sensitivity import search_predicted
+        from .predicted import predict
+        for p in self.prns:
+            if p in self.channels or self._sat(p).state == "reacquiring" or len(self.channels) >= self.max_ch:
+                continue
+            due, every = self._pred_due.get(p, (0, pc.every_s))
+            eph_p = self.nav.ephemeris(p, t)
+            if s < due or eph_p is None or self._below_mask(p, s):
+                continue
+            cp, dop, dt = predict(eph_p, eph_q, t, fix.ecef, fix.velocity_ecef, ref.st[K.S_CODE_PHASE],
+                                  ref.doppler_hz, self.signal)
+            res = search_predicted(self.reader.read(s, n), s, self.fs, self.if_hz, p, dop, pc.doppler_hz, cp,
+                                   pc.window_chips, pc.coherent_ms, pc.noncoherent, pc.pfa, self.signal)
+            self._reject_tracked_images([res])
+            if self.writer is not None:
+                self.writer.write_acquisition([res], {"fs": self.fs})
+            self._pred_due[p] = (s + int(every * self.fs), pc.every_s if res.detected else min(2 * every,
+                                                                                              4 * pc.every_s))
+            if res.detected:
+                # the prediction is finer than a weak search's estimate (a few Hz and a tenth of a chip from
+                # the fix, against ~25 Hz and the sample grid): the channel starts on it when the search
+                # confirms it (the detection within half a chip and a Doppler bin)
+                dc = (res.code_phase_chips - cp + self.signal.code_len / 2) % self.signal.code_len \
+                    - self.signal.code_len / 2
+                on_pred = abs(dc) < 0.5 and abs(res.doppler_hz - dop) < 1e3 / (2 * pc.coherent_ms)
+                ch = self._open(p, dop if on_pred else res.doppler_hz, cp if on_pred else res.code_phase_chips, s,
+                                res.cn0_dbhz_est)
+                if on_pred:
+                    self._start_on_prediction(ch, ref, s, dt, dop)
+                if p in self.nav.channels:
+                    self.nav.resume(p, continuous=False)
+                self._event(s, p, "predicted acquisition", f"Doppler {res.doppler_hz:.0f} Hz (predicted {dop:.0f}), "
+                            f"code {res.code_phase_chips:.2f} chips (predicted {cp:.2f}), {res.cn0_dbhz_est:.1f} dB-Hz")
+                self._sat(p).reacquisitions += 1
 
     def _note_fix(self):
         """Keep the recent fixes' velocities (the receiver's measured dynamics, see :meth:`_dynamics`)."""
