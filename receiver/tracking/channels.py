@@ -422,8 +422,11 @@ class ChannelManager:
             if p in self.channels or self._sat(p).state == "reacquiring" or len(self.channels) >= self.max_ch:
                 continue
             due, every = self._pred_due.get(p, (0, pc.every_s))
+            if s < due:
+                continue
             eph_p = self.nav.ephemeris(p, t)
-            if s < due or eph_p is None or self._below_mask(p, s):
+            if eph_p is None or self._below_mask(p, s):
+                self._pred_due[p] = (s + int(pc.every_s * self.fs), every)     # (not looked up every chunk)
                 continue
             cp, dop, dt = predict(eph_p, eph_q, t, fix.ecef, fix.velocity_ecef, ref.st[K.S_CODE_PHASE],
                                   ref.doppler_hz, self.signal)
