@@ -164,14 +164,48 @@ def weak_run(tmp_path_factory):
         ("input.path", str(d / "weak.bin")), ("input.start_gps_week", 2300), ("input.start_gps_tow_s", 345597.0),
         ("navigation.ephemeris", str(d / "weak.nav")), ("vector.enabled", True), ("vector.start_s", 4.0),
         ("vector.integration_ms", 10), ("vector.lock_cn0_dbhz", 25.0), ("vector.r_model", "cn0"),
-        ("vector.variant", "fixed_r"), ("output.path", str(out))])
+        ("vector.variant", "fixed_r"), ("output.path", str(out)),
+        # the vector loop's own opening of channels is what the vector tests check: the scalar predicted
+        # search (acquisition.predicted) would find the 27 dB-Hz satellites first, at ~2 s (checked below)
+        ("acquisition.predicted.enabled", False)])
     cwd = os.getcwd()
     try:
         os.chdir(d)
         run(cfg, quiet=True)
+        # the same recording, scalar only, with the predicted search (the default)
+        scalar = load_receiver_config(None, [
+            ("input.path", str(d / "weak.bin")), ("input.start_gps_week", 2300),
+            ("input.start_gps_tow_s", 345597.0), ("navigation.ephemeris", str(d / "weak.nav")),
+            ("output.path", str(d / "scalar.h5"))])
+        run(scalar, quiet=True)
     finally:
         os.chdir(cwd)
     return out, d / "weak.truth.h5"
+
+
+def test_predicted_search_opens_the_weak_satellites_in_a_scalar_run(weak_run):
+    """Scalar tracking, assisted: the 27 dB-Hz satellites the full-grid search misses are found by the
+    predicted search after the first fix (~2 s), tracked in phase lock with their code within a few metres
+    of the truth, and used in the fixes."""
+    import h5py
+    from receiver.gnss.signals import C_LIGHT
+    run_h5, truth_h5 = weak_run
+    with h5py.File(run_h5.parent / "scalar.h5") as f, h5py.File(truth_h5) as t:
+        tow0 = float(t.attrs["start_gps_tow_s"])
+        for p in WEAK:
+            c = f["channels"][f"G{p:02d}"]
+            tt = c["time_s"][:]
+            assert 1.5 < tt[0] < 4.0                                  # after the first fix, before 4 s
+            late = tt > tt[0] + 1.5
+            s = t["satellites"][f"G{p:02d}"]
+            rho = np.interp(tt, s["time_s"][:], s["pseudorange_m"][:])
+            frac = (tow0 * 1000.0) % 1.0 + tt * 1000.0 - rho / C_LIGHT * 1000.0
+            err_m = ((c["code_phase_chips"][:] - (frac % 1.0) * 1023.0 + 511.5) % 1023 - 511.5) * 293.05
+            assert np.sqrt(np.mean(err_m[late] ** 2)) < 10.0
+            assert c["pll_lock"][late].mean() > 0.8
+        obs = f["observables"]
+        used = set(obs["prn"][:][obs["used_in_fix"][:] > 0].tolist())
+        assert set(WEAK) <= used
 
 
 def test_weak_satellites_tracked_by_the_vector_loop(weak_run):
