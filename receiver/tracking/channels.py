@@ -418,6 +418,7 @@ class ChannelManager:
             return
         from ..acquisition.high_sensitivity import search_predicted
         from .predicted import predict
+        block = None                    # the samples from s, read once for every satellite searched
         for p in self.prns:
             if p in self.channels or self._sat(p).state == "reacquiring" or len(self.channels) >= self.max_ch:
                 continue
@@ -430,7 +431,9 @@ class ChannelManager:
                 continue
             cp, dop, dt = predict(eph_p, eph_q, t, fix.ecef, fix.velocity_ecef, ref.st[K.S_CODE_PHASE],
                                   ref.doppler_hz, self.signal)
-            res = search_predicted(self.reader.read(s, n), s, self.fs, self.if_hz, p, dop, pc.doppler_hz, cp,
+            if block is None:
+                block = self.reader.read(s, n)
+            res = search_predicted(block, s, self.fs, self.if_hz, p, dop, pc.doppler_hz, cp,
                                    pc.window_chips, pc.coherent_ms, pc.noncoherent, pc.pfa, self.signal)
             self._reject_tracked_images([res])
             if self.writer is not None:

@@ -172,25 +172,31 @@ def weak_run(tmp_path_factory):
     try:
         os.chdir(d)
         run(cfg, quiet=True)
-        # the same recording, scalar only, with the predicted search (the default)
-        scalar = load_receiver_config(None, [
-            ("input.path", str(d / "weak.bin")), ("input.start_gps_week", 2300),
-            ("input.start_gps_tow_s", 345597.0), ("navigation.ephemeris", str(d / "weak.nav")),
-            ("output.path", str(d / "scalar.h5"))])
-        run(scalar, quiet=True)
     finally:
         os.chdir(cwd)
     return out, d / "weak.truth.h5"
 
 
-def test_predicted_search_opens_the_weak_satellites_in_a_scalar_run(weak_run):
+@pytest.fixture(scope="module")
+def scalar_run(weak_run):
+    """The same recording, scalar tracking only, with the predicted search (the default)."""
+    from receiver.pipeline import run
+    d = weak_run[0].parent
+    out = d / "scalar.h5"
+    run(load_receiver_config(None, [
+        ("input.path", str(d / "weak.bin")), ("input.start_gps_week", 2300), ("input.start_gps_tow_s", 345597.0),
+        ("navigation.ephemeris", str(d / "weak.nav")), ("output.path", str(out))]), quiet=True)
+    return out, weak_run[1]
+
+
+def test_predicted_search_opens_the_weak_satellites_in_a_scalar_run(scalar_run):
     """Scalar tracking, assisted: the 27 dB-Hz satellites the full-grid search misses are found by the
     predicted search after the first fix (~2 s), tracked in phase lock with their code within a few metres
     of the truth, and used in the fixes."""
     import h5py
     from receiver.gnss.signals import C_LIGHT
-    run_h5, truth_h5 = weak_run
-    with h5py.File(run_h5.parent / "scalar.h5") as f, h5py.File(truth_h5) as t:
+    run_h5, truth_h5 = scalar_run
+    with h5py.File(run_h5) as f, h5py.File(truth_h5) as t:
         tow0 = float(t.attrs["start_gps_tow_s"])
         for p in WEAK:
             c = f["channels"][f"G{p:02d}"]
