@@ -25,15 +25,11 @@ import h5py
 import numpy as np
 import pytest
 
-from receiver.export.rinex_obs import write_nav, write_rinex_obs
 from receiver.gnss.geodesy import ecef2enu
 from receiver.gnss.signals import C_LIGHT
-from receiver.pipeline import run
-from receiver.runfile.reader import load_run
-from receiver.schema import load_receiver_config
-from receiver.sim.simulate import simulate
 
-from repo_paths import CONFIGS, TOKYO_NAV, needs_shared
+from l1l5_rinex import simulate_run_export
+from repo_paths import TOKYO_NAV, needs_shared
 
 RNX2RTKP = shutil.which("rnx2rtkp")
 pytestmark = [needs_shared, pytest.mark.slow,
@@ -48,13 +44,7 @@ IONOFREE_BOUND_M = 8.0
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     d = tmp_path_factory.mktemp("rnxdual")
-    simulate(CONFIGS / "scenarios/l1l5_static_tokyo.yaml", str(d / "x.bin"), progress=False, overrides=[
-        "time.duration_s=7.0", f"constellation.rinex={TOKYO_NAV}", "l5.sample_rate_hz=10.5e6"])
-    run(load_receiver_config(d / "x.yaml", [("navigation.ephemeris", str(TOKYO_NAV)),
-                                            ("output.path", str(d / "run.h5"))]), quiet=True)
-    r = load_run(d / "run.h5")
-    write_rinex_obs(d / "run.obs", r)
-    write_nav(d / "run.nav", r)
+    simulate_run_export(d, 7.0, TOKYO_NAV)
     with h5py.File(d / "x.truth.h5") as t:
         truth = t["receiver/ecef"][0]
     return d, truth

@@ -22,14 +22,10 @@ import h5py
 import numpy as np
 import pytest
 
-from receiver.export.rinex_obs import write_nav, write_rinex_obs
 from receiver.gnss.geodesy import ecef2enu
-from receiver.pipeline import run
-from receiver.runfile.reader import load_run
-from receiver.schema import load_receiver_config
-from receiver.sim.simulate import simulate
 
-from repo_paths import CONFIGS, TOKYO_NAV, needs_shared
+from l1l5_rinex import simulate_run_export
+from repo_paths import TOKYO_NAV, needs_shared
 
 RNX2RTKP = os.environ.get("GNSSRX_RNX2RTKP")
 pytestmark = [needs_shared, pytest.mark.slow,
@@ -54,13 +50,7 @@ def zero_tgd(src, dst):
 def exported(tmp_path_factory):
     d = tmp_path_factory.mktemp("rnxif")
     nav = zero_tgd(TOKYO_NAV, d / "brdc_tgd0.22n")
-    simulate(CONFIGS / "scenarios/l1l5_static_tokyo.yaml", str(d / "x.bin"), progress=False, overrides=[
-        "time.duration_s=20.0", f"constellation.rinex={nav}", "l5.sample_rate_hz=10.5e6"])
-    run(load_receiver_config(d / "x.yaml", [("navigation.ephemeris", str(nav)),
-                                            ("output.path", str(d / "run.h5"))]), quiet=True)
-    r = load_run(d / "run.h5")
-    write_rinex_obs(d / "run.obs", r)
-    write_nav(d / "run.nav", r)
+    simulate_run_export(d, 20.0, nav)
     return d
 
 
