@@ -312,10 +312,16 @@ class _ChunkLoop:
         self.bar = _progress(reader.duration_s, quiet)
 
     def finish_chunk(self, end):
-        """The chunk's navigation epochs up to sample ``end`` (fixes, observables) and their bookkeeping."""
+        """The chunk's navigation epochs up to sample ``end`` (fixes, observables) and their bookkeeping;
+        ``end`` None: the epochs still held by navigation.lookahead_s (the end of the input)."""
         writer, reader, fs = self.writer, self.reader, self.fs
         with stage("navigation"):
-            fixes, obs = self.nav.update(end)
+            if self.nav.fixed_lag is not None and (self.handover is not None or self.dual is not None):
+                self.nav.fixed_lag = None       # vector and dual-band runs: their own fixes (causal)
+                self.notes.append("navigation.lookahead_s not used: a " +
+                                  ("vector" if self.handover is not None else "dual-band") +
+                                  " run's fixes stay causal")
+            fixes, obs = self.nav.update(end) if end is not None else self.nav.flush()
         with stage("write"):
             if self.vector is None:
                 writer.append_fixes(fixes)
@@ -366,6 +372,8 @@ class _ChunkLoop:
                 self.bar.update(round(min(chunk, reader.end - start + chunk) / self.fs, 3))
         if pending is not None:
             self.finish_chunk(pending)
+        if nav is not None and nav.fixed_lag is not None:
+            self.finish_chunk(None)
         if self.bar is not None:
             self.bar.refresh()          # draw the final count: tqdm skips updates closer than its interval
             self.bar.close()

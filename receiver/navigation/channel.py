@@ -494,9 +494,11 @@ class ChannelNav:
                 S[4] * f + tr * zr
         h["n"] += 1
 
-    def slope_info(self):
-        """(slope m/s, weight) of this channel's code-minus-carrier fit, or None."""
-        h = self.hatch
+    def slope_info(self, h=None):
+        """(slope m/s, weight) of this channel's code-minus-carrier fit (or of an earlier arc's, ``h``), or
+        None."""
+        if h is None:
+            h = self.hatch
         if h is None or h["n"] < 3:
             return None
         s0, s1, s2, sz, stz = h["S"]
@@ -505,11 +507,14 @@ class ChannelNav:
             return None
         return (s0 * stz - s1 * sz) / det, det / s0
 
-    def smooth_value(self, s: float, txrel: float, phase: float, slope: float | None) -> float:
+    def smooth_value(self, s: float, txrel: float, phase: float, slope: float | None, h=None) -> float:
         """Carrier smoothing, step 2: the smoothed relative transmit time.  With a common drift
         ``slope`` (m/s, estimated over all channels) only the channel's offset is fitted, which halves
-        the noise of a per-channel straight-line fit; without it the channel's own line is used."""
-        h = self.hatch
+        the noise of a per-channel straight-line fit; without it the channel's own line is used.
+        ``h``: the fit of an earlier carrier arc of this channel (navigation.lookahead_s) instead of the
+        current one."""
+        if h is None:
+            h = self.hatch
         if h is None or h["n"] < 3:
             return txrel
         t = s / self.fs

@@ -82,6 +82,13 @@ SCHEMA = {
     "settle_s": P(1.0, "float", "a channel's measurements are used this long after its pull-in "
                                 "(DLL/PLL transients over); a weak channel's after its DLL hold "
                                 "(tracking.weak.dll_hold_ms) and this", lo=0.0),
+    "lookahead_s": P(0.0, "float", "fixed-lag smoothing of a recording: every fix is solved again this many "
+                                   "seconds later, each pseudorange carrier-smoothed with the fit of its "
+                                   "carrier arc at that time (code up to lookahead_s after the epoch), so the "
+                                   "first seconds of an arc are as good as the later ones.  The receiver's own "
+                                   "use of its fixes (aiding, re-acquisition, vector handover) stays causal; "
+                                   "aided fixes, navigation.filter ekf/ckf, vector and dual-band runs keep the "
+                                   "causal fixes.  0 = off (a real-time receiver's fixes)", lo=0.0),
     "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                      lo=0.0),
     "aiding": {

@@ -30,6 +30,7 @@ from .ephemeris_store import EphemerisStore
 from .config import default
 from .pvt import Aiding, NavSolver, Observation, vnorm
 from .pvt_filter import make_pvt_filter
+from .lookahead import FixedLag
 
 DEEP_ORBIT_SQRT_A = 6000.0    # sqrt(m): a GEO or IGSO orbit (BeiDou; ~6493), not a MEO (GPS ~5154, BeiDou ~5282)
 MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
@@ -103,6 +104,8 @@ class NavigationEngine(EphemerisStore):
         # assisted mode: approximate GPS TOW of file sample 0 (input.start_gps_tow_s) lets transmit times
         # be resolved from bit synchronisation alone, before any subframe has been decoded
         self.approx_tow0 = approx_tow0
+        self.fixed_lag = FixedLag.for_run(nav_cfg, self.solver, self.aid_cfg, self.pvt_filter, MODE_AIDED)
+        self._la_ctx = self._la_aid = None
 
     def channel(self, prn: int) -> ChannelNav:
         """The ChannelNav of channel key ``prn`` (created on first use, with its first-ephemeris check)."""
@@ -192,18 +195,31 @@ class NavigationEngine(EphemerisStore):
 
     def update(self, up_to_sample: int):
         """Fixes and observables for all navigation epochs before up_to_sample (all channels passed)."""
-        fixes, obs = [], []
+        done = []
         active = [ch for ch in self.channels.values() if ch.active and ch.last_sample >= 0]
         if not active:
             return np.zeros(0, FIX_DTYPE), np.zeros(0, OBS_DTYPE)
         horizon = min(up_to_sample, min(ch.last_sample for ch in active))
         while self.next_s <= horizon:
             s = self.next_s
+            self._la_ctx = self._la_aid = None
             f, o = self._epoch(s)
-            if f is not None:
-                fixes.append(f)
-            obs.extend(o)
+            if self.fixed_lag is None:
+                done.append((f, o))
+            else:
+                done += self.fixed_lag.hold(s / self.fs, f, o, self._la_ctx)
             self._advance()
+        return self._arrays(done)
+
+    def flush(self):
+        """The fixes and observables still held for navigation.lookahead_s (at the end of the input)."""
+        return self._arrays(self.fixed_lag.release() if self.fixed_lag is not None else [])
+
+    @staticmethod
+    def _arrays(pairs):
+        """FIX_DTYPE and OBS_DTYPE arrays of [(fix row or None, observable rows), ...]."""
+        fixes = [f for f, _ in pairs if f is not None]
+        obs = [r for _, o in pairs for r in o]
         fa = np.zeros(len(fixes), FIX_DTYPE)
         for i, f in enumerate(fixes):
             fa[i] = f
@@ -378,6 +394,7 @@ class NavigationEngine(EphemerisStore):
         if aid is None:
             return fix
         aided = self.solver.fix(week, rx_tow, observations, ephs, self.iono(), x0=self.x0, aid=aid)
+        self._la_aid = aid if aided is not None else None
         return aided if aided is not None else fix
 
     def _epoch(self, s: float):
@@ -408,10 +425,12 @@ class NavigationEngine(EphemerisStore):
         # common code-minus-carrier drift (clock-rate mismatch between code and carrier), weighted
         slope = common_slope([i for i in (ch.slope_info() for ch in self.channels.values()) if i is not None])
         unsmoothed = {}             # unsmoothed minus smoothed pseudorange (m), for navigation.filter ekf/ckf
+        raw = {}                    # navigation.lookahead_s: each satellite's raw code and its smoothing fit
         for prn, (m, dop, ch) in list(meas.items()):
             txrel = ch.smooth_value(s, m[0], m[2], slope)
             meas[prn] = ((ch.tx_offset + txrel, dop, m[2]), ch)
             unsmoothed[prn] = C_LIGHT * (txrel - m[0])
+            raw[prn] = (ch, s, m[0], m[2], txrel, ch.hatch)
         if len(meas) < (3 if self.aid_cfg is not None and self.last_fix is not None else 4):
             return None, []
         if self.tow0 is None:
@@ -475,4 +494,6 @@ class NavigationEngine(EphemerisStore):
                              1 if ch.polarity != 0 else 0, 1 if o.prn in used else 0,
                              el.get(o.prn, np.nan), az.get(o.prn, np.nan), res.get(o.prn, np.nan)))
         self.epoch += 1
+        if self.fixed_lag is not None:      # (what solving this epoch again later needs)
+            self._la_ctx = (week, rx_tow, observations, ephs, self.iono(), fix, raw, self._la_aid)
         return row, obs_rows
