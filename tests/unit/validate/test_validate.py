@@ -273,3 +273,18 @@ def test_simulator_is_built_into_the_cache(tmp_path, monkeypatch):
         pytest.skip("no C compiler")
     exe = gpssdrsim.simulator(tmp_path / "cache")
     assert exe == tmp_path / "cache" / "sim-bin" / "gps-sdr-sim" and exe.is_file()
+
+
+def test_validate_set_is_checked_before_any_row_runs():
+    """``gnssrx validate --set`` with a key the receiver does not know stops at once with the receiver's own
+    suggestion (not one error per row after the recordings were made)."""
+    from click.testing import CliRunner
+
+    from receiver.errors import UserError
+    from receiver.validate.cli import validate
+    from receiver.validate.gpssdrsim import NAV_FILE
+    if not NAV_FILE.is_file():
+        pytest.skip(f"{NAV_FILE} absent (../shared or $GNSSRX_SHARED)")
+    res = CliRunner().invoke(validate, ["--set", "navigation.lookahed_s=10", "--only", "static_2600", "--dry-run"])
+    assert isinstance(res.exception, UserError), res.output
+    assert "navigation.lookahead_s" in str(res.exception)
