@@ -32,3 +32,15 @@ def make_signal(sats, fs=2.6e6, duration_s=1.0, noise_sigma=1.0, seed=0, if_hz=0
         return (x + noise).astype(np.float32)
     noise = (rng.normal(size=n) + 1j * rng.normal(size=n)) * (noise_sigma / np.sqrt(2))
     return (x + noise).astype(np.complex64)
+
+
+def gauss_markov(n, sigma, tau_s, rate_hz, rng):
+    """A DLL-like code error: first-order Gauss-Markov sequence of n epochs at rate_hz, standard deviation
+    sigma, correlation time tau_s (seconds)."""
+    a = np.exp(-1.0 / (rate_hz * tau_s))
+    e = np.zeros(n)
+    w = rng.normal(scale=sigma * np.sqrt(1 - a * a), size=n)
+    e[0] = rng.normal(scale=sigma)
+    for k in range(1, n):
+        e[k] = a * e[k - 1] + w[k]
+    return e

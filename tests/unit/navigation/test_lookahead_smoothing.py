@@ -4,6 +4,7 @@ over a second) is averaged by a causal Hatch fit only over the epochs before it,
 carry most of it; with the later epochs in the fit they are as good as the rest.  An arc that ends (a slip, a
 lost lock) keeps its own fit: the epochs before the restart never see the code of the next arc."""
 import numpy as np
+from synth import gauss_markov
 
 from receiver.gnss.signals import C_LIGHT, LAMBDA_L1
 from receiver.navigation.channel import ChannelNav
@@ -15,17 +16,6 @@ WINDOW = 1000          # navigation.smoothing_s 100 s at 10 Hz
 LAG = int(10 * RATE)   # lookahead_s 10
 
 
-def _code_error(n, sigma_m, tau_s, rng):
-    """DLL-like code error: first-order Gauss-Markov of standard deviation sigma_m, correlation time tau_s."""
-    a = np.exp(-1.0 / (RATE * tau_s))
-    e = np.zeros(n)
-    w = rng.normal(scale=sigma_m * np.sqrt(1 - a * a), size=n)
-    e[0] = rng.normal(scale=sigma_m)
-    for k in range(1, n):
-        e[k] = a * e[k - 1] + w[k]
-    return e
-
-
 def _arc(seed, slip_at_s=None, seconds=20.0):
     """One channel over `seconds`: (t, causal smoothed error, look-ahead smoothed error, raw code error) in m.
     Range 2.2e7 m + 400 m/s t; code error 5 m with 1 s correlation; a carrier slip of 40 m at slip_at_s (the
@@ -33,7 +23,7 @@ def _arc(seed, slip_at_s=None, seconds=20.0):
     (the fit goes on growing while its arc lasts) and is smoothed again LAG epochs later."""
     rng = np.random.default_rng(seed)
     t = np.arange(1, int(seconds * RATE)) / RATE
-    err = _code_error(t.size, 5.0, 1.0, rng)
+    err = gauss_markov(t.size, 5.0, 1.0, RATE, rng)
     rng_m = 2.2e7 + 400.0 * t
     slip = np.where(t >= slip_at_s, 40.0, 0.0) if slip_at_s is not None else np.zeros(t.size)
     ch = ChannelNav(7, 2190, 0.0, FS)

@@ -2,6 +2,7 @@
 over its lock gap, and its weak code enters the fit with a weight proportional to the C/N0, so the smoothed
 range stays at the strong signal's accuracy through 8 s at 24 dB-Hz and is not pulled off after it."""
 import numpy as np
+from synth import gauss_markov
 
 from receiver.gnss.signals import C_LIGHT, LAMBDA_L1
 from receiver.navigation.channel import ChannelNav
@@ -11,24 +12,13 @@ RATE = 10.0
 WINDOW = 1000          # navigation.smoothing_s 100 s at 10 Hz
 
 
-def _code_error(n, sigma_m, tau_s, rng):
-    """DLL-like code error: first-order Gauss-Markov of standard deviation sigma_m, correlation time tau_s."""
-    a = np.exp(-1.0 / (RATE * tau_s))
-    e = np.zeros(n)
-    w = rng.normal(scale=sigma_m * np.sqrt(1 - a * a), size=n)
-    e[0] = rng.normal(scale=sigma_m)
-    for k in range(1, n):
-        e[k] = a * e[k - 1] + w[k]
-    return e
-
-
 def _run(gap=(6.0, 6.3), fade=(6.0, 14.0)):
     """Smoothed-range errors (m) of one channel: 45 dB-Hz (code 0.5 m), 24 dB-Hz in the fade (code 15 m with
     0.5 s correlation: a 0.5-Hz DLL), no lock (no update) in the gap; range 2e7 m + 300 m/s t."""
     rng = np.random.default_rng(4)
     t = np.arange(1, int(22 * RATE)) / RATE
     weak = (t >= fade[0]) & (t < fade[1])
-    err = np.where(weak, _code_error(t.size, 15.0, 0.5, rng), rng.normal(scale=0.5, size=t.size))
+    err = np.where(weak, gauss_markov(t.size, 15.0, 0.5, RATE, rng), rng.normal(scale=0.5, size=t.size))
     rng_m = 2e7 + 300.0 * t
     ch = ChannelNav(5, 2190, 0.0, FS)
     ch.locked = True
