@@ -87,8 +87,8 @@ SCHEMA = {
                                    "carrier arc at that time (code up to lookahead_s after the epoch), so the "
                                    "first seconds of an arc are as good as the later ones.  The receiver's own "
                                    "use of its fixes (aiding, re-acquisition, vector handover) stays causal; "
-                                   "aided fixes, navigation.filter ekf/ckf, vector and dual-band runs keep the "
-                                   "causal fixes.  0 = off (a real-time receiver's fixes)", lo=0.0),
+                                   "navigation.filter ekf/ckf, vector and dual-band runs keep the causal "
+                                   "fixes.  0 = off (a real-time receiver's fixes)", lo=0.0),
     "smoothing_s": P(100.0, "float", "carrier-smoothing (Hatch) window of pseudoranges; 0 = off",
                      lo=0.0),
     "aiding": {

@@ -23,7 +23,7 @@ from collections import deque
 import numpy as np
 
 from ..gnss.geodesy import ecef2lla
-from ..runfile.record import FIX_DTYPE, OBS_DTYPE
+from ..runfile.record import FIX_DTYPE, OBS_DTYPE, fix_row
 from ..gnss.signals import C_LIGHT
 from .channel import BIT_MS, ChannelNav, common_slope
 from .ephemeris_store import EphemerisStore
@@ -33,7 +33,6 @@ from .pvt_filter import make_pvt_filter
 from .lookahead import FixedLag
 
 DEEP_ORBIT_SQRT_A = 6000.0    # sqrt(m): a GEO or IGSO orbit (BeiDou; ~6493), not a MEO (GPS ~5154, BeiDou ~5282)
-MODE_AIDED = 3              # FIX_DTYPE mode of a scalar fix that used clock/height constraints (navigation.aiding)
 AID_WINDOW_S = 1.0          # the constraints are predicted from the unaided fixes of this last span
 AID_REF_SATS = 5            # ... and from the unaided solutions of aided epochs with this many satellites
 FIRST_EPH_RANGE_M = 200.0   # a satellite's first decoded ephemeris whose range disagrees with the current fix by
@@ -104,7 +103,7 @@ class NavigationEngine(EphemerisStore):
         # assisted mode: approximate GPS TOW of file sample 0 (input.start_gps_tow_s) lets transmit times
         # be resolved from bit synchronisation alone, before any subframe has been decoded
         self.approx_tow0 = approx_tow0
-        self.fixed_lag = FixedLag.for_run(nav_cfg, self.solver, self.aid_cfg, self.pvt_filter, MODE_AIDED)
+        self.fixed_lag = FixedLag.for_run(nav_cfg, self.solver, self.aid_cfg, self.pvt_filter, fix_row)
         self._la_ctx = self._la_aid = None
 
     def channel(self, prn: int) -> ChannelNav:
@@ -475,11 +474,7 @@ class NavigationEngine(EphemerisStore):
         # ekf/ckf: filtered position/velocity/clock (started at the first fix, after the clock re-basing);
         # epoch placement, x0 and the observables stay on the WLS fix
         out = self.pvt_filter.step(t_s, fix, unsmoothed) if self.pvt_filter is not None else fix
-        lat, lon, h = ecef2lla(out.ecef)
-        row = (out.gps_week, out.gps_tow, t_s, out.ecef, out.velocity_ecef, out.clock_bias_m,
-               out.clock_drift_mps, fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop,
-               MODE_AIDED if fix.aiding else 0,
-               float(lat), float(lon), float(h), self.iono_params())
+        row = fix_row(out, fix, t_s, self.iono_params())
         used = set(fix.prns)
         el = dict(zip(fix.prns, fix.elevations_deg))
         az = dict(zip(fix.prns, fix.azimuths_deg))

@@ -17,7 +17,6 @@ from collections import deque
 
 import numpy as np
 
-from ..gnss.geodesy import ecef2lla
 from ..gnss.signals import C_LIGHT
 from .channel import common_slope
 from .pvt import Observation
@@ -26,22 +25,22 @@ from .pvt import Observation
 class FixedLag:
     """The held epochs of a run (in epoch order) and their second solution."""
 
-    def __init__(self, lag_s: float, solver, max_pdop: float, aided_mode: int):
+    def __init__(self, lag_s: float, solver, max_pdop: float, fix_row):
         self.lag_s = float(lag_s)
         self.solver = solver
         self.max_pdop = float(max_pdop)
-        self.aided_mode = aided_mode
+        self.fix_row = fix_row      # (fix, fix, t_s, iono code) -> FIX_DTYPE row (the engine's layout)
         self.held = deque()         # (t_s, fix row or None, observable rows, context or None)
 
     @classmethod
-    def for_run(cls, nav_cfg, solver, aid_cfg, pvt_filter, aided_mode: int):
+    def for_run(cls, nav_cfg, solver, aid_cfg, pvt_filter, fix_row):
         """The run's FixedLag from navigation.lookahead_s, or None (0, or a PVT filter's fixes: causal)."""
         lag = float(getattr(nav_cfg, "lookahead_s", 0.0) or 0.0)
         if lag > 0.0 and pvt_filter is not None:
             logging.getLogger(__name__).warning("navigation.lookahead_s not used with navigation.filter %s "
                                                 "(its fixes stay causal)", nav_cfg.filter)
             return None
-        return cls(lag, solver, getattr(aid_cfg, "max_pdop", math.inf), aided_mode) if lag > 0.0 else None
+        return cls(lag, solver, getattr(aid_cfg, "max_pdop", math.inf), fix_row) if lag > 0.0 else None
 
     def hold(self, t_s: float, row, obs_rows, ctx):
         """Hold epoch t_s; the held epochs now lag_s old or older, solved again: [(row, obs_rows), ...]."""
@@ -81,10 +80,7 @@ class FixedLag:
             fx = self.solver.fix(week, rx_tow, new_obs, ephs, iono, x0=fix.ecef, aid=aid)
         if fx is None:
             return row, obs_rows
-        lat, lon, h = ecef2lla(fx.ecef)
-        row = (fx.gps_week, fx.gps_tow, row[2], fx.ecef, fx.velocity_ecef, fx.clock_bias_m, fx.clock_drift_mps,
-               fx.n_sats, fx.pdop, fx.hdop, fx.vdop, fx.gdop, self.aided_mode if fx.aiding else 0,
-               float(lat), float(lon), float(h), row[-1])
+        row = self.fix_row(fx, fx, row[2], row[-1])
         used = set(fx.prns)
         el = dict(zip(fx.prns, fx.elevations_deg))
         az = dict(zip(fx.prns, fx.azimuths_deg))

@@ -59,6 +59,7 @@ ACQ_REASONS = {"": 0, "threshold": 1, "width": 2, "xcorr": 3, "verify": 4}
 # least squares with the predicted clock bias/drift and height as extra measurements, navigation.aiding;
 # n_sats = satellites measured, 3 or more)
 MODE_NAMES = {0: "scalar", 1: "vector", 2: "coast", 3: "aided"}
+MODE_AIDED = 3              # a scalar fix that used clock/height constraints (navigation.aiding)
 
 FIX_DTYPE = np.dtype([
     ("gps_week", "i4"), ("gps_tow", "f8"), ("time_s", "f8"), ("ecef", "f8", (3,)),
@@ -68,6 +69,18 @@ FIX_DTYPE = np.dtype([
     ("lat_deg", "f8"), ("lon_deg", "f8"), ("height_m", "f8"),
     ("iono_params", "u1"),          # IONO_PARAMS_NAMES: the Klobuchar set the fix's ionospheric correction used
 ])
+
+
+
+def fix_row(out, fix, t_s: float, iono_code) -> tuple:
+    """A FIX_DTYPE row: position, velocity and clock of ``out`` (a WLS fix or the PVT filter's output),
+    satellites, DOPs and mode of the WLS ``fix`` (receiver.navigation.pvt.Fix), at receiver time t_s (s)."""
+    from ..gnss.geodesy import ecef2lla
+    lat, lon, h = ecef2lla(out.ecef)
+    return (out.gps_week, out.gps_tow, t_s, out.ecef, out.velocity_ecef, out.clock_bias_m, out.clock_drift_mps,
+            fix.n_sats, fix.pdop, fix.hdop, fix.vdop, fix.gdop, MODE_AIDED if fix.aiding else 0,
+            float(lat), float(lon), float(h), iono_code)
+
 
 # fix iono_params: 0 no ionospheric correction (navigation.ionosphere none, or no parameters known and
 # navigation.klobuchar_fallback off); 1 broadcast parameters (decoded from the signal, or the RINEX navigation

@@ -81,7 +81,7 @@ def test_epochs_are_held_for_the_lag_and_released_in_order():
     """FixedLag holds every epoch (with or without a fix) lag_s and gives them back in epoch order; the end of
     the input releases the rest; epochs without a context (no fix) come back as they were."""
     from receiver.navigation.lookahead import FixedLag
-    fl = FixedLag(1.0, solver=None, max_pdop=8.0, aided_mode=3)
+    fl = FixedLag(1.0, solver=None, max_pdop=8.0, fix_row=None)
     out = []
     for k in range(25):                         # 10 Hz epochs, 2.4 s
         out += fl.hold(0.1 * k, None if k % 7 == 0 else ("fix", k), [("obs", k)], None)
@@ -90,4 +90,4 @@ def test_epochs_are_held_for_the_lag_and_released_in_order():
     out += fl.release()
     assert [o[0][1] for _, o in out] == list(range(25))
     assert [f for f, _ in out if f is not None] == [("fix", k) for k in range(25) if k % 7]
-    assert FixedLag.for_run(load_receiver_config(None, []).navigation, None, None, None, 3) is None
+    assert FixedLag.for_run(load_receiver_config(None, []).navigation, None, None, None, None) is None
