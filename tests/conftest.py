@@ -1,7 +1,8 @@
 """Shared fixtures, and the test-suite conventions.
 
-Every test under ``tests/system/`` (end-to-end runs on recordings) is marked ``slow``, as are the unit tests
-that take seconds (``@pytest.mark.slow``): ``make test-fast`` runs the rest (``-m "not slow"``).
+Every test under ``tests/system/`` (end-to-end runs on recordings) and every test that uses ``tokyo_run`` is marked
+``slow``, as are the unit tests that take seconds (``@pytest.mark.slow``): ``make test-fast`` runs the rest
+(``-m "not slow"``).
 
 ``tokyo_run``: the path of the run file of the third-party reference recording
 (``../shared/data/gpssim_static_tokyo.bin``, GPS-SDR-SIM, static antenna in Tokyo) processed once per test
@@ -113,8 +114,10 @@ def tokyo_exports(tokyo_run, tmp_path_factory):
 
 
 def pytest_collection_modifyitems(config, items):
-    """The system tests are slow by convention (their folder), besides the unit tests marked one by one."""
+    """Slow by convention: the system tests (their folder) and every test that needs the reference run
+    (``tokyo_run``, directly or through another fixture: ~20 s of receiver run before its first use), besides
+    the unit tests marked one by one."""
     system = ROOT / "tests" / "system"
     for item in items:
-        if system in Path(str(item.fspath)).parents:
+        if system in Path(str(item.fspath)).parents or "tokyo_run" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.slow)
