@@ -79,6 +79,10 @@ SCHEMA = {
         "fll_bw_hz": P(0.0, "float", "FLL noise bandwidth of a weak channel's pull-in (the 1-ms frequency "
                                      "discriminator is noise below ~30 dB-Hz; 0: the PLL alone, started "
                                      "from the acquisition's fine Doppler)", lo=0.0),
+        "repull_fll_bw_hz": P(3.0, "float", "re-pull: FLL noise bandwidth that steers a channel that "
+                                            "started weak, has bit sync and has been out of lock for "
+                                            "lock_window_ms, from the rotation between the two halves of "
+                                            "each 20-ms epoch (0: off, the PLL alone)", lo=0.0, hi=10.0),
         "lost_grace_ms": P(3000, "int", "lost-grace time of a young weak channel (tracking.lost_grace_ms "
                                         "for the others)", lo=0),
         "lock_ratio_min": P(1.25, "float", "lock ratio of a weak channel (low-passed |I| / |Q|)", lo=1.0),

@@ -121,7 +121,9 @@ C_WEAK_FADE = 42       # 1: a strong channel about to be declared lost is handed
                        # (tracking.weak.fade)
 C_WEAK_NARROW_EL = 43  # 1: a weak channel's E-L spacing is C_EL_SPACING once its DLL hold is over
                        # (tracking.weak.narrow_el_after_hold), else C_EL_SPACING_WIDE while weak
-N_CONFIG = 44
+C_WEAK_REPULL_FLL_BW = 44  # > 0: FLL noise bandwidth on the two halves of a bit-aligned epoch while a weak
+                           # channel with bit sync is out of lock (tracking.weak.repull_fll_bw_hz)
+N_CONFIG = 45
 
 # ---- output columns (same order as receiver.runfile.record.EPOCH_DTYPE)
 O_TIME, O_SAMPLE, O_PERIOD, O_CODE_PHASE, O_CODE_RATE, O_DOPPLER, O_CARR_PHASE, O_PI, O_PQ, \
@@ -547,6 +549,21 @@ def track_block_ws(samples, block_start, st, cfg, code_ext, hist, out, max_epoch
         if cfg[C_CARRIER_EXTERNAL] == 0:
             pull = st[S_MODE] == MODE_PULL_IN
             pll_bw = cfg[C_WEAK_PLL_BW] if (st[S_WEAK] > 0 and cfg[C_WEAK_PLL_BW] > 0) else cfg[C_PLL_BW]
+            # re-pull: a channel that started weak and has been out of phase lock for a lock window after bit
+            # sync (its 20-ms PLL entered unlocked, or slipped) is steered by the rotation between the two
+            # halves of the epoch (one data bit: unambiguous within +/-1/T), which the 1-ms discriminator of
+            # the pull-in cannot give at these C/N0; in lock, and on a strong channel handed down in a fade
+            # (an outage: the halves would read noise), the PLL alone
+            if not pull and st[S_WEAK] > 0 and st[S_FADE] == 0 and st[S_BAD_MS] >= cfg[C_WEAK_LOCK_MS] and \
+                    cfg[C_WEAK_REPULL_FLL_BW] > 0 and \
+                    st[S_MODE] == MODE_BIT_SYNC and periods >= 10 and \
+                    (int(o[O_PERIOD]) - int(st[S_BIT_OFFSET])) % bit_ms == 0:
+                h_re = p2.real * p1.real + p2.imag * p1.imag
+                h_im = p2.imag * p1.real - p2.real * p1.imag
+                if h_re != 0.0 or h_im != 0.0:
+                    # (a 1st-order FLL: freq += 4 Bn_fll T e_f, before the PLL's own update)
+                    st[S_PLL_FREQ] += T * 4.0 * cfg[C_WEAK_REPULL_FLL_BW] * math.atan2(h_im, h_re) / \
+                        (two_pi * 0.5 * T)
             if pull or cfg[C_PLL_ORDER] == 2:
                 # 2nd-order PLL; during pull-in aided by a 1st-order FLL (freq += 4 Bn_fll T e_f).  No
                 # Doppler-rate integrator here: at low C/N0 noisy frequency discriminations would wind

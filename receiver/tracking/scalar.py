@@ -301,6 +301,7 @@ def kernel_config(trk_cfg, sig, fs: float, if_hz: float, max_int_ms: int, bit_ms
         c[K.C_WEAK_EXIT_CN0] = max(wk.exit_cn0_dbhz, wk.cn0_dbhz) if wk.exit_cn0_dbhz > 0 else 0.0
         c[K.C_WEAK_FADE] = 1.0 if wk.fade else 0.0
         c[K.C_WEAK_NARROW_EL] = 1.0 if wk.narrow_el_after_hold else 0.0
+        c[K.C_WEAK_REPULL_FLL_BW] = wk.repull_fll_bw_hz
     return c
 
 
