@@ -395,15 +395,17 @@ class ConditionedReader:
         # the check's false-alarm probability from a rate per unit time: at pfa per check (10 checks a
         # second) a clean file got a false notch every ~100 s
         pfa = min(cfg.pfa, cfg.monitor_false_per_hour * cfg.monitor_ms / 3.6e6)
-        det = detect_tones(y, fs, cfg.fft_size, pfa, cfg.min_db, 16)
-        if det.noise_power <= 0:
+        # without a tone notch the floor is needed only when a bin may be over it (its noise power sets the
+        # notches' loop floor, pfloor, which DC removal does not use): screened, a clean span costs its FFT
+        k0 = 1 if c.has_dc else 0
+        det = detect_tones(y, fs, cfg.fft_size, pfa, cfg.min_db, 16, screen=len(c.freqs) <= k0)
+        if det is None or det.noise_power <= 0:
             return
         L = len(y)
         freqs, rot, amp = list(c.freqs), list(c.rot), list(c.amp)
         mu, quiet, dw, dr, res = list(c.mu), list(c.quiet), list(c.dw), list(c.dr), list(c.res)
         cur = list(c.current_freqs())
         c.noise_power = det.noise_power            # the tracking loops' floor follows the noise
-        k0 = 1 if c.has_dc else 0
         # the weakest tone the detector sees in a bin: thr x floor, floor = noise x ENBW / nfft
         p_min = 10 ** (det.threshold_db / 10) * det.noise_power * _ENBW_BH / det.fft_size
         changed = False
@@ -458,6 +460,8 @@ class ConditionedReader:
         QUIET_CHECKS checks in which it blanked nothing."""
         cfg, c = self.cfg, self.canceller
         if not c.pulse_on:
+            if not pulses.may_be_pulsed(y, cfg.pulse_threshold_db, cfg.pulse_min_count):
+                return False
             pt = pulses.pulse_test(y, cfg.pulse_threshold_db, cfg.pulse_min_count)
             if not pt.pulsed:
                 return False

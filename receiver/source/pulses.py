@@ -79,6 +79,40 @@ def pulse_test(y: np.ndarray, threshold_db: float = 6.0, min_pulses: int = 3) ->
     return PulseTest(floor, runs, float(np.mean(over)), excess, runs >= int(min_pulses))
 
 
+@njit(cache=True, nogil=True)
+def _over_blocks(y, threshold, margin):
+    """The number of BLOCK-sample blocks of ``y`` whose mean power exceeds ``threshold`` x (their median /
+    the median of Gamma(BLOCK, 1/BLOCK)) x ``margin``, or -1 when that floor is not positive."""
+    n = len(y) // BLOCK
+    bp = np.empty(n)
+    for b in range(n):
+        acc = 0.0
+        for i in range(b * BLOCK, (b + 1) * BLOCK):
+            v = y[i]
+            acc += np.float64(v.real) * np.float64(v.real) + np.float64(v.imag) * np.float64(v.imag)
+        bp[b] = acc / BLOCK
+    floor = np.median(bp)
+    if not floor > 0.0:
+        return -1
+    lim = threshold * floor * margin
+    count = 0
+    for b in range(n):
+        if bp[b] > lim:
+            count += 1
+    return count
+
+
+def may_be_pulsed(y: np.ndarray, threshold_db: float = 6.0, min_pulses: int = 3) -> bool:
+    """False only when :func:`pulse_test` of the span would find it not pulsed: fewer than ``min_pulses``
+    blocks over a threshold 1e-6 below the test's (each run of the test holds at least one such block;
+    one compiled pass instead of the test's numpy steps -- the monitor's screen on a clean stream)."""
+    y = np.ascontiguousarray(y)
+    if len(y) // BLOCK < 8 or y.dtype != np.complex64:
+        return True
+    count = _over_blocks(y, 10 ** (threshold_db / 10.0) * gamma_median(BLOCK) ** -1, 1.0 - 1e-6)
+    return count < 0 or count >= int(min_pulses)
+
+
 def blank_mask(y: np.ndarray, floor: float, threshold_db: float = 6.0) -> np.ndarray:
     """The samples of a span the detector's over blocks cover, with one block on each side (to blank a span
     before its tones are detected: a pulse train's spectral lines are not tones)."""

@@ -97,9 +97,28 @@ def running_median_circular(x: np.ndarray, w: int) -> np.ndarray:
     return _running_median_circular(x, int(w))
 
 
+def _floor_lower_bound(spec: np.ndarray, fb: int) -> np.ndarray | None:
+    """A lower bound of the running median over ``fb`` (odd) circular neighbours of every bin of ``spec``,
+    cheaply: bin i's window lies inside the three blocks of fb // 2 bins around it, and the median of a
+    window (its (fb // 2 + 1)-th smallest value) is at least that order statistic of any superset.  None
+    when the blocks do not tile the spectrum."""
+    b = fb // 2
+    n = len(spec)
+    if b < 1 or n % b or n < 3 * b:
+        return None
+    blocks = spec.reshape(n // b, b)
+    trip = np.concatenate([np.roll(blocks, 1, axis=0), blocks, np.roll(blocks, -1, axis=0)], axis=1)
+    lb = np.partition(trip, b, axis=1)[:, b]                 # per block: its window's bound
+    return np.repeat(lb, b)
+
+
 def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e-3, min_db: float = 6.0,
-                 max_tones: int = 32, floor_bins: int = 129) -> Detection:
-    """Detect CW tones / spurs in complex samples ``x`` (see the module doc for the test and Pfa)."""
+                 max_tones: int = 32, floor_bins: int = 129, screen: bool = False) -> Detection | None:
+    """Detect CW tones / spurs in complex samples ``x`` (see the module doc for the test and Pfa).
+
+    ``screen``: return None, without the floor, when a lower bound of the floor shows that no bin is over
+    the threshold (the common case of a monitor check on a clean stream: what the floor would give -- no
+    tones -- without its running median; a caller that needs ``noise_power`` does not screen)."""
     x = np.asarray(x)
     nfft = int(fft_size)
     while nfft > 64 and len(x) < nfft:
@@ -114,10 +133,15 @@ def detect_tones(x: np.ndarray, fs: float, fft_size: int = 4096, pfa: float = 1e
     spec = np.fft.fftshift(np.mean(np.abs(np.fft.fft(seg * w[None, :], axis=1)) ** 2, axis=0))
     freqs = (np.arange(nfft) - nfft // 2) * fs / nfft
     fb = min(floor_bins, nfft // 4) | 1
+    thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
+    if screen and np.all(np.isfinite(spec)):
+        lb = _floor_lower_bound(spec, fb)
+        # (the margin covers the rounding of the products; the bound itself is exact)
+        if lb is not None and not np.any(spec > thr * np.maximum(lb / gamma_median(k), 1e-30) * (1 - 1e-9)):
+            return None
     med = running_median_circular(spec, fb)            # running median over fb bins, wrapping around
     floor = med / gamma_median(k)
     floor = np.maximum(floor, 1e-30)
-    thr = max(float(gamma_isf(pfa / nfft, k)), 10 ** (min_db / 10.0))
     det.threshold_db = 10 * np.log10(thr)
     wp = float(np.sum(w ** 2))
     det.noise_power = float(np.sum(floor)) / (wp * nfft)       # per-sample noise power
