@@ -10,20 +10,26 @@ from .decimate import DecimatingReader
 from .io import SampleReader
 
 
+#: chunks read ahead: the read-ahead thread starts the chunk after next as soon as the next one is done, so
+#: it stays busy while the pool tracks and a chunk whose conditioning ran late does not hold the pool up
+DEPTH = 2
+
+
 class PrefetchingReader:
     """The pipeline's view of the input: every read goes through it (counted), and :meth:`chunk` reads the
-    chunk at ``start`` while the next chunk is read ahead on a background thread, from a copy of the
-    input stage's state (the conditioning filter is causal and continues from the last read).  The
-    read-ahead is used only if no other read happened in between (the channel manager's searches read
-    elsewhere and move the filter stream), so the samples are exactly those of a plain read; otherwise it is
-    discarded and the chunk read again.  The read-ahead runs the resampling / filtering kernels (which
-    release the GIL) while the main thread does navigation and bookkeeping.  Only integer sample formats
-    (a float input counts its non-finite samples as it reads) and the known input stages are read ahead."""
+    chunk at ``start`` while the next chunks (``DEPTH``) are read ahead on a background thread, each from
+    a copy of the input stage's state after the one before it (the conditioning filter is causal and
+    continues from the last read).  A read-ahead is used only if no other read happened in between (the
+    channel manager's searches read elsewhere and move the filter stream), so the samples are exactly those
+    of plain reads; otherwise the pending ones are discarded and the chunk read again.  The read-ahead runs
+    the resampling / filtering kernels (which release the GIL) while the main thread does navigation and
+    bookkeeping.  Only integer sample formats (a float input counts its non-finite samples as it reads)
+    and the known input stages are read ahead."""
 
     def __init__(self, reader):
         object.__setattr__(self, "_r", reader)
         object.__setattr__(self, "reads", 0)
-        object.__setattr__(self, "_spec", None)
+        object.__setattr__(self, "_pending", [])       # [(start, n, reads expected, future)] in stream order
         object.__setattr__(self, "_pool", None)
         object.__setattr__(self, "_ok", _can_read_ahead(reader))
         object.__setattr__(self, "ahead_used", 0)
@@ -35,54 +41,80 @@ class PrefetchingReader:
         setattr(self._r, name, value)
 
     def read(self, start: int, n: int) -> np.ndarray:
-        """Plain read of samples [start, start+n) of the input stage, counted in ``reads`` (a pending read-ahead is
-        then not used)."""
+        """Plain read of samples [start, start+n) of the input stage, counted in ``reads`` (the pending
+        read-ahead is then not used)."""
         object.__setattr__(self, "reads", self.reads + 1)
         return self._r.read(start, n)
 
     def chunk(self, start: int, n: int, next_start: int) -> np.ndarray:
-        """read(start, n), then read ahead (next_start, n)."""
-        spec, block = self._spec, None
-        object.__setattr__(self, "_spec", None)
-        if spec is not None:
-            s0, n0, reads0, fut, fork, snap = spec
+        """read(start, n), then read ahead (next_start, n) and the chunks after it at the same stride."""
+        pending, block = self._pending, None
+        object.__setattr__(self, "_pending", [])
+        if pending:
+            s0, n0, reads0, fut = pending[0]
             try:
-                got = fut.result()                   # (also when unused: no two reads of the stage at once)
+                got = fut.result()
             except Exception:                        # noqa: BLE001 - the plain read below reports it
-                got, reads0 = None, -1
-            if (s0, n0, reads0) == (start, n, self.reads):
+                got = None
+            if got is not None and (s0, n0, reads0) == (start, n, self.reads):
+                block, fork, snap = got
                 for k, v in fork.__dict__.items():   # the stage's state after that read
                     if snap.get(k, snap) is not v:
                         self._r.__dict__[k] = v
                 object.__setattr__(self, "reads", self.reads + 1)
                 object.__setattr__(self, "ahead_used", self.ahead_used + 1)
-                block = got
+                pending = pending[1:]                # read on from that state: still valid
+            else:
+                _wait(pending)                       # (no two reads of the stage at once)
+                pending = []
         if block is None:
             block = self.read(start, n)
-        if self._ok and next_start < self._r.end:
-            if self._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
-                # the read-ahead's resampling runs on this thread beside the tracking pool (not queued
-                # behind the chunk's tracking jobs, which the main thread submits right after this)
-                object.__setattr__(self, "_pool", ThreadPoolExecutor(1, thread_name_prefix="gnssrx-read",
-                                                                     initializer=threads.serial_here))
-            fork = _fork_stage(self._r)
-            snap = dict(self._r.__dict__)
-            object.__setattr__(self, "_spec", (next_start, n, self.reads,
-                                               self._pool.submit(fork.read, next_start, n), fork, snap))
+        if self._ok:
+            stride = next_start - start
+            while len(pending) < DEPTH and stride > 0:
+                s = pending[-1][0] + stride if pending else next_start
+                if s >= self._r.end:
+                    break
+                pending.append((s, n, self.reads + len(pending), self._submit(pending, s, n)))
+        object.__setattr__(self, "_pending", pending)
         return block
 
+    def _submit(self, pending, s, n):
+        """The read-ahead of (s, n) on the background thread, from the state after the last pending read
+        (the stage's own state now when none is pending: copied here, before the caller changes it)."""
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+            # the read-ahead's resampling runs on this thread beside the tracking pool (not queued
+            # behind the chunk's tracking jobs, which the main thread submits right after this)
+            object.__setattr__(self, "_pool", ThreadPoolExecutor(1, thread_name_prefix="gnssrx-read",
+                                                                 initializer=threads.serial_here))
+        if not pending:
+            fork, snap = _fork_stage(self._r), dict(self._r.__dict__)
+            return self._pool.submit(lambda: (fork.read(s, n), fork, snap))
+        prev = pending[-1][3]
+
+        def job():                                   # (one worker thread: prev is done when this starts)
+            base = prev.result()[1]
+            fork = _fork_stage(base)
+            return fork.read(s, n), fork, dict(base.__dict__)
+        return self._pool.submit(job)
+
     def close(self):
-        """Wait for a pending read-ahead and stop the background thread (the input stage itself stays open)."""
-        if self._spec is not None:
-            try:
-                self._spec[3].result()
-            except Exception:                        # noqa: BLE001 - an unused read-ahead
-                pass
-            object.__setattr__(self, "_spec", None)
+        """Wait for the pending read-ahead and stop the background thread (the input stage itself stays open)."""
+        _wait(self._pending)
+        object.__setattr__(self, "_pending", [])
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             object.__setattr__(self, "_pool", None)
+
+
+def _wait(pending):
+    """Wait for the pending read-aheads, whatever they return (they are not used)."""
+    for *_, fut in pending:
+        try:
+            fut.result()
+        except Exception:                            # noqa: BLE001 - an unused read-ahead
+            pass
 
 
 def _stages(reader):
