@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 from ..estimation.stats import gamma_median
 from . import excision, pulses
+from .io import SampleReader, _deinterleave
 from .tones import ENBW_BH as _ENBW_BH
 from .tones import Detection, Tone, detect_tones, refine_tone_frequency  # noqa: F401 (re-exported)
 
@@ -101,6 +102,50 @@ def cancel(x, out, steps, rot, amp, mu, blank_level, dw, dr, res, g1, g2, g3, pf
             vi = 0.0
         out[n] = complex(vr, vi)
     return out
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def cancel_dc_interleaved(raw, swap, offset, out, amp, mu, blank_level):
+    """:func:`cancel`'s DC-removal-only path on interleaved integer I/Q (``complex(raw[2k], raw[2k+1]) -
+    offset``, I and Q swapped when ``swap``: receiver.source.io's conversion) converted as it goes: the
+    same values as converting first, without the intermediate array."""
+    a, b = (1, 0) if swap else (0, 1)
+    blank2 = blank_level * blank_level
+    ar, ai, m = amp[0].real, amp[0].imag, mu[0]
+    for n in range(out.size):
+        yr = (np.float32(raw[2 * n + a]) - offset.real) - ar
+        yi = (np.float32(raw[2 * n + b]) - offset.imag) - ai
+        ar += m * yr
+        ai += m * yi
+        if blank2 > 0.0 and yr * yr + yi * yi > blank2:
+            yr = 0.0
+            yi = 0.0
+        out[n] = complex(yr, yi)
+    amp[0] = complex(ar, ai)
+    return out
+
+
+class Interleaved:
+    """Interleaved integer I/Q samples not yet converted (receiver.source.io.SampleReader.interleaved): the
+    conditioning stage's DC removal reads them directly; anything else converts them first."""
+
+    __slots__ = ("raw", "swap", "offset")
+
+    def __init__(self, raw, swap, offset):
+        self.raw, self.swap, self.offset = raw, swap, offset
+
+    def __len__(self):
+        return len(self.raw) // 2
+
+    def __getitem__(self, sl: slice) -> "Interleaved":
+        i, j, _ = sl.indices(len(self))
+        return Interleaved(self.raw[2 * i:2 * max(i, j)], self.swap, self.offset)
+
+    def complex64(self) -> np.ndarray:
+        """The samples converted (receiver.source.io's values)."""
+        out = np.empty(len(self), np.complex64)
+        _deinterleave(self.raw, self.swap, self.offset, out)
+        return out
 
 
 class Canceller:
@@ -202,6 +247,10 @@ class Canceller:
         """The conditioned samples of ``x`` (into ``out``, complex64 of len(x), when given)."""
         if out is None:
             out = np.empty(len(x), np.complex64)
+        if isinstance(x, Interleaved):
+            if self.active and not self.pulse_on and self.steps.size == 1 and self.steps[0] == 1.0:
+                return cancel_dc_interleaved(x.raw, x.swap, x.offset, out, self.amp, self.mu, self.blank_level)
+            x = x.complex64()
         if not self.active:
             out[:] = x
             return out
@@ -320,19 +369,26 @@ class ConditionedReader:
             need = start + n - pos
             if need <= 0:
                 return have[:n].copy()
-            raw = self._reader.read(pos, need)
+            raw = self._raw_read(pos, need)
             out = np.empty(len(have) + len(raw), np.complex64)
             out[:len(have)] = have
             self._filter(raw, out[len(have):], pos)    # (filtered in place: no concatenation copy)
         else:
-            raw = self._reader.read(start, n)
-            self.canceller.reset(raw)
+            raw = self._raw_read(start, n)
+            m = max(1, int(self._reader.fs * 1e-3))         # (what reset reads of it: the first millisecond)
+            self.canceller.reset(raw[:m].complex64() if isinstance(raw, Interleaved) else raw)
             # a restarted stream: the monitor's span starts again (at the read when it is ahead)
             self._mon_buf = np.zeros(0, np.complex64)
             self._mon_next = max(self._mon_next, start)
             out = self._filter(raw, None, start)
         self._tail, self._tail_start = out, start
         return out
+
+    def _raw_read(self, start, n):
+        """The input samples [start, start + n): interleaved integers left for the DC removal to convert
+        (:class:`Interleaved`) when the file reader offers them, else complex64."""
+        got = self._reader.interleaved(start, n) if isinstance(self._reader, SampleReader) else None
+        return Interleaved(*got) if got is not None else self._reader.read(start, n)
 
     def _filter(self, raw, out=None, start=None):
         """Condition raw (stream position start) into out, running the monitor checks that fall due: a check

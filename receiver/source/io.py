@@ -303,6 +303,21 @@ class SampleReader:
             self._sanitize(out, start, stop)
         return out
 
+    def interleaved(self, start: int, n: int):
+        """Samples [start, start+n) (clipped like :meth:`read`) still as the file's interleaved 8- or 16-bit
+        integers: ``(raw, swap, offset)`` for a stage that converts them as it goes (``complex(raw[2k],
+        raw[2k+1]) - offset``, I and Q swapped when ``swap``: :meth:`read`'s values); None for the other
+        formats and for an empty span."""
+        f, c = self.format, self._ncomp
+        start = max(start, self.first)
+        stop = min(start + n, self.end)
+        if f.kind == "packed" or c != 2 or self._raw.dtype.kind not in "iu" or self._raw.dtype.itemsize > 2 \
+                or stop <= start:
+            return None
+        self.release_before(start)
+        return (self._raw[start * c:stop * c], bool(self.iq_swap),
+                np.complex64(127.5 + 127.5j if f.kind == "uint" else 0.0))
+
     def release_before(self, index: int):
         """Hand the mapped file pages more than :data:`RELEASE_MARGIN_S` before file index ``index`` back to
         the kernel (``madvise(MADV_DONTNEED)``, in steps of at least :data:`RELEASE_STEP_BYTES`), so that the
