@@ -332,13 +332,15 @@ def loop_update(lp, ls, ip, qp, T, p1i, p1q, p2i, p2q):
 
 
 # ------------------------------------------------------------------ the loop interface's compiled path
-@njit(START_SIG, cache=True, nogil=True)
+# (compiled for START_SIG / UPDATE_SIG at their first use, by runner.CompiledFunction, not at import: a run
+# on the built-in PLL does not load them -- ~75 ms of numba's cache and set-up at every start)
+@njit(cache=True, nogil=True)
 def builtin_start(lp, ls, doppler_hz, T, rate_hz_s, carrier_hz):
     """The built-in variants' compiled ``start`` (receiver/tracking/loops/runner.py START_SIG)."""
     loop_start(lp, ls, doppler_hz, T, rate_hz_s, carrier_hz)
 
 
-@njit(UPDATE_SIG, cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def builtin_update(lp, ls, ip, qp, T, p1i, p1q, p2i, p2q):
     """The built-in variants' compiled ``update`` (UPDATE_SIG)."""
     return loop_update(lp, ls, ip, qp, T, p1i, p1q, p2i, p2q)
