@@ -38,6 +38,20 @@ from .tones import Detection, Tone, detect_tones, refine_tone_frequency  # noqa:
 QUIET_CHECKS = 3        # monitor checks a notch's tone must stay below the detection level before it is removed
 
 
+@njit(inline="always", fastmath=True)
+def _dc_step(xr, xi, ar, ai, m, blank2):
+    """One sample of the DC canceller: (out I, out Q, tracked DC I, Q) -- the sample less the DC, the DC
+    moved toward the sample by m; the output zeroed when its power exceeds blank2 (> 0)."""
+    yr = xr - ar
+    yi = xi - ai
+    ar += m * yr
+    ai += m * yi
+    if blank2 > 0.0 and yr * yr + yi * yi > blank2:
+        yr = 0.0
+        yi = 0.0
+    return yr, yi, ar, ai
+
+
 @njit(cache=True, fastmath=True, nogil=True)
 def cancel(x, out, steps, rot, amp, mu, blank_level, dw, dr, res, g1, g2, g3, pfloor):
     """Subtract the tracked tones from ``x`` into ``out`` (complex64); the state arrays are updated.
@@ -60,13 +74,7 @@ def cancel(x, out, steps, rot, amp, mu, blank_level, dw, dr, res, g1, g2, g3, pf
     if nt == 1 and steps[0] == 1.0:                  # DC removal only: the common case, kept lean
         ar, ai, m = amp[0].real, amp[0].imag, mu[0]
         for n in range(x.size):
-            yr = x[n].real - ar
-            yi = x[n].imag - ai
-            ar += m * yr
-            ai += m * yi
-            if blank2 > 0.0 and yr * yr + yi * yi > blank2:
-                yr = 0.0
-                yi = 0.0
+            yr, yi, ar, ai = _dc_step(x[n].real, x[n].imag, ar, ai, m, blank2)
             out[n] = complex(yr, yi)
         amp[0] = complex(ar, ai)
         return out
@@ -113,13 +121,8 @@ def cancel_dc_interleaved(raw, swap, offset, out, amp, mu, blank_level):
     blank2 = blank_level * blank_level
     ar, ai, m = amp[0].real, amp[0].imag, mu[0]
     for n in range(out.size):
-        yr = (np.float32(raw[2 * n + a]) - offset.real) - ar
-        yi = (np.float32(raw[2 * n + b]) - offset.imag) - ai
-        ar += m * yr
-        ai += m * yi
-        if blank2 > 0.0 and yr * yr + yi * yi > blank2:
-            yr = 0.0
-            yi = 0.0
+        yr, yi, ar, ai = _dc_step(np.float32(raw[2 * n + a]) - offset.real, np.float32(raw[2 * n + b]) - offset.imag,
+                                  ar, ai, m, blank2)
         out[n] = complex(yr, yi)
     amp[0] = complex(ar, ai)
     return out
