@@ -230,15 +230,16 @@ class Canceller:
         self.quiet = np.asarray(quiet, np.int64)
         self._loop_arrays()
 
-    def reset(self, x: np.ndarray):
-        """Fresh state, amplitudes initialised from the first millisecond of ``x`` (no convergence
-        transient at a stream start)."""
+    def reset(self, x):
+        """Fresh state, amplitudes initialised from the first millisecond of ``x`` (complex64 or
+        :class:`Interleaved`; no convergence transient at a stream start)."""
         m = max(1, min(len(x), int(self.fs * 1e-3)))
         n = np.arange(m)
         self.rot = np.ones(self.freqs.size, np.complex128)
         self.amp = np.zeros(self.freqs.size, np.complex128)
         self.res = np.zeros(self.freqs.size, np.float64)
-        resid = x[:m].astype(np.complex128)
+        head = x[:m]
+        resid = (head.complex64() if isinstance(head, Interleaved) else head).astype(np.complex128)
         for k, f in enumerate(self.current_freqs()):
             ph = np.exp(-2j * np.pi * f / self.fs * n)
             a = complex(np.mean(resid * ph))
@@ -378,8 +379,7 @@ class ConditionedReader:
             self._filter(raw, out[len(have):], pos)    # (filtered in place: no concatenation copy)
         else:
             raw = self._raw_read(start, n)
-            m = max(1, int(self._reader.fs * 1e-3))         # (what reset reads of it: the first millisecond)
-            self.canceller.reset(raw[:m].complex64() if isinstance(raw, Interleaved) else raw)
+            self.canceller.reset(raw)
             # a restarted stream: the monitor's span starts again (at the read when it is ahead)
             self._mon_buf = np.zeros(0, np.complex64)
             self._mon_next = max(self._mon_next, start)

@@ -284,8 +284,9 @@ class SampleReader:
                 out.real[(1 - start % 2)::2] *= -1.0      # odd file indices: consistent across reads
             return out
         raw = self._raw[start * c:stop * c]
-        if c == 2 and raw.dtype.kind in "iu" and raw.dtype.itemsize <= 2:
-            _deinterleave(raw, bool(self.iq_swap), np.complex64(127.5 + 127.5j if f.kind == "uint" else 0.0), out)
+        iq = self._int_iq()
+        if iq is not None:
+            _deinterleave(raw, *iq, out)
         elif c == 2:
             i, q = raw[0::2], raw[1::2]
             if self.iq_swap:
@@ -308,15 +309,20 @@ class SampleReader:
         integers: ``(raw, swap, offset)`` for a stage that converts them as it goes (``complex(raw[2k],
         raw[2k+1]) - offset``, I and Q swapped when ``swap``: :meth:`read`'s values); None for the other
         formats and for an empty span."""
-        f, c = self.format, self._ncomp
+        iq = self._int_iq()
         start = max(start, self.first)
         stop = min(start + n, self.end)
-        if f.kind == "packed" or c != 2 or self._raw.dtype.kind not in "iu" or self._raw.dtype.itemsize > 2 \
-                or stop <= start:
+        if iq is None or stop <= start:
             return None
         self.release_before(start)
-        return (self._raw[start * c:stop * c], bool(self.iq_swap),
-                np.complex64(127.5 + 127.5j if f.kind == "uint" else 0.0))
+        return (self._raw[start * 2:stop * 2],) + iq
+
+    def _int_iq(self):
+        """(swap, offset) of :func:`_deinterleave` for an interleaved 8- or 16-bit integer I/Q file, else None."""
+        if self.format.kind == "packed" or self._ncomp != 2 or self._raw.dtype.kind not in "iu" \
+                or self._raw.dtype.itemsize > 2:
+            return None
+        return bool(self.iq_swap), np.complex64(127.5 + 127.5j if self.format.kind == "uint" else 0.0)
 
     def release_before(self, index: int):
         """Hand the mapped file pages more than :data:`RELEASE_MARGIN_S` before file index ``index`` back to
