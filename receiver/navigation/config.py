@@ -30,12 +30,17 @@ SCHEMA = {
                                           "receiver/gnss/atmosphere.py) instead of not at all; "
                                           "/navigation/iono_params says which set each fix used"),
     "elevation_mask_deg": P(5.0, "float", "elevation mask", lo=-90.0, hi=90.0),
-    "weighting": P("elevation", "str", "WLS weights: sin^2(el), C/N0, none, or rtklib (RTKLIB's default "
-                                           "single-point error model, to compare with rnx2rtkp)",
+    "weighting": P("elevation", "str", "WLS weights: sin^2(el), C/N0, none, rtklib (RTKLIB's default "
+                                           "single-point error model, to compare with rnx2rtkp), or "
+                                           "cn0_elevation (variance 10^((cn0_ref_dbhz - C/N0) / 10) + "
+                                           "1 / sin^2(el): a thermal and an elevation term)",
                    choices=tuple(WEIGHTING)),
+    "cn0_ref_dbhz": P(45.0, "float", "weighting cn0_elevation: the C/N0 at which a range's thermal variance "
+                                     "equals its elevation term at zenith (dB-Hz)", lo=0.0, hi=80.0),
     "weighting_per_system": P("vce", "str", "relative weight of each system in a fix mixing systems "
-                                              "(elevation and cn0 weightings): fixed (each signal's code "
-                                              "variance relative to L1 C/A, docs: Combining GNSS systems) or "
+                                              "(elevation, cn0 and cn0_elevation weightings): fixed (each "
+                                              "signal's code variance relative to L1 C/A, docs: Combining GNSS "
+                                              "systems) or "
                                               "vce (that times a variance factor per system estimated from "
                                               "the fixes' residuals over the last vce_window_s: variance "
                                               "component estimation); one-system fixes are unchanged",

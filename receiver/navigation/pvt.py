@@ -263,6 +263,7 @@ class NavSolver:
         g = lambda name: getattr(nav_cfg, name, default(name)) if nav_cfg is not None else default(name)  # noqa: E731
         self.elevation_mask_deg = float(g("elevation_mask_deg"))
         self.weighting = str(g("weighting"))
+        self.cn0_ref_dbhz = float(g("cn0_ref_dbhz"))
         self.troposphere = str(g("troposphere"))
         self.ionosphere = str(g("ionosphere"))
         self.residual_threshold_m = float(g("residual_threshold_m"))
@@ -281,7 +282,7 @@ class NavSolver:
     # -------------------------------------------------------------------------------------
     # variance component estimation (weighting_per_system vce)
     def _vce_on(self, systems) -> bool:
-        return self.per_system == "vce" and self.weighting in ("elevation", "cn0") and len(systems) > 1
+        return self.per_system == "vce" and self.weighting in ("elevation", "cn0", "cn0_elevation") and len(systems) > 1
 
     def vce_factors(self, systems) -> dict:
         """{system: variance factor} for a fix of ``systems`` (the first one the reference, 1), estimated over
@@ -362,7 +363,7 @@ class NavSolver:
         variance of each satellite's signal relative to L1 C/A (_Sats.code_var); a fix mixing signals of
         different chip rates weights each by its inverse (None or all equal: no change)."""
         w = self._base_weights(el, cn0, iono, ura_m)
-        if code_var is not None and self.weighting in ("elevation", "cn0") and np.ptp(code_var) > 0.0:
+        if code_var is not None and self.weighting in ("elevation", "cn0", "cn0_elevation") and np.ptp(code_var) > 0.0:
             w = w / code_var
         return w / np.max(w)
 
@@ -380,6 +381,10 @@ class NavSolver:
             w = np.sin(np.maximum(el, np.radians(1.0))) ** 2
         elif self.weighting == "cn0" and np.all(np.isfinite(cn0)):
             w = 10.0 ** (cn0 / 10.0)
+        elif self.weighting == "cn0_elevation" and el is not None:
+            se2 = np.sin(np.maximum(el, np.radians(1.0))) ** 2
+            w = 1.0 / (10.0 ** ((self.cn0_ref_dbhz - np.asarray(cn0, float)) / 10.0) + 1.0 / se2) \
+                if np.all(np.isfinite(cn0)) else se2
         else:
             w = np.ones(len(cn0))
         return w
@@ -419,7 +424,7 @@ class NavSolver:
         tropo_on = corr and self.troposphere == "saastamoinen" and -1000.0 < h < 50e3
         tau, los, az, el, iono, tropo, w, resid, hm = linearise(
             pos_tx, np.asarray(x, float), float(b), rho_c, cn0, ura, known, corr, lat, lon, h, iono_on, alpha,
-            beta, float(tow), tropo_on, WEIGHTING[self.weighting], self.troposphere == "none")
+            beta, float(tow), tropo_on, WEIGHTING[self.weighting], self.troposphere == "none", self.cn0_ref_dbhz)
         if not known:
             az = el = None
         return known, tau, los, az, el, iono, tropo, w, resid, hm

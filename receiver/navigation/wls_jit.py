@@ -22,7 +22,7 @@ from numba import njit
 C_LIGHT = 299792458.0
 OMEGA_E = 7.2921151467e-5
 GPS_PI = 3.1415926535898
-WEIGHTING = {"elevation": 0, "cn0": 1, "none": 2, "rtklib": 3}
+WEIGHTING = {"elevation": 0, "cn0": 1, "none": 2, "rtklib": 3, "cn0_elevation": 4}
 
 
 @njit(cache=True, nogil=True)
@@ -35,12 +35,13 @@ def _polyval(x, c):
 
 @njit(cache=True)       # holds the GIL: see receiver/navigation/bits_jit.py
 def linearise(pos_tx, x, b, rho_c, cn0, ura, known, corr, lat_deg, lon_deg, h_m, iono_on, alpha, beta, tow,
-              tropo_on, weighting, tropo_none):
+              tropo_on, weighting, tropo_none, cn0_ref_dbhz):
     """-> (tau, los, az, el, iono, tropo, w, resid_without_isb, h4) for the satellites pos_tx (n, 3).
 
     known: |x| > 5000 km (az/el exist); corr: apply the corrections (needs known); iono_on: Klobuchar
     with alpha/beta; tropo_on: Saastamoinen (the caller checks the height range); weighting: WEIGHTING
-    code; tropo_none: navigation.troposphere == 'none' (the rtklib weighting's unmodelled 3 m)."""
+    code; tropo_none: navigation.troposphere == 'none' (the rtklib weighting's unmodelled 3 m); cn0_ref_dbhz:
+    the cn0_elevation weighting's navigation.cn0_ref_dbhz."""
     n = pos_tx.shape[0]
     tau = np.empty(n)
     los = np.empty((n, 3))
@@ -123,6 +124,11 @@ def linearise(pos_tx, x, b, rho_c, cn0, ura, known, corr, lat_deg, lon_deg, h_m,
             w[i] = np.sin(max(el[i], rad1)) ** 2
         elif weighting == 1 and cn0_ok:
             w[i] = 10.0 ** (cn0[i] / 10.0)
+        elif weighting == 4 and have_el and cn0_ok:
+            se = np.sin(max(el[i], rad1))
+            w[i] = 1.0 / (10.0 ** ((cn0_ref_dbhz - cn0[i]) / 10.0) + 1.0 / (se * se))
+        elif weighting == 4 and have_el:
+            w[i] = np.sin(max(el[i], rad1)) ** 2
         else:
             w[i] = 1.0
     wmax = w[0]

@@ -263,3 +263,26 @@ def test_grossly_wrong_satellite_is_left_out_when_the_wls_cannot_converge(brdc, 
     e2 = dict(ephs)
     e2[bad] = replace(ephs[bad], af0=0.1)
     assert NavSolver(cfg()).fix(WEEK, rx_tow, few, e2, iono) is None
+
+
+def test_cn0_elevation_weighting_is_the_best_linear_estimate_under_its_model(brdc, rx):
+    """navigation.weighting cn0_elevation: range variance 10^((cn0_ref - C/N0) / 10) + 1 / sin^2(el) (in units of
+    the zenith elevation term).  When the ranges' errors follow that model, with each satellite's C/N0 drawn
+    apart from its elevation (a weak high satellite, a strong low one), its fixes are closer to the truth than
+    those of sin^2(el) weights (blind to C/N0) and of C/N0 weights (blind to elevation), over many draws."""
+    ephs, iono = brdc
+    rx_tow, clean = simulate(ephs, iono, rx, seed=0)
+    base = NavSolver(cfg()).fix(WEEK, rx_tow, clean, ephs, iono)
+    el = dict(zip(base.prns, np.radians(base.elevations_deg)))
+    rng = np.random.default_rng(7)
+    err = {"cn0_elevation": [], "elevation": [], "cn0": []}
+    for _ in range(150):
+        cn0 = {o.prn: float(rng.uniform(27.0, 47.0)) for o in clean}
+        sd = {p: 0.5 * np.sqrt(10 ** ((45.0 - cn0[p]) / 10) + 1 / np.sin(el.get(p, np.pi / 2)) ** 2) for p in cn0}
+        noise = {p: sd[p] * rng.standard_normal() for p in cn0}
+        obs = [replace(o, cn0_dbhz=cn0[o.prn], tx_tow=o.tx_tow - noise[o.prn] / C_LIGHT) for o in clean]
+        for w in err:
+            f = NavSolver(cfg(weighting=w, cn0_ref_dbhz=45.0)).fix(WEEK, rx_tow, obs, ephs, iono, x0=base.ecef)
+            err[w].append(np.sum((f.ecef - rx) ** 2))
+    rms = {w: float(np.sqrt(np.mean(v))) for w, v in err.items()}
+    assert rms["cn0_elevation"] < 0.95 * rms["elevation"] and rms["cn0_elevation"] < 0.95 * rms["cn0"], rms

@@ -32,7 +32,7 @@ def _scene(seed, h_m=40.0):
     return x + rng.normal(0, 30.0, 3), pos, rho, cn0, ura
 
 
-@pytest.mark.parametrize("weighting", ["elevation", "cn0", "none", "rtklib"])
+@pytest.mark.parametrize("weighting", ["elevation", "cn0", "none", "rtklib", "cn0_elevation"])
 @pytest.mark.parametrize("models", [("saastamoinen", "klobuchar"), ("none", "none"), ("saastamoinen", "none")])
 def test_compiled_linearisation_matches_numpy(weighting, models):
     tropo, iono = models
