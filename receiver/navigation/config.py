@@ -35,7 +35,7 @@ SCHEMA = {
                                            "cn0_elevation (variance 10^((cn0_ref_dbhz - C/N0) / 10) + "
                                            "1 / sin^2(el): a thermal and an elevation term)",
                    choices=tuple(WEIGHTING)),
-    "cn0_ref_dbhz": P(45.0, "float", "weighting cn0_elevation: the C/N0 at which a range's thermal variance "
+    "cn0_ref_dbhz": P(35.0, "float", "weighting cn0_elevation: the C/N0 at which a range's thermal variance "
                                      "equals its elevation term at zenith (dB-Hz)", lo=0.0, hi=80.0),
     "weighting_per_system": P("vce", "str", "relative weight of each system in a fix mixing systems "
                                               "(elevation, cn0 and cn0_elevation weightings): fixed (each "
