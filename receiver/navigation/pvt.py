@@ -190,7 +190,7 @@ def broadcast_accuracy_m(eph) -> float:
 
 
 #: variance of a system's L1-band pseudorange relative to a GPS L1 C/A one at the same C/N0 (the signal's total)
-#: and elevation, for the elevation and cn0 weightings of a fix mixing systems (docs/multi-gnss.md).  B1I
+#: and elevation, for the SIGNAL_WEIGHTINGS of a fix mixing systems (docs/multi-gnss.md).  B1I
 #: (2.046 Mcps): the code tracking error in metres scales with the chip length (same DLL bandwidth and spacing
 #: in chips), (1.023 / 2.046)^2 = 1/4.  Galileo E1 (E1-C pilot, BOC(1,1), 8-Hz DLL, carrier smoothed): 2, a
 #: measured value -- over 7 GPS + Galileo recordings of our simulator and both weightings, 2 gave the fewest
@@ -198,6 +198,10 @@ def broadcast_accuracy_m(eph) -> float:
 #: Other systems (GPS, QZSS): 1.  With navigation.weighting_per_system vce (default) each system's variance is
 #: this times the factor estimated from the residuals (NavSolver.vce_factors), once there is enough redundancy.
 CODE_VAR_REL_CA = {"C": (CA_CHIP_RATE / B1I_CHIP_RATE) ** 2, "E": 2.0}
+
+#: the weightings that model a range's variance from its signal, elevation and C/N0: a fix mixing signals
+#: scales them by CODE_VAR_REL_CA, and weighting_per_system vce applies to them (not to none and rtklib)
+SIGNAL_WEIGHTINGS = ("elevation", "cn0", "cn0_elevation")
 
 #: weighting_per_system vce: a system's factor is estimated once its satellites' redundancy numbers summed over
 #: the window reach VCE_MIN_REDUNDANCY and average VCE_MIN_MEAN_REDUNDANCY per fix (a system of 1-3 satellites,
@@ -282,7 +286,7 @@ class NavSolver:
     # -------------------------------------------------------------------------------------
     # variance component estimation (weighting_per_system vce)
     def _vce_on(self, systems) -> bool:
-        return self.per_system == "vce" and self.weighting in ("elevation", "cn0", "cn0_elevation") and len(systems) > 1
+        return self.per_system == "vce" and self.weighting in SIGNAL_WEIGHTINGS and len(systems) > 1
 
     def vce_factors(self, systems) -> dict:
         """{system: variance factor} for a fix of ``systems`` (the first one the reference, 1), estimated over
@@ -363,7 +367,7 @@ class NavSolver:
         variance of each satellite's signal relative to L1 C/A (_Sats.code_var); a fix mixing signals of
         different chip rates weights each by its inverse (None or all equal: no change)."""
         w = self._base_weights(el, cn0, iono, ura_m)
-        if code_var is not None and self.weighting in ("elevation", "cn0", "cn0_elevation") and np.ptp(code_var) > 0.0:
+        if code_var is not None and self.weighting in SIGNAL_WEIGHTINGS and np.ptp(code_var) > 0.0:
             w = w / code_var
         return w / np.max(w)
 
