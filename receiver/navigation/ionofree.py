@@ -35,7 +35,8 @@ from ..gnss.geodesy import ecef2lla
 from ..runfile.record import FIX_DTYPE, IONO_NONE, OBS_DTYPE
 from .pvt import NavSolver, Observation
 
-_SOLVER_KEYS = ("elevation_mask_deg", "weighting", "troposphere", "residual_threshold_m", "max_pdop")
+_SOLVER_KEYS = ("elevation_mask_deg", "weighting", "cn0_ref_dbhz", "troposphere", "residual_threshold_m",
+                "max_pdop")
 
 
 def gamma(f2_hz: float) -> float:

@@ -120,15 +120,13 @@ def linearise(pos_tx, x, b, rho_c, cn0, ura, known, corr, lat_deg, lon_deg, h_m,
             var = 100.0 ** 2 * (0.003 ** 2 + 0.003 ** 2 / se) + 0.3 ** 2 + (0.5 * iono[i]) ** 2 + ura[i] ** 2
             var += 9.0 if tropo_none else (0.3 / se) ** 2
             w[i] = 1.0 / var
-        elif weighting == 0 and have_el:
-            w[i] = np.sin(max(el[i], rad1)) ** 2
-        elif weighting == 1 and cn0_ok:
-            w[i] = 10.0 ** (cn0[i] / 10.0)
         elif weighting == 4 and have_el and cn0_ok:
             se = np.sin(max(el[i], rad1))
             w[i] = 1.0 / (10.0 ** ((cn0_ref_dbhz - cn0[i]) / 10.0) + 1.0 / (se * se))
-        elif weighting == 4 and have_el:
+        elif (weighting == 0 or weighting == 4) and have_el:     # (cn0_elevation without a C/N0: sin^2(el))
             w[i] = np.sin(max(el[i], rad1)) ** 2
+        elif weighting == 1 and cn0_ok:
+            w[i] = 10.0 ** (cn0[i] / 10.0)
         else:
             w[i] = 1.0
     wmax = w[0]

@@ -63,3 +63,15 @@ def test_e1e5a_group_delays_from_bgd():
             assert abs(ionofree(p1, p5, g) - p_if) == pytest.approx(C_LIGHT * abs(bgd_a), rel=1e-9)
     # GPS L5: no correction (CNAV ISCs not decoded)
     assert if_clock_correction_s(SimpleNamespace(bgd_e1e5a=1e-8, tgd=1e-8), GPS_L5) == 0.0
+
+
+def test_dual_frequency_solver_takes_the_navigation_weighting_settings():
+    """The ionosphere-free fix's solver is configured from the navigation section: every solver setting it
+    copies reaches it (cn0_elevation's reference C/N0 included), and the ionosphere model is off."""
+    from types import SimpleNamespace
+    from receiver.navigation.ionofree import DualFrequency
+    nav = SimpleNamespace(elevation_mask_deg=12.0, weighting="cn0_elevation", cn0_ref_dbhz=42.0,
+                          troposphere="none", residual_threshold_m=25.0, max_pdop=9.0, smoothing_s=0.0,
+                          rate_hz=10.0)
+    s = DualFrequency(nav, [], None).solver
+    assert (s.weighting, s.cn0_ref_dbhz, s.elevation_mask_deg, s.ionosphere) == ("cn0_elevation", 42.0, 12.0, "none")
