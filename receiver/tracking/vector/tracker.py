@@ -80,10 +80,13 @@ def _galileo(sig) -> bool:
     return sig.system == "E"
 
 
-def _slow_lock_reset() -> np.ndarray:
-    """A fresh slow lock detector state (loop.WK_*): waiting for a bit edge."""
+def _slow_lock_reset(cn0_dbhz: float = 0.0) -> np.ndarray:
+    """A fresh slow lock detector state (loop.WK_*): waiting for a bit edge.  cn0_dbhz: the C/N0 it reports
+    until its first window is complete (0: none, the channel counts as without signal until then); the
+    detector clears it whenever the presence test finds the signal absent."""
     wk = np.zeros(L.N_WK)
     wk[L.WK_MS] = -1.0
+    wk[L.WK_CN0] = cn0_dbhz
     return wk
 
 
@@ -291,6 +294,9 @@ class VectorTracker:
 
     def _promote(self, prn, ch):
         """Hand a channel's NCOs to the vector loop."""
+        # a channel the scalar lock detectors hold locked hands its C/N0 to the slow lock detector, which
+        # would otherwise count it as without signal for its first window (weak_lock_window_ms)
+        handed_cn0 = float(ch.st[K.S_CN0]) if ch.st[K.S_LOCK] > 0 else 0.0
         ch.set_external(True, True)
         ch.cfg[K.C_LOST_MS] = NEVER_LOST_MS
         ch.cfg[K.C_PRES_LOST_MS] = NEVER_LOST_MS        # (the presence test still zeroes C/N0: coast at once)
@@ -307,7 +313,7 @@ class VectorTracker:
                 ch.st[i] = 0.0
         self.info[prn] = {"A": self._tx_offset(prn, ch), "Rc": self.filt.r_code, "Rf": self.filt.r_carr,
                           "W": np.zeros((2, self.filt.window)), "WI": 0, "WN": 0, "WS": np.zeros(2),
-                          "WK": _slow_lock_reset()}
+                          "WK": _slow_lock_reset(handed_cn0)}
         self.prns.append(prn)
         self.pending_since.pop(prn, None)
         self._arrays_dirty = True

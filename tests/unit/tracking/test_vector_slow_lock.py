@@ -22,12 +22,14 @@ def _prompts(cn0_dbhz, n_ms, rng, freq_hz=3.0, offset=BIT_OFFSET):
     return z
 
 
-def _run(z, nbits=50, offset=BIT_OFFSET, absent_from=None):
-    """The detector over the prompts; returns its C/N0 after every window and the final state."""
+def _run(z, nbits=50, offset=BIT_OFFSET, absent_from=None, wk=None, trace=None):
+    """The detector over the prompts; returns its C/N0 after every window and the final state.  wk: the
+    initial state (default: fresh); trace: a list that receives the detector's C/N0 after every prompt."""
     st = np.zeros(K.N_STATE)
     st[K.S_BIT_OFFSET] = offset
-    wk = np.zeros(L.N_WK)
-    wk[L.WK_MS] = -1.0
+    if wk is None:
+        wk = np.zeros(L.N_WK)
+        wk[L.WK_MS] = -1.0
     o = np.zeros(K.N_OUT)
     o[K.O_INT_MS] = 1.0
     out = []
@@ -41,6 +43,8 @@ def _run(z, nbits=50, offset=BIT_OFFSET, absent_from=None):
         L._slow_lock(wk, st, o, nbits)
         if wk[L.WK_N] == 0 and n_before == nbits - 1:
             out.append(wk[L.WK_CN0])
+        if trace is not None:
+            trace.append(wk[L.WK_CN0])
     return np.array(out), wk
 
 
@@ -88,3 +92,24 @@ def test_vector_locked_needs_presence_and_the_slow_signal_flag():
     assert not L.vector_locked(st, wk, sig, prm)
     st[K.S_CN0] = 33.0
     assert L.vector_locked(st, wk, sig, prm)
+
+
+def test_a_handed_over_channel_keeps_its_scalar_cn0_until_the_first_window():
+    """At the scalar-to-vector handover a channel the scalar lock detectors hold locked starts the slow
+    detector with its C/N0 (VectorTracker._promote): it counts as carrying signal during the first window
+    instead of coasting for it; the window's own estimate then replaces that value, and an absent signal
+    clears it at once."""
+    from receiver.tracking.vector.tracker import _slow_lock_reset
+    rng = np.random.default_rng(3)
+    z = _prompts(28.0, 3_000, rng)
+    fresh, handed = [], []
+    _run(z, trace=fresh)
+    cn0, _ = _run(z, wk=_slow_lock_reset(29.5), trace=handed)
+    fresh, handed = np.array(fresh), np.array(handed)
+    first = int(np.argmax(handed != 29.5))                # the first window's end (50 bits, ~1 s)
+    assert 990 <= first <= 1010
+    assert np.all(fresh[:first] == 0.0)                   # a fresh detector: no signal for the first window
+    assert handed[first] == cn0[0] and abs(cn0[0] - 28.0) < 2.0
+    np.testing.assert_array_equal(handed[first:], fresh[first:])    # from then on the same detector
+    _, wk = _run(z, wk=_slow_lock_reset(29.5), absent_from=100)
+    assert wk[L.WK_CN0] == 0.0
