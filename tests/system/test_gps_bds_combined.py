@@ -1,10 +1,10 @@
-"""GPS + BeiDou combined fixes no worse than the better system alone (issue 33), on a recording of our simulator
-and on one of an independent simulator (SignalSim's IFdataGen, when GNSSRX_SIGNALSIM names its executable).
+"""GPS + BeiDou (+ Galileo) combined fixes no worse than the better system alone (issue 33), on a recording of our
+simulator and on ones of an independent simulator (SignalSim's IFdataGen, when GNSSRX_SIGNALSIM names its
+executable).
 
 One receiver run over both bands (assisted mode: the scenario's ephemerides from a mixed RINEX file, fixes from
-the first seconds); GPS alone and BeiDou alone are solved again from that run's observables
-(receiver.evaluate.systems), so the three cases share the same measurements; the run's own combined fixes are
-scored beside them."""
+the first seconds); each system alone is solved again from that run's observables (receiver.evaluate.systems),
+so every case shares the same measurements; the run's own combined fixes are scored beside them."""
 import os
 import subprocess
 import sys
@@ -23,31 +23,35 @@ DURATION_S = 16.0       # recording length; fixes scored from SETTLED_S on (the 
 SETTLED_S = 8.0         # tracking's pull-in and the carrier smoothing's start, common to every solver choice)
 
 
-def _run_and_resolve(rec, nav, week, tow, out, truth_ecef, if_hz, extra=()):
+def _run_and_resolve(rec, nav, week, tow, out, truth_ecef, if_hz, extra=(), config="configs/gps_bds_nav.yaml",
+                     systems=("GC", "G", "C")):
+    """{case: score} over the common epochs from SETTLED_S on and their number; cases: each of ``systems``
+    (the first the combination) solved from the run's observables, and "run" (the run's own fixes)."""
     from receiver.pipeline import run
     h5 = out / "gb.h5"
-    cfg = load_receiver_config(ROOT / "configs/gps_bds_nav.yaml", [
+    cfg = load_receiver_config(ROOT / config, [
         f"input.path={rec}", f"output.path={h5}", f"input.if_hz={if_hz}", f"navigation.ephemeris={nav}",
         f"input.start_gps_week={week}", f"input.start_gps_tow_s={tow}", *extra])
     run(cfg, quiet=True, log=lambda *a: None)
     r = load_run(h5)
     r.obs = r.obs[r.obs["time_s"] >= SETTLED_S]
     r.fixes = r.fixes[r.fixes["time_s"] >= SETTLED_S]
-    fixes = {"GC": resolve_fixes(r, "GC"), "G": resolve_fixes(r, "G"), "C": resolve_fixes(r, "C"),
-             "run": np.array([(t, e, n, p) for t, e, n, p in zip(np.round(r.fixes["gps_tow"], 3), r.fixes["ecef"],
+    fixes = {k: resolve_fixes(r, k) for k in systems}
+    fixes["run"] = ( np.array([(t, e, n, p) for t, e, n, p in zip(np.round(r.fixes["gps_tow"], 3), r.fixes["ecef"],
                                                                 r.fixes["n_sats"], r.fixes["pdop"])],
-                             dtype=[("gps_tow", "f8"), ("ecef", "f8", (3,)), ("n_sats", "i4"), ("pdop", "f8")])}
+                             dtype=[("gps_tow", "f8"), ("ecef", "f8", (3,)), ("n_sats", "i4"), ("pdop", "f8")]))
     common = common_epochs(*fixes.values())
     return {k: score_enu(fx, truth_ecef, common) for k, fx in fixes.items()}, len(common)
 
 
-def _check(st, n_common, min_epochs, up_bound_m):
+def _check(st, n_common, min_epochs, up_bound_m, combined="GC"):
     assert n_common >= min_epochs
-    best = min(st["G"]["rms"], st["C"]["rms"])
-    assert st["G"]["sats"] >= 4 and st["C"]["sats"] >= 4
-    assert st["GC"]["sats"] == pytest.approx(st["G"]["sats"] + st["C"]["sats"], abs=0.5)    # all used
-    assert st["GC"]["pdop"] < min(st["G"]["pdop"], st["C"]["pdop"])
-    for k in ("GC", "run"):
+    singles = list(combined)
+    best = min(st[c]["rms"] for c in singles)
+    assert all(st[c]["sats"] >= 4 for c in singles)
+    assert st[combined]["sats"] == pytest.approx(sum(st[c]["sats"] for c in singles), abs=0.5)    # all used
+    assert st[combined]["pdop"] < min(st[c]["pdop"] for c in singles)
+    for k in (combined, "run"):
         assert st[k]["rms"] <= best * MARGIN, (k, st)
         assert abs(st[k]["enu"][2]) < up_bound_m, (k, st)
 
@@ -74,22 +78,41 @@ def test_combined_no_worse_than_better_system_own_simulator(tmp_path):
     _check(st, n, 50, 0.3)
 
 
+def _signalsim(tmp_path, tow, *args):
+    """(recording, its truth dict) made by scripts/tools/signalsim_gps_bds.py with SignalSim's IFdataGen
+    (GNSSRX_SIGNALSIM; the test skips without it), DURATION_S long from ``tow`` of GPS week 2190."""
+    exe = os.environ.get("GNSSRX_SIGNALSIM")
+    if not exe or not os.path.isfile(exe):
+        pytest.skip("SignalSim's IFdataGen not available (set GNSSRX_SIGNALSIM to the executable)")
+    from receiver.config import read_yaml
+    rec = tmp_path / "ss.bin"
+    subprocess.run([sys.executable, str(ROOT / "scripts/tools/signalsim_gps_bds.py"), str(rec), "--binary", exe,
+                    "--gps-nav", str(SHARED_DATA / "brdc0010.22n"), "--tow", str(tow), "--duration", str(DURATION_S),
+                    *args], check=True, capture_output=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    return rec, read_yaml(tmp_path / "ss.truth.yaml")
+
+
 @pytest.mark.slow
 @needs_shared
 def test_combined_no_worse_than_better_system_signalsim(tmp_path):
     """SignalSim's IFdataGen (an outside simulator, built locally; GNSSRX_SIGNALSIM): the recording and its
     mixed navigation file made by scripts/tools/signalsim_gps_bds.py (GPS from brdc0010.22n, our nominal
     BeiDou constellation with clock offsets and TGD1s), 16 s."""
-    exe = os.environ.get("GNSSRX_SIGNALSIM")
-    if not exe or not os.path.isfile(exe):
-        pytest.skip("SignalSim's IFdataGen not available (set GNSSRX_SIGNALSIM to the executable)")
-    from receiver.config import read_yaml
-    rec = tmp_path / "ss.bin"
     tow = 525626.0
-    subprocess.run([sys.executable, str(ROOT / "scripts/tools/signalsim_gps_bds.py"), str(rec), "--binary", exe,
-                    "--gps-nav", str(SHARED_DATA / "brdc0010.22n"), "--tow", str(tow), "--duration", str(DURATION_S)],
-                   check=True, capture_output=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
-    truth = read_yaml(tmp_path / "ss.truth.yaml")
+    rec, truth = _signalsim(tmp_path, tow)
     st, n = _run_and_resolve(rec, tmp_path / "ss.nav", 2190, tow, tmp_path, np.asarray(truth["truth"]["ecef_m"]),
                              float(truth["if_hz"]))
     _check(st, n, 50, 0.3)
+
+
+@pytest.mark.slow
+@needs_shared
+def test_three_systems_no_worse_than_the_best_one_signalsim(tmp_path):
+    """GPS + Galileo + BeiDou on SignalSim's IFdataGen (scripts/tools/signalsim_gps_bds.py --galileo: our
+    nominal Galileo constellation added, E1 BOC(1,1) data + pilot), Sydney, configs/gps_gal_bds_nav.yaml."""
+    tow = 547200.0
+    rec, truth = _signalsim(tmp_path, tow, "--galileo", "--lla", "-33.8688", "151.2093", "50", "--seed", "2")
+    st, n = _run_and_resolve(rec, tmp_path / "ss.nav", 2190, tow, tmp_path, np.asarray(truth["truth"]["ecef_m"]),
+                             float(truth["if_hz"]), config="configs/gps_gal_bds_nav.yaml",
+                             systems=("GEC", "G", "E", "C"))
+    _check(st, n, 50, 0.3, combined="GEC")
