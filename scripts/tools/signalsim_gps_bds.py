@@ -24,7 +24,8 @@ clock error; Galileo E1 as BOC(1,1) E1-B and E1-C (with CS25) at half the power 
     GNSSRX_SIGNALSIM=/path/to/IFdataGen python scripts/tools/signalsim_gps_bds.py /tmp/x/ssg.bin --galileo
     python scripts/tools/signalsim_gps_bds.py /tmp/x/ss.bin --no-run        # nav + config + truth only
     gnssrx run configs/gps_bds_nav.yaml --input /tmp/x/ss.bin -o /tmp/x/ss_gb.h5
-    gnssrx run configs/gps_gal_bds_nav.yaml --input /tmp/x/ssg.bin -o /tmp/x/ssg.h5 --set navigation.ephemeris=/tmp/x/ssg.nav \
+    gnssrx run configs/gps_gal_bds_nav.yaml --input /tmp/x/ssg.bin -o /tmp/x/ssg.h5 \
+        --set navigation.ephemeris=/tmp/x/ssg.nav \
         --set input.start_gps_week=2190 --set input.start_gps_tow_s=525600       # assisted (the mixed file)
 
 Build IFdataGen (C++20, CMake; its IFdataGen.cpp needs <algorithm> with recent GCC):
