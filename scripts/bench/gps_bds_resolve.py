@@ -16,10 +16,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 import numpy as np
 
 from receiver.config import read_yaml
+from receiver.errors import UserError
 from receiver.evaluate.systems import common_epochs, nav_settings, resolve_fixes, score_enu
 from receiver.navigation.config import default
 from receiver.runfile.reader import load_run
@@ -85,4 +87,8 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except (UserError, FileNotFoundError) as exc:     # a missing run file or truth: one line, exit 2
+        print(f"gps_bds_resolve: {exc}", file=sys.stderr)
+        sys.exit(2)
