@@ -261,7 +261,9 @@ class RunWriter:
         rows = np.concatenate(buf) if len(buf) > 1 else buf[0]
         n = len(rows) if final else len(rows) // self.chunk_rows * self.chunk_rows
         if n < len(rows):
-            buffers[key] = [rows[n:]]
+            # a copy: a view would keep the whole concatenation (every row written now) alive until the
+            # next take -- up to a chunk of rows per channel held twice
+            buffers[key] = [rows[n:].copy()]
         return rows[:n] if n else None
 
     def _write_stats(self):
