@@ -1,6 +1,6 @@
 """Provenance attributes of a run file: package versions, the git commit of the code when it runs from a
-git checkout, and the input file's size and a content hash of its first MB (identifies the recording
-without reading all of it)."""
+git checkout, the CPU the compiled kernels were built for, and the input file's size and a content hash of
+its first MB (identifies the recording without reading all of it)."""
 from __future__ import annotations
 
 import hashlib
@@ -40,6 +40,33 @@ def git_commit() -> str:
     return r.stdout.strip() + ("-dirty" if dirty else "")
 
 
+def cpu_target() -> str:
+    """The CPU the compiled (numba) kernels target and the machine's CPU model, e.g. ``"znver3 (host); AMD
+    EPYC"`` or ``"generic (NUMBA_CPU_NAME); ..."``.  numba compiles for the host CPU (its vector widths, fused
+    multiply-add, ...), so the same code, configuration and recording can give results that differ in
+    their last digits on another machine (docs/reference/runfile-format.md); this tells two run files'
+    machines apart.  '' when neither can be read."""
+    name = os.environ.get("NUMBA_CPU_NAME", "").strip()
+    if name:
+        name += " (NUMBA_CPU_NAME)"
+    else:
+        try:
+            import llvmlite.binding as llvm
+            name = f"{llvm.get_host_cpu_name()} (host)"
+        except Exception:  # noqa: BLE001 - provenance must not stop a run
+            name = ""
+    model = ""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.lower().startswith("model name"):
+                    model = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return "; ".join(p for p in (name, model) if p)
+
+
 def input_provenance(path) -> dict:
     """Size (bytes) and SHA-256 of the first MB of the input file, as run-file attributes."""
     with open(path, "rb") as fh:
@@ -49,8 +76,9 @@ def input_provenance(path) -> dict:
 
 
 def provenance(input_path) -> dict:
-    """All provenance attributes of a run: package versions, git commit, input size and hash."""
-    return {"package_versions": package_versions(), "git_commit": git_commit(), **input_provenance(input_path)}
+    """All provenance attributes of a run: package versions, git commit, CPU target, input size and hash."""
+    return {"package_versions": package_versions(), "git_commit": git_commit(), "cpu": cpu_target(),
+            **input_provenance(input_path)}
 
 
 def provenance_async():
@@ -63,6 +91,7 @@ def provenance_async():
         try:
             out["package_versions"] = package_versions()
             out["git_commit"] = git_commit()
+            out["cpu"] = cpu_target()
         except BaseException as exc:  # noqa: BLE001 - raised again in the caller
             out["error"] = exc
 
@@ -74,5 +103,5 @@ def provenance_async():
         if "error" in out:
             raise out["error"]
         return {"package_versions": out["package_versions"], "git_commit": out["git_commit"],
-                **input_provenance(input_path)}
+                "cpu": out["cpu"], **input_provenance(input_path)}
     return result

@@ -191,6 +191,19 @@ def test_rows_kept_after_a_flush_do_not_hold_the_written_rows(tmp_path):
         assert np.array_equal(f["channels/G07/sample_index"][:], r["sample_index"])
 
 
+def test_cpu_attribute_names_the_compiled_kernels_target(monkeypatch):
+    """The run file's ``cpu`` attribute names the CPU numba compiles for: NUMBA_CPU_NAME when set, else the
+    host CPU as LLVM names it (the kernels' instructions, hence the last digits of results, depend on it)."""
+    import llvmlite.binding as llvm
+
+    from receiver.runfile.provenance import cpu_target, provenance
+    monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
+    assert cpu_target().startswith("generic (NUMBA_CPU_NAME)")
+    monkeypatch.delenv("NUMBA_CPU_NAME")
+    assert cpu_target().startswith(f"{llvm.get_host_cpu_name()} (host)")
+    assert provenance(__file__)["cpu"] == cpu_target()
+
+
 def test_provenance_computed_on_a_thread_is_the_same(tmp_path):
     """The pipeline starts the provenance attributes (package versions, git commit: subprocesses) on a
     thread while the input opens: the same attributes as computed in line."""
