@@ -25,6 +25,7 @@ import numpy as np
 from ..gnss.geodesy import ecef2lla
 from ..runfile.record import FIX_DTYPE, OBS_DTYPE, fix_row
 from ..gnss.signals import C_LIGHT
+from . import assisted_search
 from .channel import BIT_MS, ChannelNav, common_slope
 from .ephemeris_store import EphemerisStore
 from .config import default
@@ -245,7 +246,8 @@ class NavigationEngine(EphemerisStore):
         """Give transmit times to bit-synchronised channels without frame sync (assisted mode).
 
         First fix: the 20 ms ambiguity of every channel is fixed jointly by trying common travel times
-        of 60..95 ms at the approximate receiver time and keeping the assignment whose least-squares fix
+        of 60..95 ms at the approximate receiver time, then travel times predicted from a rough position
+        (receiver.navigation.assisted_search), and keeping the assignment whose least-squares fix
         has the smallest residuals and a clock bias within 10 ms.  Later channels: the ambiguity is taken
         from the current fix.  Frame sync, when it comes, replaces (and checks) the assisted value."""
         from ..gnss.ephemeris import select
@@ -276,13 +278,10 @@ class NavigationEngine(EphemerisStore):
             if m is not None and e is not None:
                 cand.append((ch, e, m[0]))
         deep = {ch.prn for ch, e, _ in cand if getattr(e, "sqrt_a", 0.0) > DEEP_ORBIT_SQRT_A}
-        grid = [(c, c) for c in np.arange(0.060, 0.0955, 0.001)]
-        if deep:
-            grid = [(c, c2) for c in np.arange(0.060, 0.0955, 0.001) for c2 in np.arange(0.115, 0.1405, 0.001)]
-        for c, c2 in grid:
+        for guess in assisted_search.guesses(cand, T, deep):      # (common, then predicted travel times)
             offs, obs = {}, []
             for ch, _, txrel in cand:
-                off = ch.offset_nearest(T - (c2 if ch.prn in deep else c), txrel)
+                off = ch.offset_nearest(guess[ch.prn], txrel)
                 offs[ch.prn] = off
                 obs.append(Observation(prn=ch.prn, tx_tow=off + txrel, cn0_dbhz=ch.cn0, system=ch.signal.system))
             key = tuple(offs.items())
@@ -297,14 +296,16 @@ class NavigationEngine(EphemerisStore):
             if fix is None or fix.rejected_prns or fix.n_sats < 5 or \
                     abs(fix.clock_bias_m) > 0.01 * C_LIGHT:
                 continue
-            if deep and fix.n_sats < len(obs):
-                continue       # (a fix without the deep group cannot judge its travel time: e.g. all masked)
+            # the most satellites, then the smallest residuals: a wrong assignment puts the fix where few
+            # satellites are above the elevation mask, and the few left fit any position
             rms = float(np.sqrt(np.mean(np.square(fix.residuals_m))))
-            if best is None or rms < best[0]:
-                best = (rms, offs)
+            if best is None or (fix.n_sats, -rms) > (len(best[2]), -best[0]):
+                best = (rms, offs, fix.prns)
         if best is not None and best[0] < 100.0:
-            for prn, off in best[1].items():
-                self.channels[prn].set_assisted_offset(off)
+            # only the satellites the fix used (and so checked); the others (e.g. below the elevation mask)
+            # take theirs from the fix at the next epoch (_resolve_from_fix)
+            for prn in best[2]:
+                self.channels[prn].set_assisted_offset(best[1][prn])
 
     def _resolve_from_fix(self, s: float, pending=None):
         """Transmit times of bit-synchronised channels without one, from the range predicted with the last
