@@ -71,8 +71,9 @@ def no_satellite_lines(cfg, reader=None) -> list[str]:
     return out
 
 
-def no_fix_lines(summary) -> list[str]:
-    """Why a run has no fix: what was acquired, tracked, and how long the file is."""
+def no_fix_lines(summary, ephemeris_file: str | None = None) -> list[str]:
+    """Why a run has no fix: what was acquired, tracked, and how long the file is; ``ephemeris_file``: the
+    run's navigation.ephemeris (assisted mode)."""
     if summary.n_fixes:
         return []
     try:
@@ -90,7 +91,11 @@ def no_fix_lines(summary) -> list[str]:
     what = (f"why no fix      acquired {len(det)} satellite{'s' * (len(det) != 1)} ({' '.join(map(str, det))}), "
             f"{len(chans)} channel{'s' * (len(chans) != 1)} opened, {len(locked)} locked")
     lines.append(what)
-    if dur < EPHEMERIS_S and not info.get("ephemerides"):
+    if ephemeris_file and len(locked) >= 5:
+        lines.append(f"                assisted ({ephemeris_file}): no set of transmit times fitted one position; "
+                     f"check that input.start_gps_week / start_gps_tow_s give the first sample's GPS time "
+                     f"to within 10 ms and that the file's ephemerides are of that day")
+    elif dur < EPHEMERIS_S and not info.get("ephemerides"):
         lines.append(f"                the file holds {dur:.3g} s: a broadcast ephemeris needs ~{EPHEMERIS_S:.0f} s of "
                      f"tracking (and a channel needs tracking.pull_in_ms before it counts as tracked); give "
                      f"navigation.ephemeris (a RINEX navigation file of the day) or use `gnssrx snapshot`")
@@ -107,7 +112,7 @@ def explain_no_fix(cfg, summary) -> list[str]:
     """Lines for the end of a run without a fix (nothing when it has fixes)."""
     if summary.n_fixes:
         return []
-    lines = no_fix_lines(summary)
+    lines = no_fix_lines(summary, getattr(getattr(cfg, "navigation", None), "ephemeris", None))
     if lines:
         return lines
     try:

@@ -38,3 +38,12 @@ def test_assisted_first_fix_with_low_gps_and_beidou_satellites(tmp_path):
     assert t_fix.size >= 10 and t_fix[0] <= 1.5, t_fix[:3]
     assert np.sqrt(np.mean(err ** 2)) < 2.0 and err.max() < 5.0, err
     assert sats.max() >= 20            # GPS and BeiDou MEO and GEO / IGSO satellites in the fixes
+    # the run's end explains an assisted run without a fix by its time and ephemeris file, not by the
+    # ephemeris it was given (the same run file, as if it had none)
+    from types import SimpleNamespace
+
+    from receiver.probe.hints import no_fix_lines
+    why = no_fix_lines(SimpleNamespace(n_fixes=0, output=str(out), duration_s=3.0), str(tmp_path / "syd.nav"))
+    assert why[0].startswith("why no fix") and "start_gps_tow_s" in why[1] and "navigation.ephemeris (a" not in why[1]
+    plain = no_fix_lines(SimpleNamespace(n_fixes=0, output=str(out), duration_s=3.0))
+    assert "give navigation.ephemeris" in " ".join(plain)
