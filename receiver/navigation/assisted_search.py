@@ -2,7 +2,7 @@
 
 In assisted mode a bit-synchronised channel knows its transmit time modulo its bit period (20 ms for GPS
 LNAV and BeiDou D1) but not which bit it is in; the first fix tries sets of guesses and keeps the one
-whose fix fits best.  Two kinds of guesses:
+whose fix uses the most satellites, then fits best.  Two kinds of guesses:
 
 * one common travel time of 60-95 ms for every MEO satellite (and a second of 115-140 ms for BeiDou GEO /
   IGSO satellites): right for every satellite only when their travel times lie within +/-10 ms of it, i.e.
@@ -13,7 +13,8 @@ whose fix fits best.  Two kinds of guesses:
   zenith) -- plus a common offset of -15..+15 ms: right while that position is within ~2800 km of the
   receiver (its error moves the satellites' travel times apart by at most 2 |error| / c).
 
-The common travel times are tried first: where they find the assignment, the second kind adds nothing.
+The common travel times are tried first; a predicted guess replaces their best fix only with one that uses more
+satellites or, with as many, fits better.
 """
 from __future__ import annotations
 

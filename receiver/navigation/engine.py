@@ -247,9 +247,10 @@ class NavigationEngine(EphemerisStore):
 
         First fix: the 20 ms ambiguity of every channel is fixed jointly by trying common travel times
         of 60..95 ms at the approximate receiver time, then travel times predicted from a rough position
-        (receiver.navigation.assisted_search), and keeping the assignment whose least-squares fix
-        has the smallest residuals and a clock bias within 10 ms.  Later channels: the ambiguity is taken
-        from the current fix.  Frame sync, when it comes, replaces (and checks) the assisted value."""
+        (receiver.navigation.assisted_search), and keeping the assignment whose least-squares fix (clock bias
+        within 10 ms, no satellite rejected) uses the most satellites, then has the smallest residuals; the
+        satellites it used get their offsets.  Later channels: the ambiguity is taken from the current fix.
+        Frame sync, when it comes, replaces (and checks) the assisted value."""
         from ..gnss.ephemeris import select
         pending = [ch for ch in self.channels.values()
                    if not ch.has_time and ch.bit_offset >= 0 and ch.locked
