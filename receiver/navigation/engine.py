@@ -92,6 +92,7 @@ class NavigationEngine(EphemerisStore):
         self.tow0 = None            # rx_tow at sample s0
         self.s0 = None
         self.last_fix = None        # (sample, Fix)
+        self._first_fix_search = assisted_search.Retries()
         self.epoch = 0
         self.x0 = None
         self.aid_cfg = getattr(nav_cfg, "aiding", None)
@@ -260,7 +261,7 @@ class NavigationEngine(EphemerisStore):
         if self.last_fix is not None:
             self._resolve_from_fix(s, pending)
             return
-        if len(pending) < 5:
+        if len(pending) < 5 or not self._first_fix_search.due(s / self.fs):
             return
         T = self.approx_tow0 + s / self.fs
         week = self._week()
@@ -302,6 +303,7 @@ class NavigationEngine(EphemerisStore):
             rms = float(np.sqrt(np.mean(np.square(fix.residuals_m))))
             if best is None or (fix.n_sats, -rms) > (len(best[2]), -best[0]):
                 best = (rms, offs, fix.prns)
+        self._first_fix_search.done(s / self.fs, best is not None and best[0] < 100.0)
         if best is not None and best[0] < 100.0:
             # only the satellites the fix used (and so checked); the others (e.g. below the elevation mask)
             # take theirs from the fix at the next epoch (_resolve_from_fix)

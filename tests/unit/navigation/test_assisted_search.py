@@ -58,3 +58,19 @@ def test_predicted_travel_times_resolve_what_a_common_one_cannot(tmp_path, place
         assert not common, f"{place}: travel times span {1e3 * np.ptp(tau):.1f} ms, yet a common one fits"
     else:
         assert common, f"{place}: travel times span {1e3 * np.ptp(tau):.1f} ms and no common one fits"
+
+
+def test_a_failing_first_fix_search_is_retried_every_epoch_then_once_a_second():
+    from receiver.navigation.assisted_search import Retries
+    r = Retries(eager_s=5.0, every_s=1.0)
+    tried = []
+    for k in range(130):                       # 10-Hz navigation epochs from 1.3 s, every search failing
+        t = 1.3 + 0.1 * k
+        if r.due(t):
+            tried.append(round(t, 1))
+            r.done(t, found=False)
+    assert tried[:51] == [round(1.3 + 0.1 * k, 1) for k in range(51)]        # 1.3 .. 6.3 s: every epoch
+    assert all(abs(b - a - 1.0) < 0.11 for a, b in zip(tried[50:], tried[51:]))   # then about once a second
+    assert len(tried) == 51 + 7
+    r.done(20.0, found=True)
+    assert r.due(20.1)
