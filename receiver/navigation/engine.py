@@ -303,8 +303,9 @@ class NavigationEngine(EphemerisStore):
             rms = float(np.sqrt(np.mean(np.square(fix.residuals_m))))
             if best is None or (fix.n_sats, -rms) > (len(best[2]), -best[0]):
                 best = (rms, offs, fix.prns)
-        self._first_fix_search.done(s / self.fs, best is not None and best[0] < 100.0)
-        if best is not None and best[0] < 100.0:
+        found = best is not None and best[0] < 100.0
+        self._first_fix_search.done(s / self.fs, found)
+        if found:
             # only the satellites the fix used (and so checked); the others (e.g. below the elevation mask)
             # take theirs from the fix at the next epoch (_resolve_from_fix)
             for prn in best[2]:
